@@ -1,0 +1,1 @@
+//! Eclipse by the Earth (in progress).

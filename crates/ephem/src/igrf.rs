@@ -1,0 +1,1 @@
+//! IGRF-14 synthesis (in progress).
