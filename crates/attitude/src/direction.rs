@@ -1,0 +1,95 @@
+//! Photodiode normals from azimuth and elevation (paper Eq. 16) and their partials.
+
+use nalgebra::Vector3;
+
+/// Unit normal of Eq. (16): `n = [cos(el) cos(az), cos(el) sin(az), sin(el)]^T`.
+pub fn normal_from_az_el(azimuth_rad: f64, elevation_rad: f64) -> Vector3<f64> {
+    let (sa, ca) = azimuth_rad.sin_cos();
+    let (se, ce) = elevation_rad.sin_cos();
+    Vector3::new(ce * ca, ce * sa, se)
+}
+
+/// Azimuth and elevation (radians) of a direction; the inverse of Eq. (16).
+/// At the poles (`|el| = 90 deg`) the azimuth is undefined and 0 is returned.
+pub fn az_el_from_normal(n: &Vector3<f64>) -> (f64, f64) {
+    let horizontal = n.x.hypot(n.y);
+    let elevation = n.z.atan2(horizontal);
+    let azimuth = if horizontal > 0.0 {
+        n.y.atan2(n.x)
+    } else {
+        0.0
+    };
+    (azimuth, elevation)
+}
+
+/// Partial derivatives of Eq. (16): `(dn/d az, dn/d el)`, the vectors of Eqs. (23) and (24).
+///
+/// The paper prints the x component of dn/d el as `-sin(el) cos(az)` and the y component as
+/// `sin(el) sin(az)`; differentiating Eq. (16) gives `-sin(el) sin(az)` for y. This function
+/// returns the derivative itself; a finite-difference test pins it.
+pub fn normal_partials(azimuth_rad: f64, elevation_rad: f64) -> (Vector3<f64>, Vector3<f64>) {
+    let (sa, ca) = azimuth_rad.sin_cos();
+    let (se, ce) = elevation_rad.sin_cos();
+    (
+        Vector3::new(-ce * sa, ce * ca, 0.0),
+        Vector3::new(-se * ca, -se * sa, ce),
+    )
+}
+
+/// The one direction where [`tangent_basis`] is discontinuous: the cube diagonal
+/// `-(1, 1, 1)/sqrt(3)`. A continuous tangent frame on the whole sphere cannot exist
+/// (hairy-ball theorem), so the break is put where a box-shaped spacecraft mounts no
+/// sensor: 54.7 deg from every face normal, and 35 deg from the nearest intended RAX-2
+/// normal (az -162 deg, el -10 deg). The poles of Eq. (16), `n = ±z`, are regular.
+pub const TANGENT_BASIS_SINGULAR_DIRECTION: Vector3<f64> =
+    Vector3::new(-FRAC_1_SQRT_3, -FRAC_1_SQRT_3, -FRAC_1_SQRT_3);
+
+/// `1/sqrt(3)` (std's constant of that name is not stable yet).
+const FRAC_1_SQRT_3: f64 = 0.577_350_269_189_625_8;
+
+/// Within this value of `1 + c·n` (about 1.4e-5 rad of the singular direction) the
+/// rotation formula has lost too many digits and the fixed fallback basis is used.
+const SINGULAR_GUARD: f64 = 1e-10;
+
+/// Two unit vectors `(e1, e2)` orthogonal to the unit normal `n` and to each other, with
+/// `(e1, e2, n)` right-handed.
+///
+/// A fixed frame `(u0, v0, c)` with `c = (1, 1, 1)/sqrt(3)` is carried to `n` by the
+/// smallest rotation taking `c` to `n` (Rodrigues, `k = c x n`:
+/// `R = I + [k x] + [k x]^2 / (1 + c·n)`), then re-orthonormalised against `n`. The
+/// result is smooth everywhere except at [`TANGENT_BASIS_SINGULAR_DIRECTION`] `= -c`,
+/// where a fixed basis is returned (the limit there depends on the approach
+/// direction). Well-defined and smooth at both poles of Eq. (16), unlike the
+/// azimuth/elevation partials of Eqs. (23)-(24), which vanish or turn there.
+pub fn tangent_basis(n: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    let c = -TANGENT_BASIS_SINGULAR_DIRECTION;
+    let u0 = Vector3::new(1.0, -1.0, 0.0) / 2f64.sqrt();
+    let one_plus_cos = 1.0 + c.dot(n);
+    let e1 = if one_plus_cos > SINGULAR_GUARD {
+        let k = c.cross(n);
+        u0 + k.cross(&u0) + k.cross(&k.cross(&u0)) / one_plus_cos
+    } else {
+        // The half-turn about u0 also takes c to -c and keeps u0.
+        u0
+    };
+    let e1 = (e1 - n * n.dot(&e1)).normalize();
+    let e2 = n.cross(&e1);
+    (e1, e2)
+}
+
+/// Rotates the unit normal `n` by the tangent correction `d1 e1 + d2 e2` (radians,
+/// `(e1, e2)` from [`tangent_basis`]): along the great circle through `n` in that
+/// direction by the angle `theta = |d1 e1 + d2 e2|`,
+/// `n' = cos(theta) n + sin(theta)/theta (d1 e1 + d2 e2)`. Exact for any size, unit
+/// output, and `d n'/d d1 = e1`, `d n'/d d2 = e2` at zero.
+pub fn rotate_normal(n: &Vector3<f64>, d1: f64, d2: f64) -> Vector3<f64> {
+    let (e1, e2) = tangent_basis(n);
+    let t = e1 * d1 + e2 * d2;
+    let theta = t.norm();
+    let sinc = if theta > 0.0 {
+        theta.sin() / theta
+    } else {
+        1.0
+    };
+    (n * theta.cos() + t * sinc).normalize()
+}
