@@ -39,6 +39,9 @@ mod tests {
     fn one_changed_digit_fails() {
         let bad = L1.replace("37853U", "37854U");
         assert!(!checksum_ok(&bad));
-        assert!(!checksum_ok(&L2[..68]), "a line without column 69 has no checksum");
+        assert!(
+            !checksum_ok(&L2[..68]),
+            "a line without column 69 has no checksum"
+        );
     }
 }
