@@ -15,6 +15,7 @@
 //! | [`igrf`] | IGRF-14 field synthesis, returned in GCRF |
 //! | [`eclipse`] | illuminated fraction of the solar disc (conical shadow, penumbra) |
 //! | [`tle`] | TLE checksum arithmetic |
+//! | [`reference`] | [`ReferenceModel`]: position, Sun, field, eclipse and Earth rotation at one `t_s` |
 //!
 //! # Traits
 //! - [`OrbitSource`]: `state_gcrf(t) -> Result<OrbitState, OrbitError>` (position km and
@@ -83,11 +84,13 @@ pub mod eclipse;
 pub mod frames;
 pub mod igrf;
 pub mod orbit;
+pub mod reference;
 pub mod sun;
 pub mod time;
 pub mod tle;
 
 pub use columns::PositionColumns;
 pub use orbit::{OrbitError, OrbitSource, OrbitState, TemeState, TleLine, TleOrbit};
+pub use reference::{Reference, ReferenceError, ReferenceModel};
 pub use sun::{LowPrecisionSun, SunEphemeris};
 pub use time::TimeError;
