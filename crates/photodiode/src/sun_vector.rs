@@ -1,0 +1,167 @@
+//! The Sun vector measured by the photodiodes: least squares over the illuminated ones.
+//!
+//! Each illuminated photodiode gives one equation `(I_i - b_i)/C_i = n_i^T s`, with `b_i` a
+//! known additive part (albedo, dark offset) or 0. Stacking the `m` equations as `H s = y`
+//! (`H` has the unit normals as rows) the estimate is `s = (H^T H)^-1 H^T y`, solved by
+//! Cholesky on the 3x3 normal matrix. `s` is not normalised: with a perfect model and
+//! calibration `|s| = 1`, so `|s|` is the quality metric of the paper's Figs. 8-10.
+//!
+//! A photodiode counts as illuminated when `I_i - b_i > threshold` (default three times its
+//! `noise_v`, so noise alone rarely lights a dark sensor). The geometry is observable when at
+//! least 3 are illuminated and the smallest singular value of `H`, `sqrt(lambda_min(H^T H))`,
+//! is at least `min_singular_value` (default 0.1): a relative output error `e` then moves `s`
+//! by at most about `e / 0.1`, ten times the per-sensor error; coplanar normals give
+//! `sigma_min` = 0 up to rounding.
+
+use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+
+use crate::{Photodiode, PhotodiodeError};
+
+/// When a photodiode counts as illuminated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LitThreshold {
+    /// Corrected output above this many times the photodiode's `noise_v`.
+    NoiseSigmas(f64),
+    /// Corrected output above this many volts.
+    Volts(f64),
+}
+
+/// Options of [`estimate_sun_vector`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SunVectorOptions {
+    /// Illumination threshold; default `NoiseSigmas(3.0)`.
+    pub threshold: LitThreshold,
+    /// Smallest acceptable singular value of the stacked unit normals; default 0.1.
+    pub min_singular_value: f64,
+}
+
+impl Default for SunVectorOptions {
+    fn default() -> Self {
+        SunVectorOptions {
+            threshold: LitThreshold::NoiseSigmas(3.0),
+            min_singular_value: 0.1,
+        }
+    }
+}
+
+/// An observable Sun vector.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SunVector {
+    /// Least-squares Sun vector, body frame, not normalised.
+    pub vector_body: Vector3<f64>,
+    /// Its unit direction.
+    pub direction_body: Vector3<f64>,
+    /// Number of illuminated photodiodes used.
+    pub used: usize,
+    /// Smallest singular value of the stacked normals.
+    pub min_singular_value: f64,
+}
+
+/// Why the Sun vector is not observable.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum NotObservableReason {
+    /// Fewer than 3 photodiodes illuminated.
+    TooFewLit,
+    /// The illuminated normals are (nearly) coplanar.
+    DegenerateGeometry {
+        /// Smallest singular value found.
+        min_singular_value: f64,
+    },
+    /// The solution is zero or not finite.
+    NoDirection,
+}
+
+/// Result of [`estimate_sun_vector`]: a vector, or an explicit "not observable".
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SunEstimate {
+    /// Enough well-spread illuminated photodiodes.
+    Observable(SunVector),
+    /// No estimate.
+    NotObservable {
+        /// Number of illuminated photodiodes.
+        used: usize,
+        /// Why.
+        reason: NotObservableReason,
+    },
+}
+
+/// Least-squares Sun vector from photodiode outputs `outputs_v` (one per photodiode), after
+/// subtracting `known_v` (albedo, offsets; one per photodiode) when given.
+pub fn estimate_sun_vector(
+    photodiodes: &[Photodiode],
+    outputs_v: &[f64],
+    known_v: Option<&[f64]>,
+    options: &SunVectorOptions,
+) -> Result<SunEstimate, PhotodiodeError> {
+    check_len("outputs_v", photodiodes.len(), outputs_v.len())?;
+    if let Some(known) = known_v {
+        check_len("known_v", photodiodes.len(), known.len())?;
+    }
+    let mut normal_matrix = Matrix3::zeros();
+    let mut rhs = Vector3::zeros();
+    let mut used = 0;
+    for (i, (pd, &output)) in photodiodes.iter().zip(outputs_v).enumerate() {
+        if !(pd.scale_v > 0.0 && pd.scale_v.is_finite()) {
+            return Err(PhotodiodeError::BadValue {
+                what: format!("photodiode {} scale_v", i + 1),
+                value: pd.scale_v,
+                rule: "scale factor must be positive and finite",
+            });
+        }
+        let direct = output - known_v.map_or(0.0, |k| k[i]);
+        let threshold = match options.threshold {
+            LitThreshold::NoiseSigmas(k) => k * pd.noise_v,
+            LitThreshold::Volts(v) => v,
+        };
+        if direct > threshold {
+            normal_matrix += pd.n_body * pd.n_body.transpose();
+            rhs += pd.n_body * (direct / pd.scale_v);
+            used += 1;
+        }
+    }
+    if used < 3 {
+        return Ok(SunEstimate::NotObservable {
+            used,
+            reason: NotObservableReason::TooFewLit,
+        });
+    }
+    let min_singular_value = SymmetricEigen::new(normal_matrix)
+        .eigenvalues
+        .min()
+        .max(0.0)
+        .sqrt();
+    if min_singular_value < options.min_singular_value {
+        return Ok(SunEstimate::NotObservable {
+            used,
+            reason: NotObservableReason::DegenerateGeometry { min_singular_value },
+        });
+    }
+    let solution = normal_matrix.cholesky().map(|c| c.solve(&rhs));
+    let Some((vector_body, direction_body)) = solution
+        .filter(|s| s.iter().all(|x| x.is_finite()))
+        .and_then(|s| s.try_normalize(0.0).map(|d| (s, d)))
+    else {
+        return Ok(SunEstimate::NotObservable {
+            used,
+            reason: NotObservableReason::NoDirection,
+        });
+    };
+    Ok(SunEstimate::Observable(SunVector {
+        vector_body,
+        direction_body,
+        used,
+        min_singular_value,
+    }))
+}
+
+fn check_len(what: &'static str, expected: usize, found: usize) -> Result<(), PhotodiodeError> {
+    if expected == found {
+        Ok(())
+    } else {
+        Err(PhotodiodeError::LengthMismatch {
+            what,
+            expected,
+            found,
+        })
+    }
+}
