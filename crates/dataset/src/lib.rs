@@ -1,1 +1,85 @@
-//! placeholder, replaced by the crate's author
+//! The one dataset reader and writer of pdcal.
+//!
+//! A *dataset* is a directory (`dataset-format.md`, format version 1):
+//!
+//! | file | type | required |
+//! |---|---|---|
+//! | `dataset.ron` | [`DatasetMeta`]: epoch, orbit source, nominal photodiode mounts, noise hints | yes |
+//! | `telemetry.csv` | [`Telemetry`]: t, gyro, magnetometer, `pdNN_V`, positions | yes |
+//! | `truth.csv` | [`TruthSeries`]: attitude, rates, bias, sun, eclipse, position, field | simulators |
+//! | `truth.ron` | [`TruthConstants`]: true photodiode parameters and the [`Effect`]s that were on | simulators |
+//!
+//! Every command reads through [`read_dataset`] (or its pieces [`read_meta`],
+//! [`read_telemetry`], [`read_truth`]) and every writer goes through [`write_dataset`], so
+//! the contract is enforced in one place. `calibrate` and `diagnose` call [`read_meta`] and
+//! [`read_telemetry`] only; the truth is for evaluation.
+//!
+//! # Architecture invariant
+//! This is the only library crate that touches files. The estimation, model and simulation
+//! crates take and return the in-memory types defined here; only this crate, the `pdcal`
+//! binary and xtask do I/O.
+//!
+//! # Reading
+//! Strict: unknown RON fields and CSV columns are errors, every number must be finite,
+//! `t_s` strictly increasing, the `pdNN_V` columns must match `photodiodes` in number and
+//! name, `r_*_km` columns appear exactly with `orbit: PositionColumns`, and TLE checksums
+//! must hold. CSV column order is free and blanks around cells are ignored; an empty cell
+//! means "not sampled". Every error is a [`DatasetError`] naming file, line, column (with its
+//! header or RON field path) and the offending value, displayed as
+//! `telemetry.csv:12:4 (pd03_V): "abc" is not a number`. No input makes the reader panic.
+//!
+//! # Writing
+//! [`write_dataset`] renders all files in memory, re-reads them with the reader (nothing is
+//! written that cannot be read back), then writes into a temporary sibling directory and
+//! renames it into place. Floats are written in Rust's shortest round-trip form, so
+//! `read(write(x)) == x` bit for bit; output is deterministic (fixed column order, no maps).
+//!
+//! # Units and names
+//! Names carry units as in the files (`t_s`, `gyro_rad_s`, `mag_nt` for `mag_*_nT`,
+//! `pd_v` for `pdNN_V`, `r_gcrf_km`); serde renames bridge to the file spelling
+//! (`scale_V`, `mag_nT`, `photodiode_V`). Angles stay in degrees here: this is the I/O edge,
+//! and consumers convert once.
+//!
+//! # Conventions
+//! Quaternions in truth.csv are scalar last `[q_x, q_y, q_z, q_w]`, body relative to GCRF,
+//! `v_B = A(q) v_I` (Markley & Crassidis). Photodiode normals from azimuth/elevation follow
+//! paper Eq. (16): `n = [cos(el)cos(az), cos(el)sin(az), sin(el)]`.
+//!
+//! # Hand-written parts
+//! The CSV grammar is the `csv` crate and RON is `ron`; only the column semantics are
+//! hand-written. The ISO 8601 epoch is parsed by hand into
+//! `hifitime::Epoch::maybe_from_gregorian_utc` because hifitime's string parser accepts other
+//! time scales and can panic on some malformed text. The temporary output directory is
+//! hand-made because `tempfile` creates it with mode 0700.
+
+mod effect;
+mod error;
+mod files;
+mod meta;
+mod ron_text;
+mod table;
+mod telemetry;
+mod truth;
+
+pub use effect::Effect;
+pub use error::{DatasetError, ErrorKind};
+pub use files::{
+    Dataset, read_dataset, read_meta, read_telemetry, read_truth, render_dataset, write_dataset,
+};
+pub use meta::{
+    DatasetMeta, EpochUtc, FORMAT_VERSION, NoiseHints, NominalMount, OrbitSpec, meta_from_str,
+};
+pub use telemetry::{Telemetry, columns, photodiode_column, telemetry_from_str};
+pub use truth::{
+    TruePd, TruthConstants, TruthSeries, truth_columns, truth_constants_from_str,
+    truth_series_from_str,
+};
+
+/// File name of the metadata.
+pub const DATASET_RON: &str = "dataset.ron";
+/// File name of the measured time series.
+pub const TELEMETRY_CSV: &str = "telemetry.csv";
+/// File name of the truth time series.
+pub const TRUTH_CSV: &str = "truth.csv";
+/// File name of the truth constants.
+pub const TRUTH_RON: &str = "truth.ron";

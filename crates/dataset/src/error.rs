@@ -1,0 +1,339 @@
+//! The one error type of the crate: where in which file, and what is wrong there.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// A dataset that cannot be read or written, with the place of the fault.
+///
+/// Display follows the editor convention `FILE:LINE:COLUMN (NAME): what`, for example
+/// `telemetry.csv:12:4 (pd03_V): "abc" is not a number`; parts that are unknown are left out
+/// (`truth.ron (photodiodes[2].scale_V): ...`, `dataset.ron: file is empty`).
+///
+/// Boxed so that `Result<T, DatasetError>` stays one pointer wide on the happy path.
+#[derive(Debug)]
+pub struct DatasetError(Box<Inner>);
+
+#[derive(Debug)]
+struct Inner {
+    file: PathBuf,
+    line: Option<usize>,
+    column: Option<usize>,
+    field: Option<String>,
+    kind: ErrorKind,
+}
+
+/// What is wrong with a dataset; [`DatasetError`] adds where.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ErrorKind {
+    /// The operating system refused (missing file, permissions, full disk).
+    #[error("{action}: {source}")]
+    Io {
+        /// What was attempted (`cannot read`, `cannot rename ... to ...`).
+        action: String,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The bytes are not UTF-8 text.
+    #[error("not UTF-8 text")]
+    NotUtf8,
+    /// The file has no content (only whitespace at most).
+    #[error("file is empty")]
+    Empty,
+    /// A CSV file has a header row but no data rows.
+    #[error("no data rows after the header")]
+    NoRows,
+    /// The first CSV row looks like data, not column names.
+    #[error("missing header row: the first row must name the columns, found {value:?}")]
+    MissingHeader {
+        /// The first cell of the first row.
+        value: String,
+    },
+    /// A RON syntax or type error (wrong type, bad value, unclosed bracket, ...).
+    #[error("{message}")]
+    Ron {
+        /// ron's description.
+        message: String,
+    },
+    /// A RON field that the format does not define.
+    #[error("unknown field `{name}`, expected one of {expected}")]
+    UnknownField {
+        /// The field found.
+        name: String,
+        /// The fields allowed there.
+        expected: String,
+    },
+    /// A required RON field is absent.
+    #[error("missing field `{name}`")]
+    MissingField {
+        /// The field that is required.
+        name: String,
+    },
+    /// `format_version` is not one this reader knows.
+    #[error("format_version {found} is not supported (this reader knows {known})")]
+    UnsupportedVersion {
+        /// The version in the file.
+        found: u32,
+        /// The version this crate reads and writes.
+        known: u32,
+    },
+    /// `epoch_utc` is not ISO 8601 UTC.
+    #[error("{value:?} is not an ISO 8601 UTC time like \"2011-11-04T18:29:45Z\": {reason}")]
+    BadEpoch {
+        /// The text found.
+        value: String,
+        /// Why it was refused.
+        reason: String,
+    },
+    /// A TLE line whose checksum (column 69) does not match its digits.
+    #[error(
+        "TLE line {line_number} checksum fails: column 69 holds {stated:?}, the digits give {computed}"
+    )]
+    BadTleChecksum {
+        /// 1 or 2.
+        line_number: u8,
+        /// The character in column 69, if any.
+        stated: Option<char>,
+        /// The modulo-10 checksum of columns 1-68.
+        computed: u32,
+    },
+    /// A TLE line that does not start with its line number.
+    #[error("TLE line {line_number} must start with \"{line_number} \"")]
+    BadTleLine {
+        /// 1 or 2.
+        line_number: u8,
+    },
+    /// A CSV column that the format does not define.
+    #[error("unknown column {name:?}{hint}")]
+    UnknownColumn {
+        /// The header found.
+        name: String,
+        /// A suggestion, empty or starting with `; `.
+        hint: String,
+    },
+    /// A required CSV column is absent.
+    #[error("missing column {name:?}{hint}")]
+    MissingColumn {
+        /// The header that is required.
+        name: String,
+        /// A reason, empty or starting with `; `.
+        hint: String,
+    },
+    /// A CSV column appears twice.
+    #[error("column {name:?} appears twice")]
+    DuplicateColumn {
+        /// The repeated header.
+        name: String,
+    },
+    /// `r_*_km` columns with a TLE orbit.
+    #[error("column {name:?} is only allowed with `orbit: PositionColumns` in dataset.ron")]
+    UnexpectedPositionColumn {
+        /// The header found.
+        name: String,
+    },
+    /// The number of `pdNN_V` columns differs from the `photodiodes` entries of dataset.ron.
+    #[error(
+        "photodiode count mismatch: dataset.ron lists {in_meta} photodiodes, \
+         {what} {found}"
+    )]
+    PhotodiodeCountMismatch {
+        /// Entries in dataset.ron.
+        in_meta: usize,
+        /// What was counted, phrased to precede the count (`the header's pdNN_V columns number`).
+        what: String,
+        /// How many of those.
+        found: usize,
+    },
+    /// A row with a different number of cells than the header.
+    #[error("row has {found} cells, the header has {expected}")]
+    WrongCellCount {
+        /// Cells in the header.
+        expected: usize,
+        /// Cells in this row.
+        found: usize,
+    },
+    /// Text that does not parse as a number.
+    #[error("{value:?} is not a number")]
+    NotANumber {
+        /// The cell text.
+        value: String,
+    },
+    /// `NaN` or an infinity.
+    #[error("{value:?} is not a finite number")]
+    NotFinite {
+        /// The cell text (or the value's text when it came from RON or memory).
+        value: String,
+    },
+    /// An empty cell where a value is required (`t_s`, every truth cell).
+    #[error("empty cell; this column needs a value on every row")]
+    EmptyCell,
+    /// One or two components of a 3-vector sampled, the others empty.
+    #[error("{present} has a value but {empty} is empty; a vector is sampled whole or not at all")]
+    PartialVector {
+        /// A header with a value.
+        present: String,
+        /// A header left empty.
+        empty: String,
+    },
+    /// `t_s` not strictly increasing.
+    #[error("t_s {value} is not greater than the previous row's {previous}")]
+    TimeNotIncreasing {
+        /// The previous row's time.
+        previous: f64,
+        /// This row's time.
+        value: f64,
+    },
+    /// A value outside its allowed range (negative noise hint, eclipse above 1, ...).
+    #[error("{value} is out of range: {rule}")]
+    OutOfRange {
+        /// The value.
+        value: f64,
+        /// The allowed range.
+        rule: String,
+    },
+    /// A list whose length does not match what it describes.
+    #[error("has {found} entries, expected {expected}")]
+    WrongLength {
+        /// The length required.
+        expected: usize,
+        /// The length found.
+        found: usize,
+    },
+    /// Only one of truth.csv and truth.ron exists.
+    #[error("{missing} is missing; truth.csv and truth.ron come together")]
+    TruthIncomplete {
+        /// The file that is absent.
+        missing: String,
+    },
+    /// The output path holds something that is not a pdcal dataset.
+    #[error(
+        "refusing to replace: {reason}; only an empty directory or a pdcal dataset directory \
+         (dataset.ron and at most telemetry.csv, truth.csv, truth.ron) is replaced"
+    )]
+    NotADatasetDir {
+        /// What is there instead.
+        reason: String,
+    },
+    /// A CSV reader failure that is none of the above.
+    #[error("{message}")]
+    Csv {
+        /// The csv crate's description.
+        message: String,
+    },
+    /// The same effect listed twice in truth.ron.
+    #[error("effect {id:?} is listed twice")]
+    DuplicateEffect {
+        /// The effect id.
+        id: String,
+    },
+}
+
+impl DatasetError {
+    /// An error about a whole file.
+    pub(crate) fn whole_file(file: &Path, kind: ErrorKind) -> Self {
+        Self(Box::new(Inner {
+            file: file.to_path_buf(),
+            line: None,
+            column: None,
+            field: None,
+            kind,
+        }))
+    }
+
+    /// An error at a CSV cell or RON position.
+    pub(crate) fn at(file: &Path, line: usize, column: Option<usize>, kind: ErrorKind) -> Self {
+        let mut e = Self::whole_file(file, kind);
+        e.0.line = Some(line);
+        e.0.column = column;
+        e
+    }
+
+    /// The same error naming a column header or field path.
+    pub(crate) fn named(mut self, field: impl Into<String>) -> Self {
+        self.0.field = Some(field.into());
+        self
+    }
+
+    /// The file, as the caller named it (`dir/telemetry.csv`), or just its name when the
+    /// text did not come from disk.
+    pub fn file(&self) -> &Path {
+        &self.0.file
+    }
+
+    /// The file's name without its directory (`telemetry.csv`).
+    pub fn file_name(&self) -> String {
+        let file = &self.0.file;
+        file.file_name().map_or_else(
+            || file.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        )
+    }
+
+    /// 1-based line, as a text editor shows it.
+    pub fn line(&self) -> Option<usize> {
+        self.0.line
+    }
+
+    /// 1-based column: the CSV cell number, or the character column in RON.
+    pub fn column(&self) -> Option<usize> {
+        self.0.column
+    }
+
+    /// The CSV header of that column, or the RON field path (`photodiodes[3].azimuth_deg`).
+    pub fn field(&self) -> Option<&str> {
+        self.0.field.as_deref()
+    }
+
+    /// What is wrong.
+    pub fn kind(&self) -> &ErrorKind {
+        &self.0.kind
+    }
+}
+
+impl fmt::Display for DatasetError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let e = &self.0;
+        write!(f, "{}", e.file.display())?;
+        if let Some(line) = e.line {
+            write!(f, ":{line}")?;
+            if let Some(column) = e.column {
+                write!(f, ":{column}")?;
+            }
+        }
+        if let Some(field) = &e.field {
+            write!(f, " ({field})")?;
+        }
+        write!(f, ": {}", e.kind)
+    }
+}
+
+// The kind's text is part of Display, so it is not also returned as `source` (that would
+// print it twice in an `anyhow` chain).
+impl std::error::Error for DatasetError {}
+
+/// 1-based line and character column of byte offset `offset` in `text`.
+pub(crate) fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let before = text.get(..offset).unwrap_or(text);
+    let line = 1 + before.matches('\n').count();
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    let column = 1 + before[line_start..].chars().count();
+    (line, column)
+}
+
+/// Checks the bytes are UTF-8 and not blank; strips a leading byte-order mark.
+pub(crate) fn text_of(file: &Path, bytes: Vec<u8>) -> Result<String, DatasetError> {
+    let text = String::from_utf8(bytes).map_err(|e| {
+        let valid = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+        let before = String::from_utf8_lossy(valid);
+        let (line, column) = line_col(&before, before.len());
+        DatasetError::at(file, line, Some(column), ErrorKind::NotUtf8)
+    })?;
+    let text = match text.strip_prefix('\u{feff}') {
+        Some(rest) => rest.to_owned(),
+        None => text,
+    };
+    if text.trim().is_empty() {
+        return Err(DatasetError::whole_file(file, ErrorKind::Empty));
+    }
+    Ok(text)
+}

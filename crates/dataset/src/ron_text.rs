@@ -1,0 +1,102 @@
+//! RON in and out: one options set for reading and writing, error positions, and locating a
+//! key in the text for checks that run after deserialisation.
+
+use std::path::Path;
+
+use ron::extensions::Extensions;
+use ron::ser::PrettyConfig;
+use serde::{Serialize, de::DeserializeOwned};
+
+use crate::error::{DatasetError, ErrorKind, line_col};
+
+/// `implicit_some` lets optional fields be written bare (`noise: (...)`), as the contract's
+/// example does, while `Some(...)` is still accepted.
+fn options() -> ron::Options {
+    ron::Options::default().with_default_extension(Extensions::IMPLICIT_SOME)
+}
+
+/// Deserialises RON, mapping ron's 1-based span start to line:column.
+pub(crate) fn from_ron<T: DeserializeOwned>(file: &Path, text: &str) -> Result<T, DatasetError> {
+    options().from_str(text).map_err(|e| {
+        let kind = match e.code {
+            ron::Error::NoSuchStructField {
+                expected, found, ..
+            } => ErrorKind::UnknownField {
+                name: found,
+                expected: expected.join(", "),
+            },
+            ron::Error::MissingStructField { field, .. } => ErrorKind::MissingField {
+                name: field.to_owned(),
+            },
+            other => ErrorKind::Ron {
+                message: other.to_string(),
+            },
+        };
+        let (line, col) = skip_blanks(text, e.span.start.line, e.span.start.col);
+        DatasetError::at(file, line, Some(col), kind)
+    })
+}
+
+/// ron's span for a wrong value can start at the blank before it; point at the token itself,
+/// as an editor user expects. Positions outside the text are returned unchanged.
+fn skip_blanks(text: &str, line: usize, col: usize) -> (usize, usize) {
+    let line_start = if line <= 1 {
+        Some(0)
+    } else {
+        text.match_indices('\n').nth(line - 2).map(|(i, _)| i + 1)
+    };
+    let offset = line_start.and_then(|start| {
+        let rest = text.get(start..)?;
+        let within = rest.char_indices().nth(col.checked_sub(1)?)?.0;
+        Some(start + within)
+    });
+    let Some(offset) = offset else {
+        return (line, col);
+    };
+    let blanks = text[offset..].len() - text[offset..].trim_start().len();
+    if offset + blanks >= text.len() {
+        return (line, col);
+    }
+    line_col(text, offset + blanks)
+}
+
+/// Pretty RON: four-space indent, one list entry per line with the entry itself on one line
+/// (depth limit 2), no struct names, trailing newline. Floats use ron's shortest round-trip form.
+pub(crate) fn to_ron<T: Serialize>(file: &Path, value: &T) -> Result<String, DatasetError> {
+    let config = PrettyConfig::new()
+        .depth_limit(2)
+        .indentor("    ")
+        .new_line("\n");
+    let mut text = options().to_string_pretty(value, config).map_err(|e| {
+        DatasetError::whole_file(
+            file,
+            ErrorKind::Ron {
+                message: e.to_string(),
+            },
+        )
+    })?;
+    text.push('\n');
+    Ok(text)
+}
+
+/// Line and column of the first `key:` in `text` (key not part of a longer identifier).
+pub(crate) fn locate_key(text: &str, key: &str) -> Option<(usize, usize)> {
+    let is_ident = |c: char| c.is_alphanumeric() || c == '_';
+    text.match_indices(key)
+        .find(|&(i, _)| {
+            let before_ok = !text[..i].chars().next_back().is_some_and(is_ident);
+            let after = text[i + key.len()..].trim_start();
+            before_ok && after.starts_with(':')
+        })
+        .map(|(i, _)| line_col(text, i))
+}
+
+/// Line and column of the opening quote of the string literal holding `needle`.
+pub(crate) fn locate_str(text: &str, needle: &str) -> Option<(usize, usize)> {
+    if needle.is_empty() {
+        return None;
+    }
+    let i = text.find(needle)?;
+    let (line, col) = line_col(text, i);
+    Some((line, col.saturating_sub(1).max(1)))
+}

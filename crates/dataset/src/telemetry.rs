@@ -1,0 +1,270 @@
+//! telemetry.csv: the measured time series, held column-wise.
+
+use std::path::Path;
+
+use nalgebra::Vector3;
+
+use crate::error::{DatasetError, ErrorKind};
+use crate::meta::{DatasetMeta, OrbitSpec};
+use crate::table::{CsvRows, find, push_row, require, require3};
+
+/// Column names of telemetry.csv (and, for `t_s` and `r_*_km`, of truth.csv).
+pub mod columns {
+    /// Seconds since `epoch_utc`.
+    pub const T_S: &str = "t_s";
+    /// Gyro rate, body frame, rad/s.
+    pub const GYRO: [&str; 3] = ["gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s"];
+    /// Magnetometer, body frame, nT.
+    pub const MAG: [&str; 3] = ["mag_x_nT", "mag_y_nT", "mag_z_nT"];
+    /// Position, GCRF, km.
+    pub const R: [&str; 3] = ["r_x_km", "r_y_km", "r_z_km"];
+}
+
+/// The header of photodiode `index` (1-based): `pd01_V` ... `pd99_V`, `pd100_V`; the index is
+/// zero-padded to two digits and takes three from 100 on.
+pub fn photodiode_column(index: usize) -> String {
+    format!("pd{index:02}_V")
+}
+
+/// The measured time series, one `Vec` per column, all of the same length.
+///
+/// `None` is an empty cell: the sensor was not sampled at that time. A vector sensor is
+/// sampled whole or not at all.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Telemetry {
+    /// Sample times, s since `epoch_utc`, strictly increasing.
+    pub t_s: Vec<f64>,
+    /// Gyro rate, body frame, rad/s.
+    pub gyro_rad_s: Vec<Option<Vector3<f64>>>,
+    /// Magnetometer, body frame, nT; `None` when the file has no `mag_*` columns
+    /// (photodiode-only mode).
+    pub mag_nt: Option<Vec<Option<Vector3<f64>>>>,
+    /// Photodiode outputs, V: `pd_v[i][k]` is photodiode `i + 1` at sample `k`.
+    pub pd_v: Vec<Vec<Option<f64>>>,
+    /// Position, GCRF, km; present exactly when the orbit is `PositionColumns`.
+    pub r_gcrf_km: Option<Vec<Option<Vector3<f64>>>>,
+}
+
+impl Telemetry {
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.t_s.len()
+    }
+
+    /// True when there are no rows.
+    pub fn is_empty(&self) -> bool {
+        self.t_s.is_empty()
+    }
+}
+
+/// Column indices of one telemetry.csv header.
+struct Layout {
+    t: usize,
+    gyro: [usize; 3],
+    mag: Option<[usize; 3]>,
+    pd: Vec<usize>,
+    r: Option<[usize; 3]>,
+}
+
+/// The photodiode index of a `pd<digits>_V` header, if it has that shape.
+fn pd_index(name: &str) -> Option<usize> {
+    let digits = name.strip_prefix("pd")?.strip_suffix("_V")?;
+    if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    digits.parse().ok().or(Some(usize::MAX))
+}
+
+fn layout(rows: &CsvRows<'_>, meta: &DatasetMeta) -> Result<Layout, DatasetError> {
+    let n = meta.photodiodes.len();
+    let positions = matches!(meta.orbit, OrbitSpec::PositionColumns);
+    let known = |h: &str| {
+        h == columns::T_S
+            || columns::GYRO.contains(&h)
+            || columns::MAG.contains(&h)
+            || columns::R.contains(&h)
+    };
+    let pd_hint = match n {
+        0 => "; dataset.ron lists no photodiodes".to_owned(),
+        1 => "; the photodiode column is pd01_V".to_owned(),
+        _ => format!(
+            "; photodiode columns are pd01_V .. {}",
+            photodiode_column(n)
+        ),
+    };
+    let mut pd_count = 0;
+    for (col, h) in rows.header.iter().enumerate() {
+        if pd_index(h).is_some() {
+            pd_count += 1;
+        } else if !known(h) {
+            let kind = ErrorKind::UnknownColumn {
+                name: h.clone(),
+                hint: String::new(),
+            };
+            return Err(rows.header_error(col, kind));
+        } else if columns::R.contains(&h.as_str()) && !positions {
+            let kind = ErrorKind::UnexpectedPositionColumn { name: h.clone() };
+            return Err(rows.header_error(col, kind));
+        }
+    }
+    if pd_count != n {
+        return Err(rows.header_row_error(ErrorKind::PhotodiodeCountMismatch {
+            in_meta: n,
+            what: "the header's pdNN_V columns number".into(),
+            found: pd_count,
+        }));
+    }
+    for (col, h) in rows.header.iter().enumerate() {
+        if let Some(i) = pd_index(h)
+            && (i == 0 || i > n || *h != photodiode_column(i))
+        {
+            let kind = ErrorKind::UnknownColumn {
+                name: h.clone(),
+                hint: pd_hint.clone(),
+            };
+            return Err(rows.header_error(col, kind));
+        }
+    }
+    let mag = match columns::MAG.map(|name| find(rows, name)) {
+        [Ok(None), Ok(None), Ok(None)] => None,
+        _ => Some(require3(rows, columns::MAG)?),
+    };
+    let r = if positions {
+        let hint = "; orbit: PositionColumns needs r_x_km, r_y_km, r_z_km";
+        Some([
+            require(rows, columns::R[0], hint)?,
+            require(rows, columns::R[1], hint)?,
+            require(rows, columns::R[2], hint)?,
+        ])
+    } else {
+        None
+    };
+    Ok(Layout {
+        t: require(rows, columns::T_S, "")?,
+        gyro: require3(rows, columns::GYRO)?,
+        mag,
+        pd: (1..=n)
+            .map(|i| require(rows, &photodiode_column(i), ""))
+            .collect::<Result<_, _>>()?,
+        r,
+    })
+}
+
+/// Parses and validates telemetry.csv text against its dataset.ron (file name
+/// `telemetry.csv` in errors).
+pub fn telemetry_from_str(text: &str, meta: &DatasetMeta) -> Result<Telemetry, DatasetError> {
+    parse_telemetry(Path::new(crate::TELEMETRY_CSV), text, meta)
+}
+
+pub(crate) fn parse_telemetry(
+    file: &Path,
+    text: &str,
+    meta: &DatasetMeta,
+) -> Result<Telemetry, DatasetError> {
+    let mut rows = CsvRows::open(file, text)?;
+    let lay = layout(&rows, meta)?;
+    let mut tm = Telemetry {
+        pd_v: vec![Vec::new(); lay.pd.len()],
+        mag_nt: lay.mag.map(|_| Vec::new()),
+        r_gcrf_km: lay.r.map(|_| Vec::new()),
+        ..Telemetry::default()
+    };
+    while let Some(line) = rows.next_row()? {
+        let t = rows.req(line, lay.t)?;
+        rows.increasing(line, lay.t, tm.t_s.last().copied(), t)?;
+        tm.t_s.push(t);
+        tm.gyro_rad_s.push(rows.vec3(line, lay.gyro)?);
+        if let (Some(cols), Some(mag)) = (lay.mag, tm.mag_nt.as_mut()) {
+            mag.push(rows.vec3(line, cols)?);
+        }
+        for (&col, pd) in lay.pd.iter().zip(tm.pd_v.iter_mut()) {
+            pd.push(rows.opt(line, col)?);
+        }
+        if let (Some(cols), Some(r)) = (lay.r, tm.r_gcrf_km.as_mut()) {
+            r.push(rows.vec3(line, cols)?);
+        }
+    }
+    if tm.is_empty() {
+        return Err(rows.no_rows());
+    }
+    Ok(tm)
+}
+
+/// Checks that every column has one entry per row and the photodiode and position columns
+/// match dataset.ron, so that rendering cannot index out of bounds.
+pub(crate) fn check_shape(tm: &Telemetry, meta: &DatasetMeta) -> Result<(), DatasetError> {
+    let file = Path::new(crate::TELEMETRY_CSV);
+    let n = meta.photodiodes.len();
+    if tm.pd_v.len() != n {
+        return Err(DatasetError::whole_file(
+            file,
+            ErrorKind::PhotodiodeCountMismatch {
+                in_meta: n,
+                what: "the telemetry's photodiode series number".into(),
+                found: tm.pd_v.len(),
+            },
+        ));
+    }
+    let positions = matches!(meta.orbit, OrbitSpec::PositionColumns);
+    if tm.r_gcrf_km.is_some() != positions {
+        let name = columns::R[0].to_owned();
+        let kind = if positions {
+            ErrorKind::MissingColumn {
+                name,
+                hint: "; orbit: PositionColumns needs positions".into(),
+            }
+        } else {
+            ErrorKind::UnexpectedPositionColumn { name }
+        };
+        return Err(DatasetError::whole_file(file, kind));
+    }
+    let mut lengths = vec![("gyro_rad_s".to_owned(), tm.gyro_rad_s.len())];
+    lengths.extend(tm.mag_nt.as_ref().map(|m| ("mag_nt".to_owned(), m.len())));
+    lengths.extend(
+        tm.r_gcrf_km
+            .as_ref()
+            .map(|r| ("r_gcrf_km".to_owned(), r.len())),
+    );
+    for (i, pd) in tm.pd_v.iter().enumerate() {
+        lengths.push((format!("pd_v[{i}]"), pd.len()));
+    }
+    for (name, len) in lengths {
+        if len != tm.len() {
+            let kind = ErrorKind::WrongLength {
+                expected: tm.len(),
+                found: len,
+            };
+            return Err(DatasetError::whole_file(file, kind).named(name));
+        }
+    }
+    Ok(())
+}
+
+/// telemetry.csv text: `t_s`, gyro, magnetometer (if any), `pd01_V`.., position (if any).
+/// Call [`check_shape`] first.
+pub(crate) fn render_telemetry(tm: &Telemetry) -> String {
+    let mut header: Vec<String> = vec![columns::T_S.into()];
+    header.extend(columns::GYRO.map(String::from));
+    if tm.mag_nt.is_some() {
+        header.extend(columns::MAG.map(String::from));
+    }
+    header.extend((1..=tm.pd_v.len()).map(photodiode_column));
+    if tm.r_gcrf_km.is_some() {
+        header.extend(columns::R.map(String::from));
+    }
+    let mut out = header.join(",");
+    out.push('\n');
+    let split = |v: Option<Vector3<f64>>| [v.map(|v| v.x), v.map(|v| v.y), v.map(|v| v.z)];
+    let column = |c: &Option<Vec<Option<Vector3<f64>>>>, k: usize| {
+        c.as_ref().map(|c| split(c.get(k).copied().flatten()))
+    };
+    for k in 0..tm.len() {
+        let mut cells = vec![tm.t_s.get(k).copied()];
+        cells.extend(split(tm.gyro_rad_s.get(k).copied().flatten()));
+        cells.extend(column(&tm.mag_nt, k).into_iter().flatten());
+        cells.extend(tm.pd_v.iter().map(|pd| pd.get(k).copied().flatten()));
+        cells.extend(column(&tm.r_gcrf_km, k).into_iter().flatten());
+        push_row(&mut out, cells);
+    }
+    out
+}
