@@ -1,0 +1,105 @@
+//! The run's index page.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use crate::ReportError;
+use crate::render::{check_stem, write_files_atomically};
+
+/// Write `<out_dir>/index.html` (atomically): `title`, a two-column table of
+/// `summary_rows` (name, value), then each figure as `<stem>.png` with its caption, the image
+/// linking to `<stem>.svg`. Self-contained: inline CSS, no scripts, no external assets; the
+/// images are referenced relative to `out_dir`. All text is HTML-escaped. Returns the path.
+///
+/// Errors: a figure stem that is not a valid stem (see [`crate::Figure::stem`]), or an I/O
+/// failure. The figures themselves are not checked for existence (the page may be written
+/// before or after them).
+pub fn index_html<K, V, C, S>(
+    out_dir: &Path,
+    title: &str,
+    summary_rows: &[(K, V)],
+    figures: &[(C, S)],
+) -> Result<PathBuf, ReportError>
+where
+    K: AsRef<str>,
+    V: AsRef<str>,
+    C: AsRef<str>,
+    S: AsRef<str>,
+{
+    for (_, stem) in figures {
+        check_stem(stem.as_ref())?;
+    }
+    let html = index_page(title, summary_rows, figures);
+    let path = out_dir.join("index.html");
+    write_files_atomically(&[(&path, html.as_bytes())])?;
+    Ok(path)
+}
+
+fn index_page<K, V, C, S>(title: &str, rows: &[(K, V)], figures: &[(C, S)]) -> String
+where
+    K: AsRef<str>,
+    V: AsRef<str>,
+    C: AsRef<str>,
+    S: AsRef<str>,
+{
+    let title = escape(title);
+    let mut h = String::new();
+    // `write!` into a String cannot fail; the results are ignored on purpose.
+    let _ = write!(
+        h,
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n\
+         <title>{title}</title>\n<style>\n{CSS}</style>\n</head>\n<body>\n<h1>{title}</h1>\n"
+    );
+    if !rows.is_empty() {
+        h.push_str("<h2>Summary</h2>\n<table>\n");
+        for (k, v) in rows {
+            let _ = writeln!(
+                h,
+                "<tr><th>{}</th><td>{}</td></tr>",
+                escape(k.as_ref()),
+                escape(v.as_ref())
+            );
+        }
+        h.push_str("</table>\n");
+    }
+    if !figures.is_empty() {
+        h.push_str("<h2>Figures</h2>\n");
+    }
+    for (caption, stem) in figures {
+        let (caption, stem) = (escape(caption.as_ref()), escape(stem.as_ref()));
+        let _ = writeln!(
+            h,
+            "<figure><a href=\"{stem}.svg\"><img src=\"{stem}.png\" alt=\"{caption}\"></a>\
+             <figcaption>{caption} (<a href=\"{stem}.svg\">SVG</a>)</figcaption></figure>"
+        );
+    }
+    h.push_str("</body>\n</html>\n");
+    h
+}
+
+const CSS: &str =
+    "body { font-family: sans-serif; margin: 2em auto; max-width: 1250px; color: #222; }
+table { border-collapse: collapse; margin-bottom: 2em; }
+th, td { border: 1px solid #ccc; padding: 0.3em 0.8em; text-align: left; }
+th { background: #f3f3f3; font-weight: normal; }
+td { font-family: monospace; }
+figure { margin: 0 0 2.5em 0; }
+img { max-width: 100%; height: auto; border: 1px solid #ddd; }
+figcaption { margin-top: 0.4em; }
+";
+
+/// Escape text for HTML element content and double-quoted attributes.
+pub(crate) fn escape(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&#39;"),
+            c => out.push(c),
+        }
+    }
+    out
+}
