@@ -1,0 +1,669 @@
+//! The simulation run: dynamics, environment, sensors and effects into the dataset types.
+
+use hifitime::Epoch;
+use nalgebra::{Matrix3, Vector3, Vector4};
+use pdcal_albedo::{AlbedoError, AlbedoModel, AlbedoView, MapChoice, MapError};
+use pdcal_attitude::Quat;
+use pdcal_dataset::{
+    Dataset, DatasetMeta, Effect, EpochUtc, FORMAT_VERSION, NoiseHints, OrbitSpec, Telemetry,
+    TruePd, TruthConstants, TruthSeries,
+};
+use pdcal_ephem::igrf::{Igrf, IgrfError};
+use pdcal_ephem::{LowPrecisionSun, OrbitError, OrbitSource, SunEphemeris, TimeError, TleOrbit};
+use pdcal_photodiode::{
+    Albedo, DarkOffset, FovRolloff, MeasurementModel, Penumbra, Photodiode, PhotodiodeError,
+    Saturation, ScaleDrift, Scene, ShadowMode,
+};
+use rand::rngs::ChaCha8Rng;
+use rayon::prelude::*;
+
+use crate::dynamics::{
+    AttitudeState, Disturbances, DynamicsError, RigidBody, TorqueEnvironment, propagate,
+};
+use crate::random::{self, Stream};
+use crate::scenario::{InitialAttitude, InitialRate, Scenario, ScenarioError, ScenarioOrbit};
+
+/// Why a simulation failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimError {
+    /// The scenario is invalid.
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    /// The orbit could not be built or propagated.
+    #[error("orbit at t = {t_s} s: {source}")]
+    Orbit {
+        /// Time since the epoch, s.
+        t_s: f64,
+        /// The ephemeris error.
+        source: OrbitError,
+    },
+    /// The magnetic field model failed (e.g. the epoch is outside IGRF-14).
+    #[error("magnetic field at t = {t_s} s: {source}")]
+    Field {
+        /// Time since the epoch, s.
+        t_s: f64,
+        /// The IGRF error.
+        source: IgrfError,
+    },
+    /// A time conversion failed.
+    #[error("time: {0}")]
+    Time(#[from] TimeError),
+    /// The albedo map could not be loaded.
+    #[error("albedo map: {0}")]
+    AlbedoMap(#[from] MapError),
+    /// The albedo model failed at a sample.
+    #[error("albedo at t = {t_s} s: {source}")]
+    Albedo {
+        /// Time since the epoch, s.
+        t_s: f64,
+        /// The albedo error.
+        source: AlbedoError,
+    },
+    /// The photodiode model rejected a parameter or scene.
+    #[error("photodiode model: {0}")]
+    Photodiode(#[from] PhotodiodeError),
+    /// The dynamics set-up failed.
+    #[error(transparent)]
+    Dynamics(#[from] DynamicsError),
+    /// The epoch text cannot be written to dataset.ron.
+    #[error("epoch_utc: {0}")]
+    Epoch(String),
+}
+
+/// The result of [`simulate`]: everything of the dataset plus what tests and plots need.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimOutput {
+    /// dataset.ron.
+    pub meta: DatasetMeta,
+    /// telemetry.csv.
+    pub telemetry: Telemetry,
+    /// truth.csv.
+    pub truth: TruthSeries,
+    /// truth.ron.
+    pub constants: TruthConstants,
+    /// Unit vector from the spacecraft to the Sun, GCRF, per truth row.
+    pub sun_gcrf: Vec<Vector3<f64>>,
+    /// Reference magnetic field, GCRF, nT, per truth row.
+    pub mag_gcrf_nt: Vec<Vector3<f64>>,
+    /// Photodiode outputs without noise (stages such as saturation applied), V:
+    /// `pd_noise_free_v[i][k]` for photodiode `i + 1` at row `k`, `None` when not sampled.
+    pub pd_noise_free_v: Vec<Vec<Option<f64>>>,
+    /// The true photodiodes as the measurement model holds them (radians inside).
+    pub true_photodiodes: Vec<Photodiode>,
+    /// The seed of the run.
+    pub seed: u64,
+}
+
+impl SimOutput {
+    /// The data set to write: meta, telemetry and both truth files.
+    pub fn to_dataset(&self) -> Dataset {
+        Dataset {
+            meta: self.meta.clone(),
+            telemetry: self.telemetry.clone(),
+            truth: Some((self.truth.clone(), self.constants.clone())),
+        }
+    }
+
+    /// As [`SimOutput::to_dataset`], without copying.
+    pub fn into_dataset(self) -> Dataset {
+        Dataset {
+            meta: self.meta,
+            telemetry: self.telemetry,
+            truth: Some((self.truth, self.constants)),
+        }
+    }
+}
+
+/// Microseconds per second: sample times are kept as whole microseconds so that the union
+/// of several sensors' grids has no near-duplicate rows.
+const US_PER_S: f64 = 1e6;
+
+fn to_us(t_s: f64) -> i64 {
+    (t_s * US_PER_S).round() as i64
+}
+
+fn to_s(t_us: i64) -> f64 {
+    t_us as f64 / US_PER_S
+}
+
+/// Which sensors sample at each row.
+struct Grid {
+    rows_us: Vec<i64>,
+    periods_us: [i64; 3],
+}
+
+const GYRO: usize = 0;
+const MAG: usize = 1;
+const PD: usize = 2;
+
+impl Grid {
+    fn new(scenario: &Scenario) -> Self {
+        let duration_us = to_us(scenario.duration_s);
+        let periods_us = [
+            to_us(scenario.gyro.sample_period_s),
+            to_us(scenario.magnetometer.sample_period_s),
+            to_us(scenario.photodiodes.sample_period_s),
+        ];
+        let mut rows_us: Vec<i64> = periods_us
+            .iter()
+            .flat_map(|&p| (0..=duration_us / p).map(move |k| k * p))
+            .collect();
+        rows_us.sort_unstable();
+        rows_us.dedup();
+        Grid {
+            rows_us,
+            periods_us,
+        }
+    }
+
+    fn samples(&self, sensor: usize, t_us: i64) -> bool {
+        t_us % self.periods_us[sensor] == 0
+    }
+}
+
+/// The environment at one instant, GCRF.
+#[derive(Debug, Clone, Copy)]
+struct Environment {
+    /// GCRF -> ITRF rotation (`pdcal_ephem::frames::gcrf_to_itrf`).
+    gcrf_to_ecef: Matrix3<f64>,
+    r_gcrf_km: Vector3<f64>,
+    r_sun_gcrf_km: Vector3<f64>,
+    /// Unit vector from the spacecraft to the Sun.
+    sun_gcrf: Vector3<f64>,
+    b_gcrf_nt: Vector3<f64>,
+    /// Illuminated fraction of the solar disc (conical shadow with penumbra).
+    nu: f64,
+}
+
+/// The ephemeris sources of a run.
+struct Ephemeris {
+    epoch: Epoch,
+    orbit: TleOrbit,
+    igrf: Igrf,
+}
+
+impl Ephemeris {
+    fn new(scenario: &Scenario) -> Result<Self, SimError> {
+        let epoch = pdcal_ephem::time::parse_utc(&scenario.epoch_utc)?;
+        let ScenarioOrbit::Tle { line1, line2 } = &scenario.orbit;
+        let orbit = TleOrbit::from_lines(line1, line2)
+            .map_err(|source| SimError::Orbit { t_s: 0.0, source })?;
+        let igrf = Igrf::igrf14().map_err(|source| SimError::Field { t_s: 0.0, source })?;
+        Ok(Ephemeris { epoch, orbit, igrf })
+    }
+
+    fn at(&self, t_s: f64) -> Result<Environment, SimError> {
+        let epoch = pdcal_ephem::time::offset(self.epoch, t_s)?;
+        let r_gcrf_km = self
+            .orbit
+            .position_gcrf_km(epoch)
+            .map_err(|source| SimError::Orbit { t_s, source })?;
+        let r_sun_gcrf_km = LowPrecisionSun.sun_gcrf_km(epoch);
+        // B_gcrf = R^T B_ecef(R r), as `Igrf::field_gcrf_nt`, keeping R for the albedo.
+        let gcrf_to_ecef = pdcal_ephem::frames::gcrf_to_itrf(epoch);
+        let b_gcrf_nt = gcrf_to_ecef.transpose()
+            * self
+                .igrf
+                .field_ecef_nt(&(gcrf_to_ecef * r_gcrf_km), epoch)
+                .map_err(|source| SimError::Field { t_s, source })?;
+        Ok(Environment {
+            gcrf_to_ecef,
+            r_gcrf_km,
+            r_sun_gcrf_km,
+            sun_gcrf: (r_sun_gcrf_km - r_gcrf_km).normalize(),
+            b_gcrf_nt,
+            nu: pdcal_ephem::eclipse::illuminated_fraction(&r_gcrf_km, &r_sun_gcrf_km),
+        })
+    }
+}
+
+/// True photodiode parameters: scale and az/el (degrees, as truth.ron records them).
+fn draw_true_photodiodes(scenario: &Scenario, rng: &mut ChaCha8Rng) -> Vec<TruePd> {
+    let pd = &scenario.photodiodes;
+    pd.nominal
+        .iter()
+        .map(|m| {
+            let scale_v = random::draw(&pd.scale_v, rng);
+            let azimuth_deg = m.azimuth_deg + random::draw(&pd.mounting_error_deg, rng);
+            let el = m.elevation_deg + random::draw(&pd.mounting_error_deg, rng);
+            // Past a pole, fold back: the normal then lies |error| from the nominal pole with
+            // the azimuth kept near its nominal value (azimuth is not wrapped either, so
+            // true minus nominal stays the drawn error).
+            let elevation_deg = if el > 90.0 {
+                180.0 - el
+            } else if el < -90.0 {
+                -180.0 - el
+            } else {
+                el
+            };
+            TruePd {
+                scale_v,
+                azimuth_deg,
+                elevation_deg,
+            }
+        })
+        .collect()
+}
+
+/// The truth measurement model: the photodiode crate's terms for the effects that are on,
+/// hard-edged direct Sun as the base. `time-offset` is not a term here: the simulator
+/// samples the scene at the true (shifted) time instead of the first-order correction.
+pub fn truth_model(
+    scenario: &Scenario,
+    photodiodes: Vec<Photodiode>,
+) -> Result<MeasurementModel, SimError> {
+    let mut model = MeasurementModel::cosine(photodiodes);
+    for effect in &scenario.effects {
+        match effect {
+            Effect::Albedo { .. } => model.add_term(Albedo::default())?,
+            Effect::Penumbra => model.add_term(Penumbra)?,
+            Effect::FovRolloff {
+                start_deg,
+                cutoff_deg,
+            } => model.add_term(FovRolloff::from_deg(*start_deg, *cutoff_deg)?)?,
+            Effect::DarkOffset { volts } => model.add_term(DarkOffset::new(volts))?,
+            Effect::ScaleDrift { fraction_per_hour } => {
+                model.add_gain(ScaleDrift::per_photodiode(fraction_per_hour))?
+            }
+            Effect::Saturation { volts } => model.add_stage(Saturation::shared(*volts))?,
+            Effect::TimeOffset { .. } | Effect::MagBias { .. } | Effect::GyroScale { .. } => {}
+        }
+    }
+    Ok(model)
+}
+
+/// Initial attitude and rate from the scenario and the `InitialState` stream. Both draws
+/// are always made, so fixing one does not change the other.
+fn initial_state(scenario: &Scenario, seed: u64) -> AttitudeState {
+    let mut rng = random::stream(seed, Stream::InitialState);
+    let q_random = random::uniform_quaternion(&mut rng);
+    let direction = random::unit_vector(&mut rng);
+    let q = match scenario.spacecraft.initial_attitude {
+        InitialAttitude::Fixed { q } => Vector4::from(q),
+        InitialAttitude::Random => q_random,
+    };
+    let w_body_rad_s = match scenario.spacecraft.initial_rate {
+        InitialRate::Fixed { rad_s } => Vector3::from(rad_s),
+        InitialRate::RandomTumble { magnitude_rad_s } => direction * magnitude_rad_s,
+    };
+    AttitudeState {
+        // validate() rejects a zero or non-finite fixed quaternion.
+        q: Quat::new_normalized(q.x, q.y, q.z, q.w).unwrap_or(Quat::IDENTITY),
+        w_body_rad_s,
+    }
+}
+
+/// Sorted, distinct times at which the state is needed: every row, and every true
+/// photodiode sampling time (row tag minus the time offset).
+fn event_times(grid: &Grid, pd_offset_us: i64) -> Vec<i64> {
+    let mut events = grid.rows_us.clone();
+    if pd_offset_us != 0 {
+        events.extend(
+            grid.rows_us
+                .iter()
+                .filter(|&&t| grid.samples(PD, t))
+                .map(|t| t - pd_offset_us),
+        );
+        events.sort_unstable();
+        events.dedup();
+    }
+    events
+}
+
+/// Attitude and environment at every event time.
+fn propagate_events(
+    scenario: &Scenario,
+    ephemeris: &Ephemeris,
+    events_us: &[i64],
+    initial: AttitudeState,
+) -> Result<(Vec<AttitudeState>, Vec<Environment>), SimError> {
+    let body = RigidBody::new(scenario.inertia_kg_m2())?;
+    let disturbances = Disturbances {
+        gravity_gradient: scenario.spacecraft.gravity_gradient,
+        dipole_body_a_m2: scenario.dipole_body_a_m2(),
+    };
+    let envs = events_us
+        .par_iter()
+        .map(|&t_us| ephemeris.at(to_s(t_us)))
+        .collect::<Result<Vec<_>, _>>()?;
+    // The initial state holds at t = 0 (always a row); earlier events (a positive
+    // time-offset) are reached by integrating backwards, so an offset never changes the
+    // motion at the rows.
+    let k0 = events_us.binary_search(&0).unwrap_or(0);
+    let mut states = vec![initial; events_us.len()];
+    let step = |from: usize, to: usize, state: &AttitudeState| {
+        let dt_s = to_s(events_us[to] - events_us[from]);
+        let torque_env = TorqueEnvironment {
+            r_gcrf_km: [envs[from].r_gcrf_km, envs[to].r_gcrf_km],
+            b_gcrf_nt: [envs[from].b_gcrf_nt, envs[to].b_gcrf_nt],
+            dt_s,
+        };
+        let torque = |t: f64, q: &Quat| torque_env.torque(&body, &disturbances, t, q);
+        propagate(&body, state, dt_s, scenario.spacecraft.max_step_s, &torque)
+    };
+    for k in k0 + 1..events_us.len() {
+        states[k] = step(k - 1, k, &states[k - 1])?;
+    }
+    for k in (0..k0).rev() {
+        states[k] = step(k + 1, k, &states[k + 1])?;
+    }
+    Ok((states, envs))
+}
+
+/// Output buffers, filled row by row.
+struct Series {
+    telemetry: Telemetry,
+    truth: TruthSeries,
+    sun_gcrf: Vec<Vector3<f64>>,
+    mag_gcrf_nt: Vec<Vector3<f64>>,
+    pd_noise_free_v: Vec<Vec<Option<f64>>>,
+}
+
+impl Series {
+    fn with_capacity(rows: usize, n_pd: usize) -> Self {
+        Series {
+            telemetry: Telemetry {
+                t_s: Vec::with_capacity(rows),
+                gyro_rad_s: Vec::with_capacity(rows),
+                mag_nt: Some(Vec::with_capacity(rows)),
+                pd_v: vec![Vec::with_capacity(rows); n_pd],
+                r_gcrf_km: None,
+            },
+            truth: TruthSeries::default(),
+            sun_gcrf: Vec::with_capacity(rows),
+            mag_gcrf_nt: Vec::with_capacity(rows),
+            pd_noise_free_v: vec![Vec::with_capacity(rows); n_pd],
+        }
+    }
+}
+
+/// The sensors' noise streams, settings and the evolving gyro bias.
+struct Sensors {
+    gyro_noise: ChaCha8Rng,
+    gyro_walk: ChaCha8Rng,
+    mag_noise: ChaCha8Rng,
+    pd_noise: ChaCha8Rng,
+    gyro_bias_rad_s: Vector3<f64>,
+    last_gyro_us: Option<i64>,
+    gyro_scale: Vector3<f64>,
+    mag_bias_nt: Vector3<f64>,
+    gyro_sigma_rad_s: f64,
+    walk_rad_s_sqrt_s: f64,
+    mag_sigma_nt: f64,
+    pd_sigma_v: f64,
+}
+
+impl Sensors {
+    fn new(scenario: &Scenario, seed: u64) -> Self {
+        let mut bias_rng = random::stream(seed, Stream::GyroBias);
+        let mut bias = || random::draw(&scenario.gyro.bias_rad_s, &mut bias_rng);
+        let gyro_bias_rad_s = Vector3::new(bias(), bias(), bias());
+        let gyro_scale = match scenario.effect("gyro-scale") {
+            Some(Effect::GyroScale { scale_error }) => Vector3::from(*scale_error),
+            _ => Vector3::zeros(),
+        };
+        let mag_bias_nt = match scenario.effect("mag-bias") {
+            Some(Effect::MagBias { bias_nt }) => Vector3::from(*bias_nt),
+            _ => Vector3::zeros(),
+        };
+        Sensors {
+            gyro_noise: random::stream(seed, Stream::GyroNoise),
+            gyro_walk: random::stream(seed, Stream::GyroWalk),
+            mag_noise: random::stream(seed, Stream::MagNoise),
+            pd_noise: random::stream(seed, Stream::PhotodiodeNoise),
+            gyro_bias_rad_s,
+            last_gyro_us: None,
+            gyro_scale,
+            mag_bias_nt,
+            gyro_sigma_rad_s: scenario.gyro.noise_rad_s,
+            walk_rad_s_sqrt_s: scenario.gyro.bias_walk_rad_s_sqrt_s,
+            mag_sigma_nt: scenario.magnetometer.noise_nt,
+            pd_sigma_v: scenario.photodiodes.noise_v,
+        }
+    }
+
+    /// A gyro sample at `t_us`: the bias first walks from the previous gyro sample, then
+    /// `(1 + e) w + bias + noise`.
+    fn gyro(&mut self, t_us: i64, w_body_rad_s: &Vector3<f64>) -> Vector3<f64> {
+        if let Some(last) = self.last_gyro_us {
+            let dt_s = to_s(t_us - last);
+            self.gyro_bias_rad_s +=
+                random::normal3(&mut self.gyro_walk) * (self.walk_rad_s_sqrt_s * dt_s.sqrt());
+        }
+        self.last_gyro_us = Some(t_us);
+        w_body_rad_s
+            + w_body_rad_s.component_mul(&self.gyro_scale)
+            + self.gyro_bias_rad_s
+            + random::normal3(&mut self.gyro_noise) * self.gyro_sigma_rad_s
+    }
+
+    /// A magnetometer sample: `A B_ref + bias + noise`.
+    fn magnetometer(&mut self, mag_body_nt: &Vector3<f64>) -> Vector3<f64> {
+        mag_body_nt + self.mag_bias_nt + random::normal3(&mut self.mag_noise) * self.mag_sigma_nt
+    }
+
+    /// Photodiode outputs from noise-free pre-stage values: noise, then the output stages
+    /// (a real sensor clips after noise). Returns (measured, noise-free) per photodiode.
+    fn photodiodes(
+        &mut self,
+        model: &MeasurementModel,
+        clean_v: &[f64],
+    ) -> Result<Vec<(f64, f64)>, SimError> {
+        clean_v
+            .iter()
+            .enumerate()
+            .map(|(i, &clean)| {
+                let noisy = clean + self.pd_sigma_v * random::normal(&mut self.pd_noise);
+                Ok((model.apply_stages(i, noisy)?, model.apply_stages(i, clean)?))
+            })
+            .collect()
+    }
+}
+
+/// dataset.ron of a scenario: its name, epoch, TLE, nominal layout and noise hints.
+fn dataset_meta(scenario: &Scenario, epoch_utc: EpochUtc) -> DatasetMeta {
+    let ScenarioOrbit::Tle { line1, line2 } = &scenario.orbit;
+    DatasetMeta {
+        format_version: FORMAT_VERSION,
+        name: scenario.name.clone(),
+        epoch_utc,
+        orbit: OrbitSpec::Tle {
+            line1: line1.clone(),
+            line2: line2.clone(),
+        },
+        photodiodes: scenario.photodiodes.nominal.clone(),
+        noise: Some(NoiseHints {
+            gyro_rad_s: Some(scenario.gyro.noise_rad_s),
+            mag_nt: Some(scenario.magnetometer.noise_nt),
+            photodiode_v: Some(scenario.photodiodes.noise_v),
+        }),
+    }
+}
+
+/// The true photodiodes in the measurement model's form, with the scenario's hard FOV.
+fn model_photodiodes(scenario: &Scenario, true_pds: &[TruePd]) -> Vec<Photodiode> {
+    let fov_rad = scenario.photodiodes.fov_half_angle_deg.map(f64::to_radians);
+    true_pds
+        .iter()
+        .map(|p| {
+            Photodiode::from_az_el_deg(
+                p.scale_v,
+                p.azimuth_deg,
+                p.elevation_deg,
+                scenario.photodiodes.noise_v,
+            )
+            .with_fov_half_angle_rad(fov_rad)
+        })
+        .collect()
+}
+
+/// Simulates the scenario with the given seed: the same seed gives identical numbers.
+///
+/// Rows are the union of the sensors' sample grids (`k * period`, whole microseconds, up
+/// to `duration_s`); a sensor's cells are `None` at rows it does not sample. The
+/// scenario's initial attitude and rate hold at `t_s = 0`.
+pub fn simulate(scenario: &Scenario, seed: u64) -> Result<SimOutput, SimError> {
+    scenario.validate()?;
+    let epoch_utc =
+        EpochUtc::parse(&scenario.epoch_utc).map_err(|e| SimError::Epoch(e.to_string()))?;
+    let ephemeris = Ephemeris::new(scenario)?;
+    let grid = Grid::new(scenario);
+    let pd_offset_us = match scenario.effect("time-offset") {
+        Some(Effect::TimeOffset { seconds }) => to_us(*seconds),
+        _ => 0,
+    };
+    let events_us = event_times(&grid, pd_offset_us);
+    let (states, envs) = propagate_events(
+        scenario,
+        &ephemeris,
+        &events_us,
+        initial_state(scenario, seed),
+    )?;
+    let event = |t_us: i64| events_us.binary_search(&t_us).unwrap_or(0);
+
+    let true_pds =
+        draw_true_photodiodes(scenario, &mut random::stream(seed, Stream::TruePhotodiodes));
+    let photodiodes = model_photodiodes(scenario, &true_pds);
+    let model = truth_model(scenario, photodiodes.clone())?;
+    let albedo = match scenario.effect("albedo") {
+        Some(Effect::Albedo { map }) => Some(AlbedoModel::from_choice(&map.parse::<MapChoice>()?)?),
+        _ => None,
+    };
+    let shadow = if scenario.effect("penumbra").is_some() {
+        ShadowMode::Penumbra
+    } else {
+        ShadowMode::Hard
+    };
+
+    let n_pd = scenario.n_photodiodes();
+    let truth_scenes = TruthScenes {
+        model: &model,
+        albedo: albedo.as_ref(),
+        states: &states,
+        envs: &envs,
+    };
+    // Noise-free outputs first, in parallel (albedo dominates the run time); each row is a
+    // pure function of the truth, so the result does not depend on the thread count.
+    let pd_true_events: Vec<usize> = grid
+        .rows_us
+        .iter()
+        .filter(|&&t| grid.samples(PD, t))
+        .map(|&t| event(t - pd_offset_us))
+        .collect();
+    let clean_rows = pd_true_events
+        .par_iter()
+        .map_init(AlbedoView::default, |view, &j| {
+            truth_scenes.pre_stage_outputs(view, j, to_s(events_us[j]))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut clean_rows = clean_rows.into_iter();
+
+    let mut out = Series::with_capacity(grid.rows_us.len(), n_pd);
+    let mut sensors = Sensors::new(scenario, seed);
+    for &t_us in &grid.rows_us {
+        let k = event(t_us);
+        let (state, env) = (&states[k], &envs[k]);
+        let a = state.q.attitude_matrix();
+        let t_s = to_s(t_us);
+        out.telemetry.t_s.push(t_s);
+        let gyro = grid
+            .samples(GYRO, t_us)
+            .then(|| sensors.gyro(t_us, &state.w_body_rad_s));
+        out.telemetry.gyro_rad_s.push(gyro);
+        let mag_body_nt = a * env.b_gcrf_nt;
+        let mag = grid
+            .samples(MAG, t_us)
+            .then(|| sensors.magnetometer(&mag_body_nt));
+        if let Some(column) = out.telemetry.mag_nt.as_mut() {
+            column.push(mag);
+        }
+        let pd = if grid.samples(PD, t_us) {
+            sensors.photodiodes(&model, &clean_rows.next().unwrap_or_default())?
+        } else {
+            Vec::new()
+        };
+        for i in 0..n_pd {
+            out.telemetry.pd_v[i].push(pd.get(i).map(|p| p.0));
+            out.pd_noise_free_v[i].push(pd.get(i).map(|p| p.1));
+        }
+
+        let q = state.q;
+        out.truth.t_s.push(t_s);
+        out.truth.q.push(Vector4::new(q.x, q.y, q.z, q.w));
+        out.truth.w_body_rad_s.push(state.w_body_rad_s);
+        out.truth.gyro_bias_rad_s.push(sensors.gyro_bias_rad_s);
+        out.truth.sun_body.push(a * env.sun_gcrf);
+        out.truth.eclipse.push(shadow.factor(env.nu));
+        out.truth.r_gcrf_km.push(env.r_gcrf_km);
+        out.truth.mag_body_nt.push(mag_body_nt);
+        out.sun_gcrf.push(env.sun_gcrf);
+        out.mag_gcrf_nt.push(env.b_gcrf_nt);
+    }
+
+    Ok(SimOutput {
+        meta: dataset_meta(scenario, epoch_utc),
+        telemetry: out.telemetry,
+        truth: out.truth,
+        constants: TruthConstants {
+            photodiodes: true_pds,
+            effects: scenario.effects.clone(),
+        },
+        sun_gcrf: out.sun_gcrf,
+        mag_gcrf_nt: out.mag_gcrf_nt,
+        pd_noise_free_v: out.pd_noise_free_v,
+        true_photodiodes: photodiodes,
+        seed,
+    })
+}
+
+/// What the noise-free photodiode outputs are computed from.
+struct TruthScenes<'a> {
+    model: &'a MeasurementModel,
+    albedo: Option<&'a AlbedoModel>,
+    states: &'a [AttitudeState],
+    envs: &'a [Environment],
+}
+
+impl TruthScenes<'_> {
+    /// Every photodiode's noise-free output before the output stages at event `j`
+    /// (time `t_s`), V; `view` is scratch space for the albedo cells.
+    fn pre_stage_outputs(
+        &self,
+        view: &mut AlbedoView,
+        j: usize,
+        t_s: f64,
+    ) -> Result<Vec<f64>, SimError> {
+        let env = &self.envs[j];
+        let albedo_view = match self.albedo {
+            Some(albedo) => {
+                albedo
+                    .compute_into(view, &env.r_gcrf_km, &env.r_sun_gcrf_km, &env.gcrf_to_ecef)
+                    .map_err(|source| SimError::Albedo { t_s, source })?;
+                Some(&*view)
+            }
+            None => None,
+        };
+        let scene = scene_for(&self.states[j], env, t_s, albedo_view)?;
+        (0..self.model.photodiodes().len())
+            .map(|i| Ok(self.model.pre_stage_output(i, &scene)?))
+            .collect()
+    }
+}
+
+/// The photodiode scene at one instant: attitude, Sun, eclipse fraction, rate, time, albedo.
+fn scene_for<'a>(
+    state: &AttitudeState,
+    env: &Environment,
+    t_s: f64,
+    albedo: Option<&'a AlbedoView>,
+) -> Result<Scene<'a>, SimError> {
+    let a: Matrix3<f64> = state.q.attitude_matrix();
+    let scene = Scene::new(a, &env.sun_gcrf)?
+        .with_sun_fraction(env.nu)
+        .with_rate(state.w_body_rad_s)
+        .with_time(t_s);
+    Ok(match albedo {
+        Some(view) => scene.with_albedo(view),
+        None => scene,
+    })
+}
