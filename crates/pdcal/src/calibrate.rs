@@ -1,0 +1,104 @@
+//! `pdcal calibrate`: a dataset in, the calibration and its evidence out.
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use pdcal_albedo::{AlbedoModel, MapChoice};
+use pdcal_dataset::{DatasetMeta, Telemetry};
+use pdcal_filter::{Calibration, CalibrationRun, FilterConfig, Mode, RunInputs, StepReference};
+
+use crate::sunvec::SunVectorMetrics;
+
+/// The resolved run configuration: filter tuning and mode.
+#[derive(Debug, Clone)]
+pub struct RunConfig {
+    /// Filter tuning.
+    pub filter: FilterConfig,
+    /// Full, photodiode-only or scale-only with a prior.
+    pub mode: Mode,
+}
+
+impl Default for RunConfig {
+    fn default() -> Self {
+        Self {
+            filter: FilterConfig::default(),
+            mode: Mode::Full,
+        }
+    }
+}
+
+/// Reads `--config`: either a filter configuration or a previous `calibration.ron`, which
+/// becomes the prior of a scale-factors-only run (the paper's third data set).
+pub fn load_config(path: &Path) -> Result<RunConfig> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    if let Ok(prior) = Calibration::from_ron_str(&text) {
+        return Ok(RunConfig {
+            filter: FilterConfig::default(),
+            mode: Mode::ScaleOnly { prior },
+        });
+    }
+    let filter =
+        FilterConfig::from_ron_str(&text).with_context(|| format!("{}", path.display()))?;
+    Ok(RunConfig {
+        filter,
+        mode: Mode::Full,
+    })
+}
+
+/// Everything a calibration produces, in memory.
+pub struct Outcome {
+    /// The filter run (forward, smoother, residuals, calibration).
+    pub run: CalibrationRun,
+    /// References per telemetry row (for metrics and figures).
+    pub references: Vec<StepReference>,
+    /// Sun-vector magnitude and direction metrics (Figs. 8-11).
+    pub sun_vector: SunVectorMetrics,
+    /// Wall-clock time of the filter run, s.
+    pub runtime_s: f64,
+}
+
+/// The albedo model the filter uses: the paper's TOMS reflectivity map.
+pub fn albedo_model() -> Result<AlbedoModel> {
+    Ok(AlbedoModel::from_choice(&MapChoice::TomsMean1p25x1)?)
+}
+
+/// Calibrates a dataset held in memory (never its truth).
+pub fn run(
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+    config: &RunConfig,
+    albedo: &AlbedoModel,
+) -> Result<Outcome> {
+    let references = crate::references::step_references(meta, telemetry)?;
+    let inputs = RunInputs {
+        meta,
+        telemetry,
+        references: &references,
+        albedo: Some(albedo),
+    };
+    let start = Instant::now();
+    let run = pdcal_filter::calibrate(&inputs, &config.filter, &config.mode)
+        .context("calibration filter")?;
+    let runtime_s = start.elapsed().as_secs_f64();
+    let sun_vector =
+        crate::sunvec::metrics(meta, telemetry, &references, &run, albedo, &config.filter)?;
+    Ok(Outcome {
+        run,
+        references,
+        sun_vector,
+        runtime_s,
+    })
+}
+
+/// `pdcal calibrate DATASET_DIR --out OUT_DIR [--config FILE.ron]`.
+pub fn run_dir(dataset: &Path, out: &Path, config: &RunConfig) -> Result<Outcome> {
+    // Only meta and telemetry: calibrate never reads truth.*.
+    let meta = pdcal_dataset::read_meta(dataset)?;
+    let telemetry = pdcal_dataset::read_telemetry(dataset, &meta)?;
+    let albedo = albedo_model()?;
+    let outcome = run(&meta, &telemetry, config, &albedo)?;
+    crate::files::write_calibration_outputs(out, &meta, &telemetry, &outcome)?;
+    Ok(outcome)
+}

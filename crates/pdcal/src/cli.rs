@@ -1,0 +1,103 @@
+//! Command-line parsing and dispatch (raw arguments -> resolved commands).
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+/// On-orbit photodiode calibration. With no command: simulate the RAX-2-like scenario,
+/// calibrate it, evaluate against truth and print the report.
+#[derive(Debug, Parser)]
+#[command(name = "pdcal", version, about)]
+pub struct Cli {
+    /// The command; none runs the embedded default.
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+/// The commands of `docs/cli-contract.md`.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Simulate a scenario and write a dataset directory.
+    Simulate {
+        /// Built-in scenario name (rax2-like, sso-6u) or a scenario RON file.
+        #[arg(long, default_value = "rax2-like")]
+        scenario: String,
+        /// Random seed; the same seed gives byte-identical files.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Output dataset directory.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Calibrate a dataset: summary.json, calibration.ron, estimates.csv, residuals.csv,
+    /// figures and index.html in OUT_DIR.
+    Calibrate {
+        /// Dataset directory (dataset.ron, telemetry.csv).
+        dataset: PathBuf,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+        /// Filter configuration RON, or a previous calibration.ron as the prior of a
+        /// scale-factors-only run.
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+    /// Compare a calibration in OUT_DIR with the dataset's truth; writes evaluation.json.
+    Evaluate {
+        /// Simulated dataset directory (with truth.csv and truth.ron).
+        dataset: PathBuf,
+        /// The calibrate command's output directory.
+        out: PathBuf,
+    },
+}
+
+/// Where the default run writes (relative to the working directory).
+pub const DEFAULT_OUT: &str = "out/rax2-like";
+
+/// Runs one parsed command line.
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        None => crate::default_run::run(std::path::Path::new(DEFAULT_OUT)),
+        Some(Command::Simulate {
+            scenario,
+            seed,
+            out,
+        }) => {
+            let scenario = crate::simulate::load_scenario(&scenario)?;
+            let output = crate::simulate::run_to_dir(&scenario, seed, &out)?;
+            println!(
+                "simulated {} (seed {seed}): {} samples, {} photodiodes -> {}",
+                scenario.name,
+                output.telemetry.len(),
+                output.true_photodiodes.len(),
+                out.display()
+            );
+            Ok(())
+        }
+        Some(Command::Calibrate {
+            dataset,
+            out,
+            config,
+        }) => {
+            let config = match config {
+                Some(path) => crate::calibrate::load_config(&path)?,
+                None => crate::calibrate::RunConfig::default(),
+            };
+            let outcome = crate::calibrate::run_dir(&dataset, &out, &config)?;
+            let summary = std::fs::read_to_string(out.join("summary.json"))?;
+            println!("{summary}");
+            eprintln!(
+                "calibrated in {:.2} s -> {}",
+                outcome.runtime_s,
+                out.display()
+            );
+            Ok(())
+        }
+        Some(Command::Evaluate { dataset, out }) => {
+            let evaluation = crate::evaluate::run_dir(&dataset, &out)?;
+            println!("{}", serde_json::to_string_pretty(&evaluation)?);
+            Ok(())
+        }
+    }
+}

@@ -1,0 +1,444 @@
+//! `pdcal evaluate`: the true errors of a calibration, which the paper could not report
+//! (flight data has no truth), from a simulated dataset's truth.* files.
+
+use std::path::Path;
+
+use anyhow::{Context, Result, bail};
+use nalgebra::Vector3;
+use pdcal_attitude::{Quat, mekf::error_vector, normal_from_az_el};
+use pdcal_dataset::{TruthConstants, TruthSeries};
+use pdcal_filter::{Calibration, PdCalibration, StepEstimate};
+use serde::Serialize;
+
+/// Sunlit time after which attitude statistics are taken (the paper's ~10 min convergence).
+pub const CONVERGENCE_SUNLIT_S: f64 = 600.0;
+/// Incidence angle inside which a photodiode counts as usefully lit (the filter's default
+/// field of view), deg.
+pub const LIT_FOV_DEG: f64 = 60.0;
+
+/// `evaluation.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Evaluation {
+    /// Layout version.
+    pub format_version: u32,
+    /// Per photodiode errors, pdNN order.
+    pub photodiodes: Vec<PdError>,
+    /// Worst normal error over photodiodes lit at least 5 minutes, deg.
+    pub worst_normal_error_deg: f64,
+    /// Worst |scale error| over photodiodes lit at least 5 minutes, %.
+    pub worst_scale_error_percent: f64,
+    /// Attitude error over sunlit samples after convergence.
+    pub attitude: AttitudeStats,
+    /// NEES-style consistency.
+    pub consistency: Consistency,
+}
+
+/// One photodiode's true errors.
+#[derive(Debug, Clone, Serialize)]
+#[allow(non_snake_case)]
+pub struct PdError {
+    /// 1-based index.
+    pub index: usize,
+    /// True minus estimated scale, V.
+    pub scale_error_V: f64,
+    /// The same relative to the true scale, %.
+    pub scale_error_percent: f64,
+    /// Angle between true and estimated normals, deg.
+    pub normal_error_deg: f64,
+    /// Minutes in full Sun with incidence inside the field of view (true geometry).
+    pub lit_minutes: f64,
+}
+
+/// Attitude error statistics, deg.
+#[derive(Debug, Clone, Serialize)]
+pub struct AttitudeStats {
+    /// Samples counted (sunlit, after the first 10 sunlit minutes).
+    pub samples: usize,
+    /// Mean rotation angle error.
+    pub mean_deg: f64,
+    /// RMS rotation angle error.
+    pub rms_deg: f64,
+    /// 99th percentile of the rotation angle error.
+    pub p99_deg: f64,
+    /// RMS error per body axis (the empirical 1-sigma).
+    pub axis_rms_deg: [f64; 3],
+    /// Mean filter 1-sigma per body axis over the same samples.
+    pub axis_filter_sigma_deg: [f64; 3],
+}
+
+/// Consistency of errors and covariance.
+#[derive(Debug, Clone, Serialize)]
+pub struct Consistency {
+    /// Fraction of final calibration-state errors (scale, azimuth, elevation, gyro bias)
+    /// inside 3 sigma.
+    pub final_states_within_3sigma: f64,
+    /// Final calibration states counted.
+    pub final_states: usize,
+    /// Fraction of attitude-axis errors inside 3 sigma over all samples after convergence.
+    pub attitude_within_3sigma: f64,
+    /// Fraction of calibration estimates within 3 sigma of their final values after 10 min of
+    /// sunlit data (scale, elevation and, where defined, azimuth of every used photodiode).
+    pub converged_within_3sigma_of_final: f64,
+}
+
+fn quat_of(v: &nalgebra::Vector4<f64>) -> Option<Quat> {
+    Quat::new_normalized(v.x, v.y, v.z, v.w)
+}
+
+fn wrap_deg(a: f64) -> f64 {
+    (a + 180.0).rem_euclid(360.0) - 180.0
+}
+
+/// Evaluates estimates (forward or smoothed) and the final calibration against truth.
+pub fn evaluate(
+    estimates: &[StepEstimate],
+    final_cal: &Calibration,
+    truth: &TruthSeries,
+    constants: &TruthConstants,
+) -> Result<Evaluation> {
+    if constants.photodiodes.len() != final_cal.photodiodes.len() {
+        bail!(
+            "truth.ron has {} photodiodes, the calibration {}",
+            constants.photodiodes.len(),
+            final_cal.photodiodes.len()
+        );
+    }
+    let truth_row = |t: f64| truth.t_s.binary_search_by(|x| x.total_cmp(&t)).ok();
+    let lit_minutes = lit_minutes(truth, constants);
+    let photodiodes: Vec<PdError> = constants
+        .photodiodes
+        .iter()
+        .zip(&final_cal.photodiodes)
+        .enumerate()
+        .map(|(i, (t, e))| {
+            let n_true =
+                normal_from_az_el(t.azimuth_deg.to_radians(), t.elevation_deg.to_radians());
+            PdError {
+                index: i + 1,
+                scale_error_V: t.scale_v - e.scale_v,
+                scale_error_percent: 100.0 * (t.scale_v - e.scale_v) / t.scale_v,
+                normal_error_deg: n_true.angle(&e.n_body()).to_degrees(),
+                lit_minutes: lit_minutes[i],
+            }
+        })
+        .collect();
+    let well_lit = || photodiodes.iter().filter(|p| p.lit_minutes >= 5.0);
+    let attitude = attitude_stats(estimates, truth, &truth_row)?;
+    let consistency = consistency(
+        estimates,
+        final_cal,
+        truth,
+        constants,
+        &truth_row,
+        &attitude.1,
+    );
+    Ok(Evaluation {
+        format_version: crate::files::OUTPUT_FORMAT_VERSION,
+        worst_normal_error_deg: well_lit().map(|p| p.normal_error_deg).fold(0.0, f64::max),
+        worst_scale_error_percent: well_lit()
+            .map(|p| p.scale_error_percent.abs())
+            .fold(0.0, f64::max),
+        photodiodes,
+        attitude: attitude.0,
+        consistency,
+    })
+}
+
+/// Minutes each photodiode spent in full Sun with the Sun inside its field of view (truth).
+fn lit_minutes(truth: &TruthSeries, constants: &TruthConstants) -> Vec<f64> {
+    let cos_fov = LIT_FOV_DEG.to_radians().cos();
+    let dt_min = truth
+        .t_s
+        .windows(2)
+        .next()
+        .map_or(1.0 / 60.0, |w| (w[1] - w[0]) / 60.0);
+    constants
+        .photodiodes
+        .iter()
+        .map(|p| {
+            let n = normal_from_az_el(p.azimuth_deg.to_radians(), p.elevation_deg.to_radians());
+            let rows = truth
+                .sun_body
+                .iter()
+                .zip(&truth.eclipse)
+                .filter(|(s, e)| **e >= 0.999 && n.dot(s) >= cos_fov);
+            rows.count() as f64 * dt_min
+        })
+        .collect()
+}
+
+/// Indices (into `estimates`) of the samples in full Sun after the first 10 sunlit minutes.
+fn converged_sunlit(
+    estimates: &[StepEstimate],
+    truth: &TruthSeries,
+    truth_row: &dyn Fn(f64) -> Option<usize>,
+) -> Vec<(usize, usize)> {
+    let mut sunlit_s = 0.0;
+    let mut previous_t: Option<f64> = None;
+    let mut out = Vec::new();
+    for (k, e) in estimates.iter().enumerate() {
+        let Some(row) = truth_row(e.t_s) else {
+            continue;
+        };
+        let dt = previous_t.map_or(0.0, |p| e.t_s - p);
+        previous_t = Some(e.t_s);
+        if truth.eclipse[row] >= 0.999 {
+            sunlit_s += dt;
+            if sunlit_s >= CONVERGENCE_SUNLIT_S {
+                out.push((k, row));
+            }
+        }
+    }
+    out
+}
+
+fn attitude_stats(
+    estimates: &[StepEstimate],
+    truth: &TruthSeries,
+    truth_row: &dyn Fn(f64) -> Option<usize>,
+) -> Result<(AttitudeStats, Vec<(usize, usize)>)> {
+    let samples = converged_sunlit(estimates, truth, truth_row);
+    let mut angles = Vec::with_capacity(samples.len());
+    let (mut sq, mut sig) = (Vector3::zeros(), Vector3::zeros());
+    for &(k, row) in &samples {
+        let q_true = quat_of(&truth.q[row]).context("truth.csv quaternion is zero")?;
+        let a = error_vector(&q_true, &estimates[k].q).map(f64::to_degrees);
+        angles.push(a.norm());
+        sq += a.component_mul(&a);
+        sig += Vector3::from(estimates[k].attitude_sigma_deg);
+    }
+    let n = samples.len().max(1) as f64;
+    angles.sort_by(f64::total_cmp);
+    let p99 = angles
+        .get(((angles.len() as f64 * 0.99) as usize).min(angles.len().saturating_sub(1)))
+        .copied();
+    let stats = AttitudeStats {
+        samples: samples.len(),
+        mean_deg: angles.iter().sum::<f64>() / n,
+        rms_deg: (angles.iter().map(|a| a * a).sum::<f64>() / n).sqrt(),
+        p99_deg: p99.unwrap_or(f64::NAN),
+        axis_rms_deg: (sq / n).map(f64::sqrt).into(),
+        axis_filter_sigma_deg: (sig / n).into(),
+    };
+    Ok((stats, samples))
+}
+
+fn consistency(
+    estimates: &[StepEstimate],
+    final_cal: &Calibration,
+    truth: &TruthSeries,
+    constants: &TruthConstants,
+    truth_row: &dyn Fn(f64) -> Option<usize>,
+    converged: &[(usize, usize)],
+) -> Consistency {
+    let mut inside = Vec::new();
+    for (t, e) in constants.photodiodes.iter().zip(&final_cal.photodiodes) {
+        inside.push((t.scale_v - e.scale_v).abs() <= 3.0 * e.scale_sigma_v);
+        inside.push((t.elevation_deg - e.elevation_deg).abs() <= 3.0 * e.elevation_sigma_deg);
+        if let Some(s) = e.azimuth_sigma_deg {
+            inside.push(wrap_deg(t.azimuth_deg - e.azimuth_deg).abs() <= 3.0 * s);
+        }
+    }
+    if let Some(row) = estimates.last().and_then(|e| truth_row(e.t_s)) {
+        for axis in 0..3 {
+            let err = truth.gyro_bias_rad_s[row][axis] - final_cal.gyro_bias_rad_s[axis];
+            inside.push(err.abs() <= 3.0 * final_cal.gyro_bias_sigma_rad_s[axis]);
+        }
+    }
+    let attitude_inside: Vec<bool> = converged
+        .iter()
+        .filter_map(|&(k, row)| {
+            let q_true = quat_of(&truth.q[row])?;
+            let a = error_vector(&q_true, &estimates[k].q).map(f64::to_degrees);
+            Some((0..3).map(move |i| a[i].abs() <= 3.0 * estimates[k].attitude_sigma_deg[i]))
+        })
+        .flatten()
+        .collect();
+    Consistency {
+        final_states_within_3sigma: fraction(&inside),
+        final_states: inside.len(),
+        attitude_within_3sigma: fraction(&attitude_inside),
+        converged_within_3sigma_of_final: converged_to_final(estimates, final_cal, converged),
+    }
+}
+
+fn converged_to_final(
+    estimates: &[StepEstimate],
+    final_cal: &Calibration,
+    converged: &[(usize, usize)],
+) -> f64 {
+    let mut inside = Vec::new();
+    for &(k, _) in converged {
+        for (p, f) in estimates[k]
+            .calibration
+            .photodiodes
+            .iter()
+            .zip(&final_cal.photodiodes)
+        {
+            inside.push((p.scale_v - f.scale_v).abs() <= 3.0 * p.scale_sigma_v);
+            inside.push((p.elevation_deg - f.elevation_deg).abs() <= 3.0 * p.elevation_sigma_deg);
+            if let Some(s) = p.azimuth_sigma_deg {
+                inside.push(wrap_deg(p.azimuth_deg - f.azimuth_deg).abs() <= 3.0 * s);
+            }
+        }
+    }
+    fraction(&inside)
+}
+
+fn fraction(flags: &[bool]) -> f64 {
+    flags.iter().filter(|b| **b).count() as f64 / flags.len().max(1) as f64
+}
+
+/// Rows for index.html.
+pub fn index_rows(e: &Evaluation) -> Vec<(String, String)> {
+    vec![
+        (
+            "worst normal error, lit >= 5 min (deg)".into(),
+            format!("{:.3}", e.worst_normal_error_deg),
+        ),
+        (
+            "worst scale error, lit >= 5 min (%)".into(),
+            format!("{:.3}", e.worst_scale_error_percent),
+        ),
+        (
+            "attitude error RMS after 10 sunlit min (deg)".into(),
+            format!("{:.3}", e.attitude.rms_deg),
+        ),
+        (
+            "final calibration states inside 3-sigma".into(),
+            format!("{:.1} %", 100.0 * e.consistency.final_states_within_3sigma),
+        ),
+        (
+            "attitude errors inside 3-sigma".into(),
+            format!("{:.1} %", 100.0 * e.consistency.attitude_within_3sigma),
+        ),
+    ]
+}
+
+/// Reads `estimates.csv` back into step estimates (the columns of cli-contract.md).
+pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
+    let mut reader =
+        csv::Reader::from_path(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let header = reader.headers()?.clone();
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| h == name)
+            .with_context(|| format!("{}: missing column {name}", path.display()))
+    };
+    let m = (1..)
+        .take_while(|i| header.iter().any(|h| h == format!("pd{i:02}_scale_V")))
+        .count();
+    let base: Vec<usize> = [
+        "t_s",
+        "q_x",
+        "q_y",
+        "q_z",
+        "q_w",
+        "att_sigma_x_deg",
+        "att_sigma_y_deg",
+        "att_sigma_z_deg",
+    ]
+    .iter()
+    .map(|n| col(n))
+    .collect::<Result<_>>()?;
+    let bias: Vec<usize> = ["x", "y", "z"]
+        .iter()
+        .map(|a| col(&format!("gyro_bias_{a}_rad_s")))
+        .collect::<Result<_>>()?;
+    let bias_sigma: Vec<usize> = ["x", "y", "z"]
+        .iter()
+        .map(|a| col(&format!("gyro_bias_sigma_{a}_rad_s")))
+        .collect::<Result<_>>()?;
+    let pd_cols: Vec<[usize; 6]> = (1..=m)
+        .map(|i| {
+            let c = |q: &str| col(&format!("pd{i:02}_{q}"));
+            Ok([
+                c("scale_V")?,
+                c("scale_sigma_V")?,
+                c("azimuth_deg")?,
+                c("azimuth_sigma_deg")?,
+                c("elevation_deg")?,
+                c("elevation_sigma_deg")?,
+            ])
+        })
+        .collect::<Result<_>>()?;
+    let mut out = Vec::new();
+    for (line, record) in reader.records().enumerate() {
+        let record = record?;
+        let num = |c: usize| -> Result<f64> {
+            let text = record.get(c).unwrap_or("");
+            text.parse::<f64>().with_context(|| {
+                format!(
+                    "{}:{}:{}: {text:?} is not a number",
+                    path.display(),
+                    line + 2,
+                    c + 1
+                )
+            })
+        };
+        let opt = |c: usize| {
+            record
+                .get(c)
+                .filter(|s| !s.is_empty())
+                .and_then(|s| s.parse::<f64>().ok())
+        };
+        let q = Quat::new_normalized(num(base[1])?, num(base[2])?, num(base[3])?, num(base[4])?)
+            .with_context(|| format!("{}:{}: zero quaternion", path.display(), line + 2))?;
+        let photodiodes = pd_cols
+            .iter()
+            .map(|c| {
+                Ok(PdCalibration {
+                    scale_v: num(c[0])?,
+                    scale_sigma_v: num(c[1])?,
+                    azimuth_deg: num(c[2])?,
+                    azimuth_sigma_deg: opt(c[3]),
+                    elevation_deg: num(c[4])?,
+                    elevation_sigma_deg: num(c[5])?,
+                })
+            })
+            .collect::<Result<_>>()?;
+        out.push(StepEstimate {
+            index: line,
+            t_s: num(base[0])?,
+            q,
+            attitude_sigma_deg: [num(base[5])?, num(base[6])?, num(base[7])?],
+            calibration: Calibration {
+                format_version: pdcal_filter::calibration::CALIBRATION_FORMAT_VERSION,
+                photodiodes,
+                gyro_bias_rad_s: [num(bias[0])?, num(bias[1])?, num(bias[2])?],
+                gyro_bias_sigma_rad_s: [
+                    num(bias_sigma[0])?,
+                    num(bias_sigma[1])?,
+                    num(bias_sigma[2])?,
+                ],
+                parameters: Vec::new(),
+            },
+        });
+    }
+    Ok(out)
+}
+
+/// `pdcal evaluate DATASET_DIR OUT_DIR`: reads the calibration outputs and the truth, writes
+/// `OUT_DIR/evaluation.json`.
+pub fn run_dir(dataset: &Path, out: &Path) -> Result<Evaluation> {
+    let meta = pdcal_dataset::read_meta(dataset)?;
+    let Some((truth, constants)) = pdcal_dataset::read_truth(dataset, &meta)? else {
+        bail!(
+            "{}: evaluate needs truth.csv and truth.ron (a simulated dataset)",
+            dataset.display()
+        );
+    };
+    let cal_path = out.join("calibration.ron");
+    let text = std::fs::read_to_string(&cal_path)
+        .with_context(|| format!("cannot read {}", cal_path.display()))?;
+    let final_cal =
+        Calibration::from_ron_str(&text).with_context(|| format!("{}", cal_path.display()))?;
+    let estimates = read_estimates(&out.join("estimates.csv"))?;
+    let evaluation = evaluate(&estimates, &final_cal, &truth, &constants)?;
+    crate::output::write_file_atomic(
+        &out.join("evaluation.json"),
+        serde_json::to_string_pretty(&evaluation)?.as_bytes(),
+    )?;
+    Ok(evaluation)
+}

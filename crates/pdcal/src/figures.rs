@@ -1,0 +1,320 @@
+//! The figures of a calibration, after the paper's Figs. 2-12, and index.html.
+
+use std::path::Path;
+
+use anyhow::Result;
+use pdcal_dataset::Telemetry;
+use pdcal_filter::{Sensor, StepEstimate};
+use pdcal_report::{
+    BinRange, BoundsPanel, DirectionSet, Figure, HistogramPanel, LineAxes, Mark, Series, YScale,
+    histograms, lines, series_with_bounds, sphere_directions,
+};
+
+use crate::calibrate::Outcome;
+use crate::files::Summary;
+
+/// A written figure: caption and file stem.
+pub type FigureEntry = (String, String);
+
+/// Photodiodes shown in the per-photodiode figures (the paper shows 1-3).
+const SHOWN: usize = 3;
+
+fn minutes(t_s: &[f64]) -> Vec<f64> {
+    t_s.iter().map(|t| t / 60.0).collect()
+}
+
+/// Writes Figs. 2-12 into `dir`; returns what was written.
+pub fn calibration_figures(
+    dir: &Path,
+    telemetry: &Telemetry,
+    outcome: &Outcome,
+) -> Result<Vec<FigureEntry>> {
+    let mut out = Vec::new();
+    raw_outputs(dir, telemetry, &mut out)?;
+    sun_directions(dir, outcome, &mut out)?;
+    residuals(dir, outcome, &mut out)?;
+    estimates(dir, &outcome.run.forward, &mut out)?;
+    magnitudes(dir, outcome, &mut out)?;
+    attitude_sigma(dir, &outcome.run.forward, &mut out)?;
+    Ok(out)
+}
+
+fn push(out: &mut Vec<FigureEntry>, caption: &str, stem: &str) {
+    out.push((caption.to_owned(), stem.to_owned()));
+}
+
+fn raw_outputs(dir: &Path, telemetry: &Telemetry, out: &mut Vec<FigureEntry>) -> Result<()> {
+    let t = minutes(&telemetry.t_s);
+    let columns: Vec<Vec<f64>> = telemetry
+        .pd_v
+        .iter()
+        .map(|c| c.iter().map(|v| v.unwrap_or(f64::NAN)).collect())
+        .collect();
+    let names: Vec<String> = (1..=columns.len()).map(|i| format!("pd{i:02}")).collect();
+    let series: Vec<Series> = columns
+        .iter()
+        .zip(&names)
+        .map(|(c, n)| Series::new(n, c, Mark::Line))
+        .collect();
+    let figure = Figure::new("fig02_raw_outputs", "Raw photodiode outputs");
+    lines(
+        dir,
+        &figure,
+        &LineAxes::new("time (min)", "output (V)"),
+        &t,
+        &series,
+    )?;
+    push(out, "Fig. 2: raw photodiode outputs", "fig02_raw_outputs");
+    Ok(())
+}
+
+fn sun_directions(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Result<()> {
+    let dirs = &outcome.sun_vector.directions_initial_body;
+    let figure = Figure::new(
+        "fig03_sun_directions",
+        "Measured Sun directions in the body frame (initial parameters)",
+    );
+    sphere_directions(
+        dir,
+        &figure,
+        &[DirectionSet {
+            name: "Sun direction",
+            dirs_body: dirs,
+        }],
+    )?;
+    push(
+        out,
+        "Fig. 3: measured Sun directions, body frame",
+        "fig03_sun_directions",
+    );
+    Ok(())
+}
+
+/// Residuals of photodiodes 1-3 on the time grid of the run (NaN where not updated).
+fn residuals(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Result<()> {
+    let run = &outcome.run;
+    let t: Vec<f64> = run.forward.iter().map(|e| e.t_s / 60.0).collect();
+    let first = run.forward.first().map_or(0, |e| e.index);
+    let n = t.len();
+    let shown = SHOWN.min(run.calibration.photodiodes.len());
+    let mut value = vec![vec![f64::NAN; n]; shown];
+    let mut sigma = vec![vec![f64::NAN; n]; shown];
+    for r in &run.residuals {
+        if let Sensor::Photodiode(i) = r.sensor
+            && i < shown
+            && let Some(k) = r.index.checked_sub(first).filter(|k| *k < n)
+        {
+            value[i][k] = r.residual;
+            sigma[i][k] = r.bound_3sigma / 3.0;
+        }
+    }
+    let labels: Vec<String> = (1..=shown).map(|i| format!("photodiode {i}")).collect();
+    let panels: Vec<BoundsPanel> = (0..shown)
+        .map(|i| BoundsPanel::new(&labels[i], "residual (V)", &t, &value[i], &sigma[i]))
+        .collect();
+    let figure = Figure::new("fig04_residuals", "Photodiode residuals and 3-sigma bounds");
+    series_with_bounds(dir, &figure, "time (min)", "residual", &panels)?;
+    push(
+        out,
+        "Fig. 4: residuals with 3-sigma bounds",
+        "fig04_residuals",
+    );
+    Ok(())
+}
+
+/// Scale, azimuth and elevation estimates of photodiodes 1-3 with 3-sigma bounds (Figs. 5-7).
+fn estimates(dir: &Path, forward: &[StepEstimate], out: &mut Vec<FigureEntry>) -> Result<()> {
+    let t: Vec<f64> = forward.iter().map(|e| e.t_s / 60.0).collect();
+    let shown = SHOWN.min(
+        forward
+            .first()
+            .map_or(0, |e| e.calibration.photodiodes.len()),
+    );
+    type Pick = fn(&pdcal_filter::PdCalibration) -> (f64, f64);
+    let quantities: [(&str, &str, &str, &str, Pick); 3] = [
+        (
+            "fig05_scale",
+            "Scale factor estimates",
+            "C (V)",
+            "Fig. 5: scale factors with 3-sigma bounds",
+            |p| (p.scale_v, p.scale_sigma_v),
+        ),
+        (
+            "fig06_azimuth",
+            "Azimuth estimates",
+            "azimuth (deg)",
+            "Fig. 6: azimuths with 3-sigma bounds",
+            |p| (p.azimuth_deg, p.azimuth_sigma_deg.unwrap_or(f64::NAN)),
+        ),
+        (
+            "fig07_elevation",
+            "Elevation estimates",
+            "elevation (deg)",
+            "Fig. 7: elevations with 3-sigma bounds",
+            |p| (p.elevation_deg, p.elevation_sigma_deg),
+        ),
+    ];
+    for (stem, title, y_label, caption, pick) in quantities {
+        let series: Vec<(Vec<f64>, Vec<f64>)> = (0..shown)
+            .map(|i| {
+                forward
+                    .iter()
+                    .map(|e| pick(&e.calibration.photodiodes[i]))
+                    .unzip()
+            })
+            .collect();
+        let labels: Vec<String> = (1..=shown).map(|i| format!("photodiode {i}")).collect();
+        let panels: Vec<BoundsPanel> = series
+            .iter()
+            .zip(&labels)
+            .map(|((v, s), l)| BoundsPanel::new(l, y_label, &t, v, s).around(v))
+            .collect();
+        series_with_bounds(
+            dir,
+            &Figure::new(stem, title),
+            "time (min)",
+            "estimate",
+            &panels,
+        )?;
+        push(out, caption, stem);
+    }
+    Ok(())
+}
+
+fn magnitudes(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Result<()> {
+    let sv = &outcome.sun_vector;
+    let figure = Figure::new(
+        "fig08_magnitude_histograms",
+        "Measured Sun-vector magnitude",
+    );
+    let panels = [
+        HistogramPanel {
+            label: "initial parameters",
+            values: &sv.magnitude_initial,
+        },
+        HistogramPanel {
+            label: "calibrated parameters",
+            values: &sv.magnitude_calibrated,
+        },
+    ];
+    histograms(dir, &figure, "magnitude (-)", 40, BinRange::Shared, &panels)?;
+    push(
+        out,
+        "Figs. 8-9: Sun-vector magnitude, initial and calibrated",
+        "fig08_magnitude_histograms",
+    );
+
+    let t = minutes(&sv.t_s);
+    let series = [
+        Series::new("uncompensated", &sv.magnitude_uncompensated, Mark::Circle)
+            .with_colour([220, 40, 40]),
+        Series::new("albedo compensated", &sv.magnitude_calibrated, Mark::Dot)
+            .with_colour([30, 80, 220]),
+    ];
+    let figure = Figure::new(
+        "fig10_magnitude_time",
+        "Sun-vector magnitude with and without albedo compensation",
+    );
+    lines(
+        dir,
+        &figure,
+        &LineAxes::new("time (min)", "magnitude (-)"),
+        &t,
+        &series,
+    )?;
+    push(
+        out,
+        "Fig. 10: magnitude over time, with and without albedo compensation",
+        "fig10_magnitude_time",
+    );
+
+    let figure = Figure::new(
+        "fig11_direction_change",
+        "Change of the measured Sun direction by the calibration",
+    );
+    let panels = [HistogramPanel {
+        label: "initial vs calibrated",
+        values: &sv.direction_change_deg,
+    }];
+    histograms(dir, &figure, "angle (deg)", 40, BinRange::PerPanel, &panels)?;
+    push(
+        out,
+        "Fig. 11: Sun-direction change, initial vs calibrated",
+        "fig11_direction_change",
+    );
+    Ok(())
+}
+
+fn attitude_sigma(dir: &Path, forward: &[StepEstimate], out: &mut Vec<FigureEntry>) -> Result<()> {
+    let t: Vec<f64> = forward.iter().map(|e| e.t_s / 60.0).collect();
+    let axis = |k: usize| -> Vec<f64> { forward.iter().map(|e| e.attitude_sigma_deg[k]).collect() };
+    let (x, y, z) = (axis(0), axis(1), axis(2));
+    let series = [
+        Series::new("x", &x, Mark::Line),
+        Series::new("y", &y, Mark::Line),
+        Series::new("z", &z, Mark::Line),
+    ];
+    let axes = LineAxes::new("time (min)", "1-sigma (deg)").with_y_scale(YScale::Log10);
+    lines(
+        dir,
+        &Figure::new("fig12_attitude_sigma", "Attitude accuracy (1-sigma)"),
+        &axes,
+        &t,
+        &series,
+    )?;
+    push(
+        out,
+        "Fig. 12: attitude 1-sigma per body axis",
+        "fig12_attitude_sigma",
+    );
+    Ok(())
+}
+
+/// Writes index.html: the summary table (and evaluation rows when given) and the figures.
+pub fn write_index(
+    dir: &Path,
+    summary: &Summary,
+    evaluation: Option<&[(String, String)]>,
+    figures: &[FigureEntry],
+) -> Result<()> {
+    let mut rows: Vec<(String, String)> = vec![
+        ("dataset".into(), summary.dataset.clone()),
+        ("mode".into(), summary.mode.clone()),
+        (
+            "Sun-vector magnitude, initial (mean / std)".into(),
+            format!(
+                "{:.4} / {:.4}",
+                summary.sun_vector_magnitude.initial.mean, summary.sun_vector_magnitude.initial.std
+            ),
+        ),
+        (
+            "Sun-vector magnitude, calibrated (mean / std)".into(),
+            format!(
+                "{:.4} / {:.4}",
+                summary.sun_vector_magnitude.calibrated.mean,
+                summary.sun_vector_magnitude.calibrated.std
+            ),
+        ),
+        (
+            "Sun-direction change, mean (deg)".into(),
+            format!("{:.2}", summary.sun_direction_change_deg.mean),
+        ),
+        (
+            "photodiode residual RMS (V)".into(),
+            format!("{:.4}", summary.residuals.photodiode_rms_V),
+        ),
+        (
+            "photodiode residuals inside 3-sigma".into(),
+            format!("{:.2} %", 100.0 * summary.residuals.fraction_within_3sigma),
+        ),
+        (
+            "filter run time (s)".into(),
+            format!("{:.2}", summary.runtime_s),
+        ),
+    ];
+    if let Some(extra) = evaluation {
+        rows.extend(extra.iter().cloned());
+    }
+    pdcal_report::index_html(dir, &format!("pdcal: {}", summary.dataset), &rows, figures)?;
+    Ok(())
+}

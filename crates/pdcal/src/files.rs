@@ -1,0 +1,352 @@
+//! The output files of `docs/cli-contract.md`: summary.json, calibration.ron, estimates.csv,
+//! residuals.csv, the figures and index.html, written whole or not at all.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use pdcal_dataset::{DatasetMeta, Telemetry};
+use pdcal_filter::{CalibrationRun, ResidualRecord, Sensor, StepEstimate};
+use serde::Serialize;
+
+use crate::calibrate::Outcome;
+use crate::output::OutputDir;
+
+/// Version of the output files' layout (cli-contract.md).
+pub const OUTPUT_FORMAT_VERSION: u32 = 1;
+
+/// `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    /// Layout version.
+    pub format_version: u32,
+    /// Dataset name from dataset.ron.
+    pub dataset: String,
+    /// Mode the filter ran in.
+    pub mode: String,
+    /// Per photodiode, in pdNN order.
+    pub photodiodes: Vec<PdSummary>,
+    /// Final gyro bias, rad/s, body.
+    pub gyro_bias_rad_s: [f64; 3],
+    /// Sun-vector magnitude with initial and calibrated parameters.
+    pub sun_vector_magnitude: MagnitudeSummary,
+    /// Mean angle between the initial and calibrated Sun directions.
+    pub sun_direction_change_deg: MeanOnly,
+    /// Photodiode residual statistics.
+    pub residuals: ResidualSummary,
+    /// Update counts (accepted, gated, ...) per sensor class.
+    pub updates: serde_json::Value,
+    /// Wall-clock time of the filter run, s.
+    pub runtime_s: f64,
+}
+
+/// One photodiode in `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+#[allow(non_snake_case)]
+pub struct PdSummary {
+    /// 1-based index.
+    pub index: usize,
+    /// Calibrated scale factor, V.
+    pub scale_V: f64,
+    /// Its 1-sigma, V.
+    pub scale_sigma_V: f64,
+    /// Calibrated azimuth, deg.
+    pub azimuth_deg: f64,
+    /// Its 1-sigma, deg; null where undefined (elevation +-90 deg).
+    pub azimuth_sigma_deg: Option<f64>,
+    /// Calibrated elevation, deg.
+    pub elevation_deg: f64,
+    /// Its 1-sigma, deg.
+    pub elevation_sigma_deg: f64,
+    /// Whether the photodiode took part (false: never lit).
+    pub used: bool,
+    /// The initial estimates.
+    pub initial: PdInitial,
+}
+
+/// Initial values of one photodiode.
+#[derive(Debug, Clone, Serialize)]
+#[allow(non_snake_case)]
+pub struct PdInitial {
+    /// Maximum measured output, V.
+    pub scale_V: f64,
+    /// Nominal azimuth, deg.
+    pub azimuth_deg: f64,
+    /// Nominal elevation, deg.
+    pub elevation_deg: f64,
+}
+
+/// Mean and standard deviation.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct MeanStd {
+    /// Mean.
+    pub mean: f64,
+    /// Sample standard deviation.
+    pub std: f64,
+}
+
+/// Sun-vector magnitude, initial and calibrated.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct MagnitudeSummary {
+    /// With the initial parameters.
+    pub initial: MeanStd,
+    /// With the calibrated parameters.
+    pub calibrated: MeanStd,
+    /// Samples used.
+    pub samples: usize,
+}
+
+/// A mean only.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct MeanOnly {
+    /// Mean.
+    pub mean: f64,
+}
+
+/// Photodiode residuals.
+#[derive(Debug, Clone, Copy, Serialize)]
+#[allow(non_snake_case)]
+pub struct ResidualSummary {
+    /// RMS of the photodiode residuals, V.
+    pub photodiode_rms_V: f64,
+    /// Fraction of photodiode residuals inside their 3-sigma bound.
+    pub fraction_within_3sigma: f64,
+    /// Photodiode residuals counted.
+    pub count: usize,
+}
+
+/// Mean and sample standard deviation of finite values (NaN for fewer than 2).
+pub fn mean_std(values: &[f64]) -> MeanStd {
+    let v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    let n = v.len() as f64;
+    let mean = v.iter().sum::<f64>() / n;
+    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    MeanStd {
+        mean,
+        std: var.sqrt(),
+    }
+}
+
+/// RMS and within-3-sigma fraction of the photodiode residuals.
+pub fn residual_summary(residuals: &[ResidualRecord]) -> ResidualSummary {
+    let pd: Vec<&ResidualRecord> = residuals
+        .iter()
+        .filter(|r| matches!(r.sensor, Sensor::Photodiode(_)))
+        .collect();
+    let n = pd.len().max(1) as f64;
+    let rms = (pd.iter().map(|r| r.residual * r.residual).sum::<f64>() / n).sqrt();
+    let inside = pd
+        .iter()
+        .filter(|r| r.residual.abs() <= r.bound_3sigma)
+        .count() as f64;
+    ResidualSummary {
+        photodiode_rms_V: rms,
+        fraction_within_3sigma: inside / n,
+        count: pd.len(),
+    }
+}
+
+/// Builds `summary.json`'s content.
+pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
+    let run = &outcome.run;
+    let photodiodes = run
+        .calibration
+        .photodiodes
+        .iter()
+        .zip(&run.initial.photodiodes)
+        .zip(&run.used_photodiodes)
+        .enumerate()
+        .map(|(i, ((cal, init), used))| PdSummary {
+            index: i + 1,
+            scale_V: cal.scale_v,
+            scale_sigma_V: cal.scale_sigma_v,
+            azimuth_deg: cal.azimuth_deg,
+            azimuth_sigma_deg: cal.azimuth_sigma_deg,
+            elevation_deg: cal.elevation_deg,
+            elevation_sigma_deg: cal.elevation_sigma_deg,
+            used: *used,
+            initial: PdInitial {
+                scale_V: init.scale_v,
+                azimuth_deg: init.azimuth_deg,
+                elevation_deg: init.elevation_deg,
+            },
+        })
+        .collect();
+    let sv = &outcome.sun_vector;
+    Summary {
+        format_version: OUTPUT_FORMAT_VERSION,
+        dataset: meta.name.clone(),
+        mode: format!("{:?}", run.mode),
+        photodiodes,
+        gyro_bias_rad_s: run.calibration.gyro_bias_rad_s,
+        sun_vector_magnitude: MagnitudeSummary {
+            initial: mean_std(&sv.magnitude_initial),
+            calibrated: mean_std(&sv.magnitude_calibrated),
+            samples: sv.t_s.len(),
+        },
+        sun_direction_change_deg: MeanOnly {
+            mean: mean_std(&sv.direction_change_deg).mean,
+        },
+        residuals: residual_summary(&run.residuals),
+        updates: counts_json(run),
+        runtime_s: outcome.runtime_s,
+    }
+}
+
+fn counts_json(run: &CalibrationRun) -> serde_json::Value {
+    let class = |c: &pdcal_filter::SensorCounts| {
+        serde_json::json!({
+            "accepted": c.accepted, "gated": c.gated, "not_sampled": c.not_sampled,
+            "shadowed": c.shadowed, "outside_fov": c.outside_fov, "unused_sensor": c.unused_sensor,
+        })
+    };
+    serde_json::json!({
+        "photodiode": class(&run.counts.photodiode),
+        "magnetometer": class(&run.counts.magnetometer),
+    })
+}
+
+/// Column names of `estimates.csv` for `m` photodiodes and the extra parameters.
+pub fn estimate_header(m: usize, parameters: &[String]) -> Vec<String> {
+    let mut h: Vec<String> = [
+        "t_s",
+        "q_x",
+        "q_y",
+        "q_z",
+        "q_w",
+        "att_sigma_x_deg",
+        "att_sigma_y_deg",
+        "att_sigma_z_deg",
+    ]
+    .map(String::from)
+    .to_vec();
+    for axis in ["x", "y", "z"] {
+        h.push(format!("gyro_bias_{axis}_rad_s"));
+    }
+    for axis in ["x", "y", "z"] {
+        h.push(format!("gyro_bias_sigma_{axis}_rad_s"));
+    }
+    for i in 1..=m {
+        for q in [
+            "scale_V",
+            "scale_sigma_V",
+            "azimuth_deg",
+            "azimuth_sigma_deg",
+            "elevation_deg",
+            "elevation_sigma_deg",
+        ] {
+            h.push(format!("pd{i:02}_{q}"));
+        }
+    }
+    for p in parameters {
+        h.push(p.clone());
+        h.push(format!("{p}_sigma"));
+    }
+    h
+}
+
+fn estimate_row(e: &StepEstimate) -> Vec<String> {
+    let f = |x: f64| format!("{x:?}");
+    let c = &e.calibration;
+    let mut row = vec![f(e.t_s), f(e.q.x), f(e.q.y), f(e.q.z), f(e.q.w)];
+    row.extend(e.attitude_sigma_deg.iter().map(|&x| f(x)));
+    row.extend(c.gyro_bias_rad_s.iter().map(|&x| f(x)));
+    row.extend(c.gyro_bias_sigma_rad_s.iter().map(|&x| f(x)));
+    for p in &c.photodiodes {
+        row.extend([f(p.scale_v), f(p.scale_sigma_v), f(p.azimuth_deg)]);
+        row.push(p.azimuth_sigma_deg.map(f).unwrap_or_default());
+        row.extend([f(p.elevation_deg), f(p.elevation_sigma_deg)]);
+    }
+    for p in &c.parameters {
+        row.extend([f(p.value), f(p.sigma)]);
+    }
+    row
+}
+
+/// `estimates.csv` text: one row per filter step.
+pub fn estimates_csv(estimates: &[StepEstimate], m: usize) -> Result<Vec<u8>> {
+    let names: Vec<String> = estimates
+        .first()
+        .map(|e| {
+            e.calibration
+                .parameters
+                .iter()
+                .map(|p| p.name.clone())
+                .collect()
+        })
+        .unwrap_or_default();
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record(estimate_header(m, &names))?;
+    for e in estimates {
+        w.write_record(estimate_row(e))?;
+    }
+    w.into_inner().context("estimates.csv")
+}
+
+/// The sensor column of `residuals.csv`: `pd03`, `mag_x`.
+pub fn sensor_name(sensor: Sensor) -> String {
+    match sensor {
+        Sensor::Photodiode(i) => format!("pd{:02}", i + 1),
+        Sensor::Magnetometer(axis) => format!("mag_{}", ["x", "y", "z"][axis.min(2)]),
+    }
+}
+
+/// `residuals.csv` text: one row per scalar update.
+pub fn residuals_csv(residuals: &[ResidualRecord]) -> Result<Vec<u8>> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record([
+        "t_s",
+        "sensor",
+        "measured",
+        "residual",
+        "bound_3sigma",
+        "accepted",
+    ])?;
+    for r in residuals {
+        w.write_record([
+            format!("{:?}", r.t_s),
+            sensor_name(r.sensor),
+            format!("{:?}", r.measured),
+            format!("{:?}", r.residual),
+            format!("{:?}", r.bound_3sigma),
+            r.accepted.to_string(),
+        ])?;
+    }
+    w.into_inner().context("residuals.csv")
+}
+
+/// Writes every output of a calibration into `out` (whole or not at all).
+pub fn write_calibration_outputs(
+    out: &Path,
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+    outcome: &Outcome,
+) -> Result<()> {
+    let dir = OutputDir::create(out)?;
+    let summary = summary(meta, outcome);
+    let m = meta.photodiodes.len();
+    std::fs::write(
+        dir.file("summary.json"),
+        serde_json::to_string_pretty(&summary)?,
+    )?;
+    std::fs::write(
+        dir.file("calibration.ron"),
+        outcome.run.calibration.to_ron_string()?,
+    )?;
+    std::fs::write(
+        dir.file("estimates.csv"),
+        estimates_csv(&outcome.run.forward, m)?,
+    )?;
+    if let Some(smoothed) = &outcome.run.smoothed {
+        std::fs::write(
+            dir.file("estimates_smoothed.csv"),
+            estimates_csv(smoothed, m)?,
+        )?;
+    }
+    std::fs::write(
+        dir.file("residuals.csv"),
+        residuals_csv(&outcome.run.residuals)?,
+    )?;
+    let figures = crate::figures::calibration_figures(dir.path(), telemetry, outcome)?;
+    crate::figures::write_index(dir.path(), &summary, None, &figures)?;
+    dir.commit()
+}

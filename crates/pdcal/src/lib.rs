@@ -1,0 +1,17 @@
+//! The pdcal driver: the commands of `docs/cli-contract.md` as library functions, so that
+//! `xtask` (Monte Carlo, demos) runs exactly what the binary runs.
+//!
+//! This crate and `xtask` are, with `pdcal-dataset` and `pdcal-report`, the only places that
+//! touch files. Every output directory is written whole or not at all
+//! ([`output::OutputDir`]).
+
+pub mod calibrate;
+pub mod cli;
+pub mod default_run;
+pub mod evaluate;
+pub mod figures;
+pub mod files;
+pub mod output;
+pub mod references;
+pub mod simulate;
+pub mod sunvec;

@@ -1,0 +1,138 @@
+//! The attitude-independent check of the paper's Figs. 8-11: the Sun vector measured by the
+//! photodiodes, with the initial and with the calibrated parameters.
+//!
+//! A calibrated set of photodiodes measures a unit vector: the magnitude of the least-squares
+//! Sun vector should be 1. Albedo is removed with the filter's attitude estimate (the albedo
+//! depends on attitude: the paper's argument for an attitude-dependent calibration).
+
+use anyhow::Result;
+use nalgebra::Vector3;
+use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView};
+use pdcal_dataset::{DatasetMeta, Telemetry};
+use pdcal_filter::{Calibration, CalibrationRun, FilterConfig, StepReference};
+use pdcal_photodiode::{Photodiode, SunEstimate, SunVectorOptions, estimate_sun_vector};
+
+/// Per-sample Sun-vector magnitudes and direction changes, over the samples in full Sun
+/// where both the initial and the calibrated sets give an observable vector.
+#[derive(Debug, Clone, Default)]
+pub struct SunVectorMetrics {
+    /// Sample times, s.
+    pub t_s: Vec<f64>,
+    /// |s| with the initial parameters, albedo removed.
+    pub magnitude_initial: Vec<f64>,
+    /// |s| with the calibrated parameters, albedo removed.
+    pub magnitude_calibrated: Vec<f64>,
+    /// |s| with the calibrated parameters, raw outputs (Fig. 10, red).
+    pub magnitude_uncompensated: Vec<f64>,
+    /// Angle between the initial and calibrated directions, deg (Fig. 11).
+    pub direction_change_deg: Vec<f64>,
+    /// Measured Sun directions in the body frame with the initial parameters (Fig. 3).
+    pub directions_initial_body: Vec<[f64; 3]>,
+}
+
+fn photodiodes(calibration: &Calibration, noise_v: f64, fov_rad: f64) -> Vec<Photodiode> {
+    calibration
+        .photodiodes
+        .iter()
+        .map(|p| Photodiode {
+            scale_v: p.scale_v,
+            n_body: p.n_body(),
+            noise_v,
+            fov_half_angle_rad: Some(fov_rad),
+        })
+        .collect()
+}
+
+/// Computes the metrics from a finished run.
+pub fn metrics(
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+    references: &[StepReference],
+    run: &CalibrationRun,
+    albedo: &AlbedoModel,
+    config: &FilterConfig,
+) -> Result<SunVectorMetrics> {
+    let noise_v = run.sensor_sigmas.photodiode_v;
+    // Albedo reaches a photodiode over its whole hemisphere.
+    let hemisphere = std::f64::consts::FRAC_PI_2;
+    let initial = photodiodes(&run.initial, noise_v, hemisphere);
+    let calibrated = photodiodes(&run.calibration, noise_v, hemisphere);
+    let options = SunVectorOptions::default();
+    let m = meta.photodiodes.len();
+    let mut out = SunVectorMetrics::default();
+    let mut view = AlbedoView::new();
+    let (mut outputs, mut known_initial, mut known_cal) =
+        (vec![0.0; m], vec![0.0; m], vec![0.0; m]);
+    let attitude = run.smoothed.as_ref().unwrap_or(&run.forward);
+    for estimate in attitude {
+        let k = estimate.index;
+        let reference = &references[k];
+        if reference.sun_fraction < config.min_sun_fraction
+            || !read_outputs(telemetry, k, &mut outputs)
+        {
+            continue;
+        }
+        albedo.compute_into(
+            &mut view,
+            &reference.r_gcrf_km,
+            &reference.sun_gcrf_km,
+            &reference.gcrf_to_itrf,
+        )?;
+        let a_t = estimate.q.attitude_matrix().transpose();
+        albedo_volts(&view, &initial, &a_t, &mut known_initial);
+        albedo_volts(&view, &calibrated, &a_t, &mut known_cal);
+        let s_init = observable(estimate_sun_vector(
+            &initial,
+            &outputs,
+            Some(&known_initial),
+            &options,
+        )?);
+        let s_cal = observable(estimate_sun_vector(
+            &calibrated,
+            &outputs,
+            Some(&known_cal),
+            &options,
+        )?);
+        let s_raw = observable(estimate_sun_vector(&calibrated, &outputs, None, &options)?);
+        if let (Some(si), Some(sc), Some(sr)) = (s_init, s_cal, s_raw) {
+            out.t_s.push(telemetry.t_s[k]);
+            out.magnitude_initial.push(si.norm());
+            out.magnitude_calibrated.push(sc.norm());
+            out.magnitude_uncompensated.push(sr.norm());
+            out.direction_change_deg.push(si.angle(&sc).to_degrees());
+            let d = si.normalize();
+            out.directions_initial_body.push([d.x, d.y, d.z]);
+        }
+    }
+    Ok(out)
+}
+
+/// Copies row `k`'s photodiode outputs; false when any photodiode was not sampled.
+fn read_outputs(telemetry: &Telemetry, k: usize, outputs: &mut [f64]) -> bool {
+    for (out, column) in outputs.iter_mut().zip(&telemetry.pd_v) {
+        match column[k] {
+            Some(v) => *out = v,
+            None => return false,
+        }
+    }
+    true
+}
+
+/// `C E_a / E_AM0` per photodiode (Eq. 15's albedo term) at the estimated attitude.
+fn albedo_volts(
+    view: &AlbedoView,
+    pds: &[Photodiode],
+    a_transpose: &nalgebra::Matrix3<f64>,
+    out: &mut [f64],
+) {
+    for (o, pd) in out.iter_mut().zip(pds) {
+        *o = pd.scale_v * view.ratio(&(a_transpose * pd.n_body), pd.cos_fov());
+    }
+}
+
+fn observable(estimate: SunEstimate) -> Option<Vector3<f64>> {
+    match estimate {
+        SunEstimate::Observable(s) => Some(s.vector_body),
+        SunEstimate::NotObservable { .. } => None,
+    }
+}
