@@ -12,6 +12,12 @@
 //! is at least `min_singular_value` (default 0.1): a relative output error `e` then moves `s`
 //! by at most about `e / 0.1`, ten times the per-sensor error; coplanar normals give
 //! `sigma_min` = 0 up to rounding.
+//!
+//! A photodiode whose normal faces away from the estimated Sun (`n_i^T s <= 0`) cannot be
+//! lit by the Sun: its output is Earth albedo or another unmodelled light, and keeping its
+//! equation drags `s` toward it (on raw outputs in LEO this shrinks `|s|` to 0.3-0.6). With
+//! `reject_backfacing` (default on) such photodiodes are dropped and the solution repeated,
+//! at most [`MAX_BACKFACING_PASSES`] times.
 
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 
@@ -33,13 +39,19 @@ pub struct SunVectorOptions {
     pub threshold: LitThreshold,
     /// Smallest acceptable singular value of the stacked unit normals; default 0.1.
     pub min_singular_value: f64,
+    /// Drop photodiodes facing away from the solution and solve again; default true.
+    pub reject_backfacing: bool,
 }
+
+/// Most re-solutions after dropping back-facing photodiodes.
+pub const MAX_BACKFACING_PASSES: usize = 3;
 
 impl Default for SunVectorOptions {
     fn default() -> Self {
         SunVectorOptions {
             threshold: LitThreshold::NoiseSigmas(3.0),
             min_singular_value: 0.1,
+            reject_backfacing: true,
         }
     }
 }
@@ -97,9 +109,7 @@ pub fn estimate_sun_vector(
     if let Some(known) = known_v {
         check_len("known_v", photodiodes.len(), known.len())?;
     }
-    let mut normal_matrix = Matrix3::zeros();
-    let mut rhs = Vector3::zeros();
-    let mut used = 0;
+    let mut lit = Vec::with_capacity(photodiodes.len());
     for (i, (pd, &output)) in photodiodes.iter().zip(outputs_v).enumerate() {
         if !(pd.scale_v > 0.0 && pd.scale_v.is_finite()) {
             return Err(PhotodiodeError::BadValue {
@@ -113,17 +123,52 @@ pub fn estimate_sun_vector(
             LitThreshold::NoiseSigmas(k) => k * pd.noise_v,
             LitThreshold::Volts(v) => v,
         };
-        if direct > threshold {
+        lit.push((direct > threshold).then_some(direct / pd.scale_v));
+    }
+    let mut estimate = solve(photodiodes, &lit, options);
+    for _ in 0..MAX_BACKFACING_PASSES {
+        let SunEstimate::Observable(s) = &estimate else {
+            break;
+        };
+        if !options.reject_backfacing {
+            break;
+        }
+        let mut dropped = false;
+        for (pd, y) in photodiodes.iter().zip(lit.iter_mut()) {
+            if y.is_some() && pd.n_body.dot(&s.direction_body) <= 0.0 {
+                *y = None;
+                dropped = true;
+            }
+        }
+        if !dropped {
+            break;
+        }
+        estimate = solve(photodiodes, &lit, options);
+    }
+    Ok(estimate)
+}
+
+/// Least squares over the photodiodes with `Some(relative output)`.
+fn solve(
+    photodiodes: &[Photodiode],
+    lit: &[Option<f64>],
+    options: &SunVectorOptions,
+) -> SunEstimate {
+    let mut normal_matrix = Matrix3::zeros();
+    let mut rhs = Vector3::zeros();
+    let mut used = 0;
+    for (pd, y) in photodiodes.iter().zip(lit) {
+        if let Some(y) = y {
             normal_matrix += pd.n_body * pd.n_body.transpose();
-            rhs += pd.n_body * (direct / pd.scale_v);
+            rhs += pd.n_body * *y;
             used += 1;
         }
     }
     if used < 3 {
-        return Ok(SunEstimate::NotObservable {
+        return SunEstimate::NotObservable {
             used,
             reason: NotObservableReason::TooFewLit,
-        });
+        };
     }
     let min_singular_value = SymmetricEigen::new(normal_matrix)
         .eigenvalues
@@ -131,27 +176,27 @@ pub fn estimate_sun_vector(
         .max(0.0)
         .sqrt();
     if min_singular_value < options.min_singular_value {
-        return Ok(SunEstimate::NotObservable {
+        return SunEstimate::NotObservable {
             used,
             reason: NotObservableReason::DegenerateGeometry { min_singular_value },
-        });
+        };
     }
     let solution = normal_matrix.cholesky().map(|c| c.solve(&rhs));
     let Some((vector_body, direction_body)) = solution
         .filter(|s| s.iter().all(|x| x.is_finite()))
         .and_then(|s| s.try_normalize(0.0).map(|d| (s, d)))
     else {
-        return Ok(SunEstimate::NotObservable {
+        return SunEstimate::NotObservable {
             used,
             reason: NotObservableReason::NoDirection,
-        });
+        };
     };
-    Ok(SunEstimate::Observable(SunVector {
+    SunEstimate::Observable(SunVector {
         vector_body,
         direction_body,
         used,
         min_singular_value,
-    }))
+    })
 }
 
 fn check_len(what: &'static str, expected: usize, found: usize) -> Result<(), PhotodiodeError> {

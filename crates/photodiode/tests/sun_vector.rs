@@ -173,3 +173,51 @@ fn mismatched_lengths_and_bad_scales_are_errors() {
         Err(PhotodiodeError::BadValue { .. })
     ));
 }
+
+/// Earth light on photodiodes facing away from the Sun: with back-facing rejection those
+/// equations are dropped and the Sun vector is exact again; without it the magnitude shrinks.
+#[test]
+fn back_facing_photodiodes_lit_by_albedo_are_dropped() {
+    let mut rng = rng(33);
+    let pds = rax2(&mut rng);
+    let sun = Vector3::new(0.6, 0.2, 0.77).normalize();
+    let scene = Scene::new(nalgebra::Matrix3::identity(), &sun).unwrap();
+    let mut out = vec![0.0; 17];
+    MeasurementModel::cosine(pds.clone())
+        .evaluate_all(&scene, &mut out)
+        .unwrap();
+    // 0.5 V of "albedo" on every photodiode that faces away from the Sun.
+    let mut back = 0;
+    for (y, pd) in out.iter_mut().zip(&pds) {
+        if pd.n_body.dot(&sun) <= 0.0 {
+            *y += 0.5;
+            back += 1;
+        }
+    }
+    assert!(
+        back >= 3,
+        "the test needs several back-facing sensors, found {back}"
+    );
+    let on = SunVectorOptions::default();
+    let off = SunVectorOptions {
+        reject_backfacing: false,
+        ..on
+    };
+    let SunEstimate::Observable(with) = estimate_sun_vector(&pds, &out, None, &on).unwrap() else {
+        panic!("observable expected");
+    };
+    let SunEstimate::Observable(without) = estimate_sun_vector(&pds, &out, None, &off).unwrap()
+    else {
+        panic!("observable expected");
+    };
+    // Exact once the back-facing equations are gone (same 1e-12 argument as above).
+    assert!(
+        (with.vector_body - sun).norm() < 1e-12,
+        "error {:e}",
+        (with.vector_body - sun).norm()
+    );
+    assert!(
+        (without.vector_body.norm() - 1.0).abs() > 0.05,
+        "albedo must bias the plain fit"
+    );
+}

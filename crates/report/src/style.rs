@@ -307,7 +307,9 @@ pub(crate) fn points_inside(
 /// A tick label without trailing zeros ("20", "0.5", "1e-5"): plotters' default prints
 /// "20.0", and its log axis prints Rust's Debug form.
 pub(crate) fn tick_label(x: &f64) -> String {
-    let x = *x;
+    // plotters accumulates its linear tick values, so the tick at zero can arrive as
+    // 2e-17; no pdcal axis has genuine ticks this small.
+    let x = if x.abs() < 1e-15 { 0.0 } else { *x };
     if x == 0.0 || !x.is_finite() {
         return if x == 0.0 {
             "0".to_owned()
@@ -376,6 +378,7 @@ mod tests {
         assert_eq!(fmt_sig(1234.0, 4), "1234");
         assert_eq!(fmt_sig(2.5e-7, 3), "2.50e-7");
         assert_eq!(tick_label(&20.0), "20");
+        assert_eq!(tick_label(&2.3125783e-17), "0", "accumulated tick noise at zero");
         assert_eq!(tick_label(&0.30000000000000004), "0.3");
         assert_eq!(tick_label(&-0.5), "-0.5");
         assert_eq!(tick_label(&1e-5), "1e-5");
