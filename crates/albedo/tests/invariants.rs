@@ -1,0 +1,228 @@
+//! Invariants: night side, normals away from Earth, culled == unculled == naive, no growth
+//! of the buffers after warm-up, the gradient of the ratio, typed errors on bad input.
+
+use std::f64::consts::PI;
+
+use nalgebra::{Matrix3, Rotation3, Vector3};
+use pdcal_albedo::{
+    AU_KM, AlbedoError, AlbedoIrradiance, AlbedoModel, AlbedoView, MapChoice, authalic_radius_km,
+};
+use rand::rngs::StdRng;
+use rand::{RngExt, SeedableRng};
+
+fn toms() -> AlbedoModel {
+    AlbedoModel::from_choice(&MapChoice::TomsMean1p25x1).unwrap()
+}
+
+fn random_unit(rng: &mut StdRng) -> Vector3<f64> {
+    loop {
+        let v = Vector3::new(
+            rng.random::<f64>() * 2.0 - 1.0,
+            rng.random::<f64>() * 2.0 - 1.0,
+            rng.random::<f64>() * 2.0 - 1.0,
+        );
+        let n = v.norm();
+        if n > 0.1 && n <= 1.0 {
+            return v / n;
+        }
+    }
+}
+
+fn random_rotation(rng: &mut StdRng) -> Matrix3<f64> {
+    let axis = random_unit(rng);
+    Rotation3::new(axis * rng.random::<f64>() * PI).into_inner()
+}
+
+/// A random geometry: satellite 200 km .. 36000 km altitude, including positions over the
+/// poles and the dateline, Sun at ~1 AU in a random direction, random Earth rotation.
+fn random_geometry(rng: &mut StdRng, k: usize) -> (Vector3<f64>, Vector3<f64>, Matrix3<f64>) {
+    let rot = random_rotation(rng);
+    let alt = match k % 4 {
+        0 => 200.0,
+        1 => 600.0 + 400.0 * rng.random::<f64>(),
+        2 => 2000.0,
+        _ => 35786.0,
+    };
+    // Some sub-satellite points exactly over a pole or on the dateline (ECEF).
+    let dir_ecef = match k % 7 {
+        0 => Vector3::z(),
+        1 => -Vector3::x(),
+        _ => random_unit(rng),
+    };
+    let r_sat_gcrf = rot.transpose() * dir_ecef * (authalic_radius_km() + alt);
+    // Sun within 80 deg of the satellite direction so that lit cells are in view.
+    let sun = (dir_ecef + 0.8 * random_unit(rng)).normalize();
+    let r_sun_gcrf = rot.transpose() * sun * AU_KM * (0.98 + 0.04 * rng.random::<f64>());
+    (r_sat_gcrf, r_sun_gcrf, rot)
+}
+
+#[test]
+fn fast_equals_unculled_and_naive() {
+    let model = toms();
+    let mut rng = StdRng::seed_from_u64(13);
+    let (mut fast, mut all) = (AlbedoView::new(), AlbedoView::new());
+    let mut worst = 0.0f64;
+    for k in 0..28 {
+        let (r_sat, r_sun, rot) = random_geometry(&mut rng, k);
+        model.compute_into(&mut fast, &r_sat, &r_sun, &rot).unwrap();
+        model
+            .compute_into_unculled(&mut all, &r_sat, &r_sun, &rot)
+            .unwrap();
+        // The culling drops only cells the exact test would reject.
+        assert_eq!(fast.len(), all.len(), "geometry {k}");
+        assert!(!fast.is_empty(), "geometry {k} should see lit cells");
+        let normals: Vec<Vector3<f64>> = (0..6).map(|_| random_unit(&mut rng)).collect();
+        let mut normals = normals;
+        normals.push(fast.nadir_gcrf());
+        let cos_fov: Vec<f64> = (0..normals.len())
+            .map(|m| [1e-17, 0.5, 0.2][m % 3])
+            .collect();
+        let mut out = vec![0.0; normals.len()];
+        fast.ratios(&normals, &cos_fov, &mut out);
+        let mut naive = vec![(0.0, Vector3::zeros()); normals.len()];
+        model
+            .naive_ratios(&r_sat, &r_sun, &rot, &normals, &cos_fov, &mut naive)
+            .unwrap();
+        for m in 0..normals.len() {
+            let (want, want_vec) = naive[m];
+            let (got, got_vec) = fast.ratio_and_vector(&normals[m], cos_fov[m]);
+            // Same cells and terms; only the summation order differs: 1e-12 relative
+            // (absolute floor 1e-16 for zero results).
+            let scale = want.abs().max(1e-16 / 1e-12);
+            for value in [out[m], got, all.ratio(&normals[m], cos_fov[m])] {
+                let rel = (value - want).abs() / scale;
+                worst = worst.max(rel);
+                assert!(
+                    rel < 1e-12,
+                    "geometry {k} normal {m}: {value:e} vs {want:e}"
+                );
+            }
+            assert!((got_vec - want_vec).norm() <= 1e-12 * want_vec.norm().max(1e-4));
+        }
+    }
+    eprintln!("worst fast-vs-naive relative difference: {worst:e}");
+}
+
+#[test]
+fn zero_on_the_night_side() {
+    let model = toms();
+    let mut view = AlbedoView::new();
+    let mut rng = StdRng::seed_from_u64(5);
+    for _ in 0..10 {
+        let rot = random_rotation(&mut rng);
+        let sun = random_unit(&mut rng);
+        // Satellite over the anti-solar point at 600 km: its visible cap (24 deg) is dark.
+        let r_sat = -sun * (authalic_radius_km() + 600.0);
+        model
+            .compute_into(&mut view, &r_sat, &(sun * AU_KM), &rot)
+            .unwrap();
+        assert!(view.is_empty());
+        assert_eq!(view.max_ratio(), 0.0);
+        assert_eq!(view.ratio(&view.nadir_gcrf(), 0.0), 0.0);
+    }
+}
+
+#[test]
+fn zero_for_normals_facing_away_from_earth() {
+    let model = toms();
+    let mut view = AlbedoView::new();
+    let sun = Vector3::new(0.3, -0.5, 0.8).normalize();
+    let r_sat = sun * (authalic_radius_km() + 600.0);
+    model
+        .compute_into(&mut view, &r_sat, &(sun * AU_KM), &Matrix3::identity())
+        .unwrap();
+    assert!(view.len() > 1000);
+    // Zenith, and a normal 160 deg from nadir (beyond 90 deg + rho = 156 deg).
+    let zenith = -view.nadir_gcrf();
+    let side = zenith.cross(&Vector3::x()).normalize();
+    let tilted = Rotation3::new(side * 20f64.to_radians()) * zenith;
+    for n in [zenith, tilted] {
+        assert_eq!(view.ratio(&n, 0.0), 0.0);
+        assert_eq!(view.ratio_and_vector(&n, 0.0).1, Vector3::zeros());
+    }
+    // The unculled loop agrees that no cell faces such a normal.
+    let mut out = [(1.0, Vector3::zeros()); 2];
+    model
+        .naive_ratios(
+            &r_sat,
+            &(sun * AU_KM),
+            &Matrix3::identity(),
+            &[zenith, tilted],
+            &[0.0, 0.0],
+            &mut out,
+        )
+        .unwrap();
+    assert_eq!(out[0].0 + out[1].0, 0.0);
+}
+
+#[test]
+fn vector_is_the_gradient_of_the_ratio() {
+    // With fov 90 deg the ratio is continuous and piecewise linear in n, so central
+    // differences with h = 1e-6 match sum c u except when a cell centre lies within 1e-6 rad
+    // of the horizon of n (contributing < c * 1e-6): tolerance 1e-6 relative to |sum c u|.
+    let model = toms();
+    let mut view = AlbedoView::new();
+    let mut rng = StdRng::seed_from_u64(21);
+    let h = 1e-6;
+    for k in 0..100 {
+        let (r_sat, r_sun, rot) = random_geometry(&mut rng, 1 + 4 * (k % 2));
+        model.compute_into(&mut view, &r_sat, &r_sun, &rot).unwrap();
+        let n = random_unit(&mut rng);
+        let (_, grad) = view.ratio_and_vector(&n, 0.0);
+        for axis in 0..3 {
+            let e = Vector3::ith(axis, h);
+            let fd = (view.ratio(&(n + e), 0.0) - view.ratio(&(n - e), 0.0)) / (2.0 * h);
+            let tol = 1e-6 * view.sum_cu().norm().max(1e-12);
+            assert!(
+                (fd - grad[axis]).abs() <= tol,
+                "state {k} axis {axis}: {fd} vs {}",
+                grad[axis]
+            );
+        }
+    }
+}
+
+#[test]
+fn buffers_stop_growing_after_warm_up() {
+    let model = toms();
+    let mut view = AlbedoView::new();
+    let mut rng = StdRng::seed_from_u64(8);
+    let steps: Vec<_> = (0..12).map(|k| random_geometry(&mut rng, k)).collect();
+    for (r_sat, r_sun, rot) in &steps {
+        model.compute_into(&mut view, r_sat, r_sun, rot).unwrap();
+    }
+    let capacity = view.capacity();
+    for (r_sat, r_sun, rot) in &steps {
+        model.compute_into(&mut view, r_sat, r_sun, rot).unwrap();
+        assert_eq!(view.capacity(), capacity);
+    }
+}
+
+#[test]
+fn bad_inputs_are_typed_errors() {
+    let model = AlbedoModel::from_choice(&MapChoice::Ceres5x5).unwrap();
+    let mut view = AlbedoView::new();
+    let r_sat = Vector3::new(7000.0, 0.0, 0.0);
+    let r_sun = Vector3::new(AU_KM, 0.0, 0.0);
+    let id = Matrix3::identity();
+    let nan = Vector3::new(f64::NAN, 0.0, 0.0);
+    assert_eq!(
+        model.compute_into(&mut view, &nan, &r_sun, &id),
+        Err(AlbedoError::NonFinite {
+            what: "r_sat_gcrf_km"
+        })
+    );
+    assert_eq!(
+        model.compute_into(&mut view, &r_sat, &Vector3::zeros(), &id),
+        Err(AlbedoError::ZeroSun)
+    );
+    assert!(matches!(
+        model.compute_into(&mut view, &r_sat, &r_sun, &(id * 2.0)),
+        Err(AlbedoError::NotRotation { .. })
+    ));
+    // Below the surface: nothing in view, not an error.
+    model
+        .compute_into(&mut view, &(r_sat * 0.5), &r_sun, &id)
+        .unwrap();
+    assert!(view.is_empty());
+}
