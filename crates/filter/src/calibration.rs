@@ -1,0 +1,172 @@
+//! [`Calibration`]: the calibrated parameters (`calibration.ron`), also read back as the prior
+//! of [`crate::Mode::ScaleOnly`].
+
+use nalgebra::{Matrix2, Vector3};
+use pdcal_attitude::{az_el_from_normal, normal_from_az_el, tangent_basis};
+use serde::{Deserialize, Serialize};
+
+use crate::FilterError;
+
+/// Version of the `calibration.ron` layout.
+pub const CALIBRATION_FORMAT_VERSION: u32 = 1;
+
+/// One photodiode's scale factor and normal with 1-sigma uncertainties (degrees at this I/O
+/// edge). Also the per-step photodiode estimate of [`crate::StepEstimate`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PdCalibration {
+    /// Scale factor `C_i` of Eq. (15), V.
+    #[serde(rename = "scale_V")]
+    pub scale_v: f64,
+    /// Its 1-sigma, V.
+    #[serde(rename = "scale_sigma_V")]
+    pub scale_sigma_v: f64,
+    /// Azimuth of Eq. (16), deg.
+    pub azimuth_deg: f64,
+    /// Its 1-sigma, deg; `None` where the azimuth is undefined: at the pole (elevation
+    /// +-90 deg) or when the normal's uncertainty reaches the pole (sigma above 180 deg).
+    pub azimuth_sigma_deg: Option<f64>,
+    /// Elevation of Eq. (16), deg.
+    pub elevation_deg: f64,
+    /// Its 1-sigma, deg.
+    pub elevation_sigma_deg: f64,
+}
+
+impl PdCalibration {
+    /// From a scale, a unit body normal and the 2x2 covariance of the normal's tangent-plane
+    /// correction in the [`tangent_basis`] of that normal (rad^2).
+    pub fn from_normal(
+        scale_v: f64,
+        scale_sigma_v: f64,
+        n_body: &Vector3<f64>,
+        tangent_cov: &Matrix2<f64>,
+    ) -> Self {
+        let (az, el) = az_el_from_normal(n_body);
+        let (az_sigma, el_sigma) = az_el_sigmas(n_body, tangent_cov);
+        PdCalibration {
+            scale_v,
+            scale_sigma_v,
+            azimuth_deg: az.to_degrees(),
+            azimuth_sigma_deg: az_sigma.map(f64::to_degrees),
+            elevation_deg: el.to_degrees(),
+            elevation_sigma_deg: el_sigma.to_degrees(),
+        }
+    }
+
+    /// The unit body normal of Eq. (16).
+    pub fn n_body(&self) -> Vector3<f64> {
+        normal_from_az_el(
+            self.azimuth_deg.to_radians(),
+            self.elevation_deg.to_radians(),
+        )
+    }
+}
+
+/// Azimuth and elevation sigmas (rad) of a normal with tangent covariance `cov`.
+///
+/// A tangent displacement `dn` moves the elevation by `e_el . dn` and the azimuth by
+/// `e_az . dn / cos(el)` (`e_az`, `e_el` the unit east/up directions at `n`), so
+/// `Sigma_azel = J Sigma_t J^T` with `J = [e_az.e1/cos(el), e_az.e2/cos(el); e_el.e1, e_el.e2]`.
+/// The azimuth sigma is `None` at the pole (where `cos(el)` vanishes) and when it would
+/// exceed 180 deg (the uncertainty region contains the pole: any azimuth fits).
+pub fn az_el_sigmas(n: &Vector3<f64>, cov: &Matrix2<f64>) -> (Option<f64>, f64) {
+    let (e1, e2) = tangent_basis(n);
+    let (az, el) = az_el_from_normal(n);
+    let (sa, ca) = az.sin_cos();
+    let (se, ce) = el.sin_cos();
+    let e_az = Vector3::new(-sa, ca, 0.0);
+    let e_el = Vector3::new(-se * ca, -se * sa, ce);
+    let j_el = nalgebra::RowVector2::new(e_el.dot(&e1), e_el.dot(&e2));
+    let el_var = (j_el * cov * j_el.transpose())[0];
+    let horizontal = n.x.hypot(n.y);
+    let az_sigma = (horizontal > 1e-12)
+        .then(|| {
+            let j_az = nalgebra::RowVector2::new(e_az.dot(&e1), e_az.dot(&e2)) / horizontal;
+            (j_az * cov * j_az.transpose())[0].max(0.0).sqrt()
+        })
+        .filter(|s| *s <= std::f64::consts::PI);
+    (az_sigma, el_var.max(0.0).sqrt())
+}
+
+/// An estimated model parameter (e.g. a dark offset added by the diagnosis workflow).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParameterEstimate {
+    /// Parameter name (`pd03_dark_offset_V`).
+    pub name: String,
+    /// Unit.
+    pub unit: String,
+    /// Estimate.
+    pub value: f64,
+    /// 1-sigma.
+    pub sigma: f64,
+}
+
+/// The calibrated parameters the driver writes as `calibration.ron`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Calibration {
+    /// [`CALIBRATION_FORMAT_VERSION`].
+    pub format_version: u32,
+    /// Per photodiode, `pdNN` order.
+    pub photodiodes: Vec<PdCalibration>,
+    /// Gyro bias, rad/s, body x/y/z.
+    pub gyro_bias_rad_s: [f64; 3],
+    /// Its 1-sigma, rad/s.
+    pub gyro_bias_sigma_rad_s: [f64; 3],
+    /// Estimated model parameters, if any.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub parameters: Vec<ParameterEstimate>,
+}
+
+impl Calibration {
+    /// Parses `calibration.ron` text and checks that every number is finite.
+    pub fn from_ron_str(text: &str) -> Result<Self, FilterError> {
+        let cal: Calibration = ron::from_str(text).map_err(|e| FilterError::Ron {
+            what: "calibration",
+            message: e.to_string(),
+        })?;
+        if cal.format_version != CALIBRATION_FORMAT_VERSION {
+            return Err(FilterError::Config {
+                field: "format_version",
+                value: f64::from(cal.format_version),
+                rule: "calibration format version must be 1",
+            });
+        }
+        for pd in &cal.photodiodes {
+            let values = [
+                pd.scale_v,
+                pd.scale_sigma_v,
+                pd.azimuth_deg,
+                pd.elevation_deg,
+                pd.elevation_sigma_deg,
+                pd.azimuth_sigma_deg.unwrap_or(0.0),
+            ];
+            if let Some(v) = values.iter().find(|v| !v.is_finite()) {
+                return Err(FilterError::Config {
+                    field: "photodiodes",
+                    value: *v,
+                    rule: "every number must be finite",
+                });
+            }
+            if pd.scale_v <= 0.0 {
+                return Err(FilterError::Config {
+                    field: "photodiodes.scale_V",
+                    value: pd.scale_v,
+                    rule: "must be positive",
+                });
+            }
+        }
+        Ok(cal)
+    }
+
+    /// Pretty RON text.
+    pub fn to_ron_string(&self) -> Result<String, FilterError> {
+        ron::ser::to_string_pretty(self, ron::ser::PrettyConfig::default()).map_err(|e| {
+            FilterError::Ron {
+                what: "calibration",
+                message: e.to_string(),
+            }
+        })
+    }
+}

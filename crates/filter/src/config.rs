@@ -1,0 +1,337 @@
+//! Filter tuning ([`FilterConfig`], RON, every field defaulted) and run modes ([`Mode`]).
+//!
+//! Defaults are chosen to hold on any conforming dataset without per-data-set tuning; the
+//! dataset's noise hints (`dataset.ron` `noise`) replace the sensor sigmas when present, and
+//! an explicit config value replaces both.
+
+use pdcal_dataset::NoiseHints;
+use pdcal_photodiode::AlbedoPartials;
+use serde::{Deserialize, Serialize};
+
+use crate::FilterError;
+use crate::calibration::Calibration;
+
+/// Solar irradiance at 1 AU, W/m^2 (the paper's `E_AM0`, footnote 3).
+pub const E_AM0_W_M2: f64 = 1367.0;
+
+/// Photodiode noise when neither config nor dataset gives one, V (paper IV.B).
+pub const DEFAULT_PHOTODIODE_SIGMA_V: f64 = 0.015;
+/// Magnetometer noise when neither config nor dataset gives one, nT (paper IV.B).
+pub const DEFAULT_MAG_SIGMA_NT: f64 = 320.0;
+/// Gyro white noise per sample when neither config nor dataset gives one, rad/s
+/// (0.05 deg/s, ADIS16405 class, rax2-scenario.md).
+pub const DEFAULT_GYRO_SIGMA_RAD_S: f64 = 8.726_646_259_971_648e-4;
+
+/// How the filter runs.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Mode {
+    /// Attitude, gyro bias, scale factors and normals (paper Eq. 17); magnetometer updates
+    /// when the telemetry has `mag_*` columns, otherwise [`Mode::PhotodiodeOnly`] behaviour.
+    Full,
+    /// As [`Mode::Full`] without magnetometer updates even when `mag_*` columns exist; the
+    /// attitude is initialised from the Sun vector alone.
+    PhotodiodeOnly,
+    /// The paper's third data set: normals fixed at a previous calibration, only the scale
+    /// factors (and attitude, bias) estimated, scales initialised from the prior.
+    ScaleOnly {
+        /// The previous calibration (`calibration.ron`).
+        prior: Calibration,
+    },
+}
+
+/// Tuning of the calibration filter. Every field has a default (`FilterConfig::default()`);
+/// a RON file names only what it changes and unknown fields are an error.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FilterConfig {
+    /// Photodiode noise 1-sigma, V; `None`: the dataset hint, else 0.015 V.
+    pub photodiode_sigma_v: Option<f64>,
+    /// Albedo-model uncertainty, W/m^2 (paper IV.B: 50); enters R as `(C sigma / E_AM0)^2`.
+    pub albedo_sigma_w_m2: f64,
+    /// Magnetometer noise 1-sigma per axis, nT; `None`: the dataset hint, else 320 nT.
+    pub mag_sigma_nt: Option<f64>,
+    /// Gyro white noise per sample, rad/s; `None`: the dataset hint, else 0.05 deg/s.
+    pub gyro_sigma_rad_s: Option<f64>,
+    /// Factor on the gyro angle-random-walk density for what the piecewise-constant rate
+    /// model misses between samples (the paper inflated Q for the tumble). Default 1.5.
+    pub gyro_noise_inflation: f64,
+    /// Extra attitude process noise per step, as a fraction of the measured rate change
+    /// between consecutive gyro samples times the step: `(f |w_k - w_k-1| dt)^2` per axis.
+    /// Default 0.3: covers rate curvature within a step on fast tumbles, vanishes when the
+    /// rate is steady.
+    pub rate_change_fraction: f64,
+    /// Gyro bias random walk, rad/s per sqrt(s). Default 2e-6 (0.01 deg/s over 2 h).
+    pub gyro_bias_walk_rad_s_sqrt_s: f64,
+    /// Scale-factor random walk (Eq. 19), fraction of C per sqrt(hour). Default 1e-3.
+    pub scale_walk_fraction_per_sqrt_h: f64,
+    /// Normal random walk (Eq. 19), deg per sqrt(hour) per tangent axis. Default 0.01.
+    pub normal_walk_deg_per_sqrt_h: f64,
+    /// Initial gyro-bias sigma per axis, deg/s. Default 0.5.
+    pub initial_bias_sigma_deg_s: f64,
+    /// Initial scale sigma as a fraction of the initial C. Default 0.15 (pre-flight guesses
+    /// were off by 4-13 %, and C = max output carries albedo and noise).
+    pub initial_scale_sigma_fraction: f64,
+    /// Initial normal sigma per tangent axis, deg. Default 10 (hand-mounted wedges, up to
+    /// about 9 deg per angle).
+    pub initial_normal_sigma_deg: f64,
+    /// Direction sigma of the initial photodiode Sun vector (uncalibrated), deg; weights the
+    /// q-method and gives the initial attitude covariance. Default 10 (paper: 9-10 deg change
+    /// of the Sun direction by the calibration).
+    pub initial_sun_sigma_deg: f64,
+    /// Floor on the initial attitude sigma per axis, deg. Default 1.
+    pub initial_attitude_sigma_floor_deg: f64,
+    /// Initial sigma of the rotation about the Sun line when the attitude comes from the Sun
+    /// alone (photodiode-only), deg. Default 90.
+    pub unobserved_axis_sigma_deg: f64,
+    /// Smallest angle between Sun and field for the two-vector initialisation, deg.
+    /// Default 20 (the q-method's cross-axis error grows as 1/sin of that angle).
+    pub initial_min_sun_field_angle_deg: f64,
+    /// A photodiode update is used only when the predicted incidence angle is below this,
+    /// deg. Default 60: the conservative end of the paper's 60-70 deg cosine-law field of
+    /// view, leaving margin for the initial normal error (up to 10 deg) so that a sensor whose
+    /// response rolls off from 60-70 deg is not fitted where the cosine law fails.
+    pub fov_half_angle_deg: f64,
+    /// Photodiodes are used only when the illuminated fraction is at least this. Default
+    /// 0.999 (no eclipse, no penumbra).
+    pub min_sun_fraction: f64,
+    /// Innovation gate per scalar update, in sigmas: rejected when `nu^2 > g^2 s`. Default 5
+    /// (a Gaussian innovation exceeds it with probability 5.7e-7, so gating rejects only
+    /// outliers and model failures).
+    pub gate_sigmas: f64,
+    /// A photodiode whose maximum output over the data set stays below this many
+    /// photodiode sigmas is never lit (covered, broken) and takes no part. Default 10.
+    pub min_lit_output_sigmas: f64,
+    /// Albedo partials in H (default neglected, as the paper after Eq. 24).
+    pub albedo_partials: AlbedoPartials,
+    /// Average consecutive gyro samples over a step (default true: second-order accurate for
+    /// a rate that changes during the step); false holds the sample at the step start.
+    pub average_gyro: bool,
+    /// Add the variance of the measurement functions' second-order terms under the current
+    /// covariance to R (default true): keeps the first updates, made with 10-degree normal
+    /// and attitude errors, from trusting the linearisation more than it deserves; it
+    /// vanishes as the covariance shrinks.
+    pub second_order_noise: bool,
+    /// Run the RTS smoother after the forward filter (default true).
+    pub smoother: bool,
+    /// Initial sigma and random walk of estimated model parameters, by unit or name.
+    pub parameter_sigmas: Vec<ParameterSigma>,
+}
+
+/// Initial sigma and random walk of estimated model parameters whose `name` (exact) or
+/// `unit` matches; the first match wins, names before units.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParameterSigma {
+    /// Parameter name (`pd03_dark_offset_V`) or unit (`V`).
+    pub name_or_unit: String,
+    /// Initial 1-sigma, in the parameter's unit.
+    pub sigma: f64,
+    /// Random walk, unit per sqrt(hour).
+    #[serde(default)]
+    pub walk_per_sqrt_h: f64,
+}
+
+impl Default for FilterConfig {
+    fn default() -> Self {
+        FilterConfig {
+            photodiode_sigma_v: None,
+            albedo_sigma_w_m2: 50.0,
+            mag_sigma_nt: None,
+            gyro_sigma_rad_s: None,
+            gyro_noise_inflation: 1.5,
+            rate_change_fraction: 0.3,
+            gyro_bias_walk_rad_s_sqrt_s: 2e-6,
+            scale_walk_fraction_per_sqrt_h: 1e-3,
+            normal_walk_deg_per_sqrt_h: 0.01,
+            initial_bias_sigma_deg_s: 0.5,
+            initial_scale_sigma_fraction: 0.15,
+            initial_normal_sigma_deg: 10.0,
+            initial_sun_sigma_deg: 10.0,
+            initial_attitude_sigma_floor_deg: 1.0,
+            unobserved_axis_sigma_deg: 90.0,
+            initial_min_sun_field_angle_deg: 20.0,
+            fov_half_angle_deg: 60.0,
+            min_sun_fraction: 0.999,
+            gate_sigmas: 5.0,
+            min_lit_output_sigmas: 10.0,
+            albedo_partials: AlbedoPartials::Neglected,
+            average_gyro: true,
+            second_order_noise: true,
+            smoother: true,
+            parameter_sigmas: default_parameter_sigmas(),
+        }
+    }
+}
+
+fn default_parameter_sigmas() -> Vec<ParameterSigma> {
+    let entry = |unit: &str, sigma: f64| ParameterSigma {
+        name_or_unit: unit.to_owned(),
+        sigma,
+        walk_per_sqrt_h: 0.0,
+    };
+    // Volts: dark offsets of tens of mV; seconds: time tags off by a fraction of a sample;
+    // radians: roll-off angles; 1/h: scale drift of a few percent per hour.
+    vec![
+        entry("V", 0.1),
+        entry("s", 0.5),
+        entry("rad", 0.2),
+        entry("1/h", 0.05),
+    ]
+}
+
+impl FilterConfig {
+    /// Parses RON text (unknown fields are errors) and validates.
+    pub fn from_ron_str(text: &str) -> Result<Self, FilterError> {
+        let config: FilterConfig = ron::from_str(text).map_err(|e| FilterError::Ron {
+            what: "filter config",
+            message: e.to_string(),
+        })?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Pretty RON text.
+    pub fn to_ron_string(&self) -> Result<String, FilterError> {
+        ron::ser::to_string_pretty(self, ron::ser::PrettyConfig::default()).map_err(|e| {
+            FilterError::Ron {
+                what: "filter config",
+                message: e.to_string(),
+            }
+        })
+    }
+
+    /// Checks every field's range.
+    pub fn validate(&self) -> Result<(), FilterError> {
+        let positive = [
+            ("photodiode_sigma_v", self.photodiode_sigma_v.unwrap_or(1.0)),
+            ("mag_sigma_nt", self.mag_sigma_nt.unwrap_or(1.0)),
+            ("gyro_sigma_rad_s", self.gyro_sigma_rad_s.unwrap_or(1.0)),
+            ("gyro_noise_inflation", self.gyro_noise_inflation),
+            ("initial_bias_sigma_deg_s", self.initial_bias_sigma_deg_s),
+            (
+                "initial_scale_sigma_fraction",
+                self.initial_scale_sigma_fraction,
+            ),
+            ("initial_normal_sigma_deg", self.initial_normal_sigma_deg),
+            ("initial_sun_sigma_deg", self.initial_sun_sigma_deg),
+            (
+                "initial_attitude_sigma_floor_deg",
+                self.initial_attitude_sigma_floor_deg,
+            ),
+            ("unobserved_axis_sigma_deg", self.unobserved_axis_sigma_deg),
+            ("gate_sigmas", self.gate_sigmas),
+        ];
+        for (field, value) in positive {
+            if !(value > 0.0 && value.is_finite()) {
+                return Err(bad(field, value, "must be positive and finite"));
+            }
+        }
+        let non_negative = [
+            ("albedo_sigma_w_m2", self.albedo_sigma_w_m2),
+            ("rate_change_fraction", self.rate_change_fraction),
+            (
+                "gyro_bias_walk_rad_s_sqrt_s",
+                self.gyro_bias_walk_rad_s_sqrt_s,
+            ),
+            (
+                "scale_walk_fraction_per_sqrt_h",
+                self.scale_walk_fraction_per_sqrt_h,
+            ),
+            (
+                "normal_walk_deg_per_sqrt_h",
+                self.normal_walk_deg_per_sqrt_h,
+            ),
+            ("min_lit_output_sigmas", self.min_lit_output_sigmas),
+        ];
+        for (field, value) in non_negative {
+            if !(value >= 0.0 && value.is_finite()) {
+                return Err(bad(field, value, "must be non-negative and finite"));
+            }
+        }
+        let angles = [
+            ("fov_half_angle_deg", self.fov_half_angle_deg),
+            (
+                "initial_min_sun_field_angle_deg",
+                self.initial_min_sun_field_angle_deg,
+            ),
+        ];
+        for (field, value) in angles {
+            if !(value > 0.0 && value < 90.0) {
+                return Err(bad(field, value, "must be in (0, 90) deg"));
+            }
+        }
+        if !(self.min_sun_fraction > 0.0 && self.min_sun_fraction <= 1.0) {
+            return Err(bad(
+                "min_sun_fraction",
+                self.min_sun_fraction,
+                "must be in (0, 1]",
+            ));
+        }
+        for p in &self.parameter_sigmas {
+            if !(p.sigma > 0.0 && p.sigma.is_finite()) {
+                return Err(bad(
+                    "parameter_sigmas.sigma",
+                    p.sigma,
+                    "must be positive and finite",
+                ));
+            }
+            if !(p.walk_per_sqrt_h >= 0.0 && p.walk_per_sqrt_h.is_finite()) {
+                return Err(bad(
+                    "parameter_sigmas.walk_per_sqrt_h",
+                    p.walk_per_sqrt_h,
+                    "must be non-negative and finite",
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The sensor sigmas: config value, else dataset hint, else the default.
+    pub fn resolve(&self, hints: Option<&NoiseHints>) -> SensorSigmas {
+        let hints = hints.copied().unwrap_or_default();
+        SensorSigmas {
+            photodiode_v: self
+                .photodiode_sigma_v
+                .or(hints.photodiode_v)
+                .unwrap_or(DEFAULT_PHOTODIODE_SIGMA_V),
+            mag_nt: self
+                .mag_sigma_nt
+                .or(hints.mag_nt)
+                .unwrap_or(DEFAULT_MAG_SIGMA_NT),
+            gyro_rad_s: self
+                .gyro_sigma_rad_s
+                .or(hints.gyro_rad_s)
+                .unwrap_or(DEFAULT_GYRO_SIGMA_RAD_S),
+        }
+    }
+
+    /// Initial sigma and random walk (per sqrt(s)) of an estimated parameter.
+    pub fn parameter_sigma(&self, name: &str, unit: &str) -> (f64, f64) {
+        let found = self
+            .parameter_sigmas
+            .iter()
+            .find(|p| p.name_or_unit == name)
+            .or_else(|| {
+                self.parameter_sigmas
+                    .iter()
+                    .find(|p| p.name_or_unit == unit)
+            });
+        // An unknown unit gets a unit sigma: wide, and the user can name it.
+        found.map_or((1.0, 0.0), |p| (p.sigma, p.walk_per_sqrt_h / 60.0))
+    }
+}
+
+fn bad(field: &'static str, value: f64, rule: &'static str) -> FilterError {
+    FilterError::Config { field, value, rule }
+}
+
+/// Sensor noise sigmas after config, hints and defaults.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SensorSigmas {
+    /// Photodiode, V.
+    pub photodiode_v: f64,
+    /// Magnetometer per axis, nT.
+    pub mag_nt: f64,
+    /// Gyro white noise per sample, rad/s.
+    pub gyro_rad_s: f64,
+}

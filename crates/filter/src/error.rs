@@ -1,0 +1,75 @@
+//! Errors of the filter crate.
+
+use thiserror::Error;
+
+/// Why a filter could not be built or run.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum FilterError {
+    /// A configuration field is out of range.
+    #[error("filter config: {field} = {value}: {rule}")]
+    Config {
+        /// Field name as in the RON file.
+        field: &'static str,
+        /// Offending value.
+        value: f64,
+        /// What the field must satisfy.
+        rule: &'static str,
+    },
+    /// The RON text of a config or calibration could not be parsed or written.
+    #[error("{what}: {message}")]
+    Ron {
+        /// `filter config` or `calibration`.
+        what: &'static str,
+        /// Parser message (with line and column).
+        message: String,
+    },
+    /// Inputs disagree in length (photodiodes, references, samples).
+    #[error("{what}: expected {expected}, found {found}")]
+    LengthMismatch {
+        /// Which input.
+        what: &'static str,
+        /// Expected length.
+        expected: usize,
+        /// Length found.
+        found: usize,
+    },
+    /// No sample satisfies the initialisation conditions.
+    #[error("no usable sample to initialise the attitude ({reason})")]
+    NoInitialSample {
+        /// What was missing (full sun, magnetometer, observable Sun vector, geometry).
+        reason: String,
+    },
+    /// No photodiode ever produced a lit output.
+    #[error("no photodiode output exceeds {threshold_v} V: nothing to calibrate")]
+    NoLitPhotodiode {
+        /// Threshold used, V.
+        threshold_v: f64,
+    },
+    /// A reference quantity or a measurement is not finite.
+    #[error("sample {index} (t_s = {t_s}): non-finite {what}")]
+    NonFinite {
+        /// Sample index.
+        index: usize,
+        /// Sample time, s.
+        t_s: f64,
+        /// Which quantity.
+        what: &'static str,
+    },
+    /// The covariance lost positive definiteness (smoother inversion failed).
+    #[error("covariance not positive definite at sample {index}")]
+    NotPositiveDefinite {
+        /// Sample index.
+        index: usize,
+    },
+    /// An error from the photodiode model.
+    #[error(transparent)]
+    Photodiode(#[from] pdcal_photodiode::PhotodiodeError),
+    /// An error from the albedo model.
+    #[error("albedo at sample {index}: {message}")]
+    Albedo {
+        /// Sample index.
+        index: usize,
+        /// The albedo crate's message.
+        message: String,
+    },
+}

@@ -1,0 +1,827 @@
+//! The calibration MEKF: state, covariance, propagation (paper Eqs. 8-10 with the MEKF
+//! kinematics and Eq. 19), sequential scalar updates (Eqs. 4-7 with Eqs. 15, 20-24 and the
+//! magnetometer) and the multiplicative reset.
+
+use nalgebra::{DMatrix, DVector, Dyn, Matrix2, Matrix3, Matrix6, OMatrix, U6, Vector3};
+use pdcal_attitude::mekf::{apply_error, process_noise, state_transition};
+use pdcal_attitude::{GyroNoise, Quat, rotate_normal, skew, tangent_basis};
+use pdcal_photodiode::{AlbedoIrradiance, MeasurementModel, Partials, Scene};
+
+use crate::calibration::{Calibration, ParameterEstimate, PdCalibration};
+use crate::dense;
+use crate::layout::{ATTITUDE, BIAS, CORE, StateLayout};
+use crate::{FilterError, StepReference};
+
+/// How the covariance algebra is done. Both give the same numbers to rounding (a test
+/// holds them to 1e-9); `Dense` is the textbook form kept as the reference and for the
+/// benchmark comparison.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Algebra {
+    /// `Phi` touches only the 6 attitude/bias rows; H rows are sparse; the step's rank-1
+    /// updates are deferred and applied as one rank-k product.
+    #[default]
+    Structured,
+    /// Full `Phi P Phi^T + Q`, full H rows, dense gain and Joseph form.
+    Dense,
+}
+
+/// Noise and gating numbers the filter runs with (resolved from [`crate::FilterConfig`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FilterNoise {
+    /// Gyro angle random walk (already inflated) and bias random walk.
+    pub gyro: GyroNoise,
+    /// Extra attitude noise per step as a fraction of `|w_k - w_k-1| dt`.
+    pub rate_change_fraction: f64,
+    /// Scale random-walk variance per second, per photodiode, V^2/s (Eq. 19).
+    pub scale_walk_var_per_s: Vec<f64>,
+    /// Normal random-walk variance per second per tangent axis, rad^2/s (Eq. 19).
+    pub normal_walk_var_per_s: f64,
+    /// Random-walk variance per second of each extra state, in [`StateLayout::extras`] order.
+    pub extra_walk_var_per_s: Vec<f64>,
+    /// Photodiode noise sigma, V.
+    pub photodiode_sigma_v: f64,
+    /// Albedo-model uncertainty as a fraction of `E_AM0` (R adds `(C this)^2`).
+    pub albedo_sigma_ratio: f64,
+    /// Magnetometer sigma per axis, nT.
+    pub mag_sigma_nt: f64,
+    /// Gate in sigmas.
+    pub gate_sigmas: f64,
+    /// Cosine of the largest incidence angle used.
+    pub cos_fov: f64,
+    /// Smallest illuminated fraction for photodiode updates.
+    pub min_sun_fraction: f64,
+    /// Add the second-order (curvature) variance of the measurement functions to R.
+    pub second_order: bool,
+}
+
+/// The state the filter starts from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InitialState {
+    /// Attitude, GCRF -> body.
+    pub q: Quat,
+    /// Attitude-error covariance, rad^2, body frame.
+    pub attitude_cov: Matrix3<f64>,
+    /// Gyro bias, rad/s.
+    pub bias_rad_s: Vector3<f64>,
+    /// Gyro-bias sigma per axis, rad/s.
+    pub bias_sigma_rad_s: f64,
+    /// Scale factors, V (also written to the model's photodiodes).
+    pub scale_v: Vec<f64>,
+    /// Their sigmas, V.
+    pub scale_sigma_v: Vec<f64>,
+    /// Unit normals, body frame.
+    pub n_body: Vec<Vector3<f64>>,
+    /// Sigma per tangent axis of the normals, rad (ignored without normal states).
+    pub normal_sigma_rad: f64,
+    /// Initial sigma of each extra state, in [`StateLayout::extras`] order.
+    pub extra_sigma: Vec<f64>,
+    /// Which photodiodes take part (a never-lit one does not).
+    pub used: Vec<bool>,
+}
+
+/// Which sensor a scalar update came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Sensor {
+    /// Photodiode, zero-based index.
+    Photodiode(usize),
+    /// Magnetometer axis 0, 1, 2 (body x, y, z).
+    Magnetometer(usize),
+}
+
+/// One scalar update: the innovation against its predicted spread.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UpdateRecord {
+    /// Sensor.
+    pub sensor: Sensor,
+    /// Measured value (V or nT).
+    pub measured: f64,
+    /// Residual (Eq. 25): measured minus predicted at the current estimate, including the
+    /// corrections of the scalar updates before it in the same step.
+    pub residual: f64,
+    /// `3 sqrt(H P H^T + R)`.
+    pub bound_3sigma: f64,
+    /// Whether the update was applied (false: rejected by the gate).
+    pub accepted: bool,
+}
+
+/// Counts of one sensor class.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SensorCounts {
+    /// Scalar updates applied.
+    pub accepted: usize,
+    /// Scalar updates rejected by the innovation gate.
+    pub gated: usize,
+    /// Samples not used: not sampled (empty cell).
+    pub not_sampled: usize,
+    /// Photodiode samples not used: eclipse or penumbra.
+    pub shadowed: usize,
+    /// Photodiode samples not used: Sun behind or outside the field of view (by the estimate).
+    pub outside_fov: usize,
+    /// Photodiode samples not used: the photodiode never lit in the data set.
+    pub unused_sensor: usize,
+}
+
+/// Counts per sensor class.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct UpdateCounts {
+    /// Photodiode scalar updates.
+    pub photodiode: SensorCounts,
+    /// Magnetometer scalar updates (one per axis).
+    pub magnetometer: SensorCounts,
+}
+
+/// The measurements of one sample.
+#[derive(Debug, Clone, Copy)]
+pub struct Measurements<'a> {
+    /// Magnetometer, body, nT (`None`: not sampled or not used).
+    pub mag_nt: Option<Vector3<f64>>,
+    /// Photodiode outputs, V, one per photodiode (`None`: not sampled).
+    pub pd_v: &'a [Option<f64>],
+}
+
+/// The 6x6 transition and process noise of one propagation, plus the diagonal process
+/// noise of the calibration states over the same step (kept for the smoother).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Propagation {
+    /// `Phi` of `[a, beta]`.
+    pub phi: Matrix6<f64>,
+    /// `Qd` of `[a, beta]`.
+    pub qd: Matrix6<f64>,
+    /// Step, s.
+    pub dt_s: f64,
+}
+
+/// The filter.
+pub struct Filter {
+    layout: StateLayout,
+    model: MeasurementModel,
+    noise: FilterNoise,
+    algebra: Algebra,
+    q: Quat,
+    bias: Vector3<f64>,
+    scale: Vec<f64>,
+    normal: Vec<Vector3<f64>>,
+    basis: Vec<(Vector3<f64>, Vector3<f64>)>,
+    used: Vec<bool>,
+    rate_est: Vector3<f64>,
+    p: DMatrix<f64>,
+    scratch: Scratch,
+    records: Vec<UpdateRecord>,
+    counts: UpdateCounts,
+    last: Option<Propagation>,
+}
+
+/// Preallocated work space: nothing is allocated per step.
+struct Scratch {
+    dx: DVector<f64>,
+    u: DVector<f64>,
+    rows6: OMatrix<f64, U6, Dyn>,
+    h_idx: Vec<usize>,
+    h_val: Vec<f64>,
+    partials: Partials,
+    cal_noise: DVector<f64>,
+    /// Columns `w_l = P_l H_l^T / sqrt(s_l)` of this step's accepted updates: during a step
+    /// `P = P_0 - W W^T`, applied once at the end as a rank-k product (one gemm).
+    w_cols: DMatrix<f64>,
+    /// Number of columns of `w_cols` in use.
+    w_count: usize,
+}
+
+impl Filter {
+    /// A filter over `model` (its photodiodes get the initial scales and normals) with the
+    /// state `layout` built from the same model.
+    pub fn new(
+        mut model: MeasurementModel,
+        layout: StateLayout,
+        init: InitialState,
+        noise: FilterNoise,
+        algebra: Algebra,
+    ) -> Result<Self, FilterError> {
+        let m = model.photodiodes().len();
+        let n = layout.len();
+        for (what, len) in [
+            ("initial scales", init.scale_v.len()),
+            ("initial scale sigmas", init.scale_sigma_v.len()),
+            ("initial normals", init.n_body.len()),
+            ("used flags", init.used.len()),
+            ("scale walk variances", noise.scale_walk_var_per_s.len()),
+        ] {
+            check_len(what, m, len)?;
+        }
+        check_len("layout photodiodes", m, layout.photodiodes())?;
+        check_len(
+            "extra sigmas",
+            layout.extras().len(),
+            init.extra_sigma.len(),
+        )?;
+        check_len(
+            "extra walks",
+            layout.extras().len(),
+            noise.extra_walk_var_per_s.len(),
+        )?;
+        let mut p = DMatrix::zeros(n, n);
+        p.fixed_view_mut::<3, 3>(ATTITUDE, ATTITUDE)
+            .copy_from(&(0.5 * (init.attitude_cov + init.attitude_cov.transpose())));
+        for k in 0..3 {
+            p[(BIAS + k, BIAS + k)] = init.bias_sigma_rad_s.powi(2);
+        }
+        for i in 0..m {
+            p[(layout.scale(i), layout.scale(i))] = init.scale_sigma_v[i].powi(2);
+            if let Some(d) = layout.normal(i) {
+                p[(d, d)] = init.normal_sigma_rad.powi(2);
+                p[(d + 1, d + 1)] = init.normal_sigma_rad.powi(2);
+            }
+        }
+        for (e, s) in layout.extras().iter().zip(&init.extra_sigma) {
+            p[(e.state, e.state)] = s * s;
+        }
+        let normal: Vec<Vector3<f64>> = init.n_body.iter().map(|n| n.normalize()).collect();
+        for (pd, (c, nb)) in model
+            .photodiodes_mut()
+            .iter_mut()
+            .zip(init.scale_v.iter().zip(&normal))
+        {
+            pd.scale_v = *c;
+            pd.n_body = *nb;
+            pd.fov_half_angle_rad = None;
+        }
+        let partials = Partials {
+            d_parameters: vec![0.0; model.parameter_count()],
+            ..Partials::default()
+        };
+        let row = layout.max_row_len();
+        Ok(Filter {
+            basis: normal.iter().map(tangent_basis).collect(),
+            scratch: Scratch {
+                dx: DVector::zeros(n),
+                u: DVector::zeros(n),
+                rows6: OMatrix::<f64, U6, Dyn>::zeros(n),
+                h_idx: Vec::with_capacity(row),
+                h_val: Vec::with_capacity(row),
+                partials,
+                cal_noise: DVector::zeros(n),
+                w_cols: DMatrix::zeros(n, 3 + m),
+                w_count: 0,
+            },
+            layout,
+            model,
+            noise,
+            algebra,
+            q: init.q,
+            bias: init.bias_rad_s,
+            scale: init.scale_v,
+            normal,
+            used: init.used,
+            rate_est: Vector3::zeros(),
+            p,
+            records: Vec::with_capacity(3 + m),
+            counts: UpdateCounts::default(),
+            last: None,
+        })
+    }
+
+    /// Propagates over `dt_s` with the measured rate `gyro_rad_s` (held or averaged by the
+    /// caller) and the measured rate change since the previous sample (for the extra
+    /// attitude noise): `q <- dq((w - beta) dt) ⊗ q`, `P <- Phi P Phi^T + Q` with `Phi` the
+    /// MEKF's 6x6 block and identity elsewhere, calibration states a random walk (Eq. 19).
+    pub fn propagate(&mut self, gyro_rad_s: &Vector3<f64>, rate_change_rad_s: f64, dt_s: f64) {
+        let rate = gyro_rad_s - self.bias;
+        self.rate_est = rate;
+        self.q = pdcal_attitude::mekf::propagate(&self.q, &rate, dt_s);
+        let phi = state_transition(&rate, dt_s);
+        let mut qd = process_noise(&rate, dt_s, &self.noise.gyro);
+        let extra = (self.noise.rate_change_fraction * rate_change_rad_s * dt_s).powi(2);
+        for k in 0..3 {
+            qd[(k, k)] += extra;
+        }
+        self.fill_calibration_noise(dt_s);
+        match self.algebra {
+            Algebra::Structured => self.propagate_structured(&phi, &qd),
+            Algebra::Dense => dense::propagate(&mut self.p, &phi, &qd, &self.scratch.cal_noise),
+        }
+        self.last = Some(Propagation { phi, qd, dt_s });
+    }
+
+    /// Diagonal calibration-state process noise over `dt_s` into `scratch.cal_noise`
+    /// (entries 0..6 stay zero).
+    fn fill_calibration_noise(&mut self, dt_s: f64) {
+        let q = &mut self.scratch.cal_noise;
+        for i in 0..self.layout.photodiodes() {
+            q[self.layout.scale(i)] = self.noise.scale_walk_var_per_s[i] * dt_s;
+            if let Some(d) = self.layout.normal(i) {
+                q[d] = self.noise.normal_walk_var_per_s * dt_s;
+                q[d + 1] = self.noise.normal_walk_var_per_s * dt_s;
+            }
+        }
+        for (e, v) in self
+            .layout
+            .extras()
+            .iter()
+            .zip(&self.noise.extra_walk_var_per_s)
+        {
+            q[e.state] = v * dt_s;
+        }
+    }
+
+    /// `P <- Phi P Phi^T + Q` using `Phi = diag(Phi6, I)`: only the first 6 rows and
+    /// columns change (`36 n` instead of `2 n^3` multiply-adds).
+    fn propagate_structured(&mut self, phi: &Matrix6<f64>, qd: &Matrix6<f64>) {
+        let n = self.p.nrows();
+        let rows = &mut self.scratch.rows6;
+        // rows = Phi6 * P[0..6, :]
+        phi.mul_to(&self.p.fixed_rows::<6>(0), rows);
+        let corner = rows.fixed_columns::<6>(0) * phi.transpose() + qd;
+        let corner = 0.5 * (corner + corner.transpose());
+        self.p.fixed_view_mut::<6, 6>(0, 0).copy_from(&corner);
+        if n > CORE {
+            self.p
+                .view_mut((0, CORE), (CORE, n - CORE))
+                .copy_from(&rows.columns(CORE, n - CORE));
+            self.p
+                .view_mut((CORE, 0), (n - CORE, CORE))
+                .tr_copy_from(&rows.columns(CORE, n - CORE));
+        }
+        for k in CORE..n {
+            self.p[(k, k)] += self.scratch.cal_noise[k];
+        }
+    }
+
+    /// All measurement updates of one sample: magnetometer axes, then photodiodes, each a
+    /// sequential scalar update; the attitude is relinearised after each accepted one
+    /// ([`Filter::fold_attitude`]), the other states at the prior with the accumulated
+    /// correction; then the multiplicative reset. Records of this sample: [`Filter::records`].
+    pub fn update(
+        &mut self,
+        t_s: f64,
+        meas: &Measurements<'_>,
+        reference: &StepReference,
+        albedo: Option<&dyn AlbedoIrradiance>,
+    ) -> Result<(), FilterError> {
+        check_len("photodiode samples", self.scale.len(), meas.pd_v.len())?;
+        self.records.clear();
+        self.scratch.dx.fill(0.0);
+        self.scratch.w_count = 0;
+        let mut any = false;
+        if let Some(mag) = meas.mag_nt {
+            any |= self.mag_updates(&mag, &reference.b_gcrf_nt);
+        }
+        let result = self.photodiode_updates(t_s, meas.pd_v, reference, albedo);
+        self.apply_downdates();
+        any |= result?;
+        if any {
+            self.reset()?;
+        }
+        Ok(())
+    }
+
+    /// Moves the attitude part of the accumulated correction into `q` so that the next
+    /// scalar update is linearised at the corrected attitude (the attitude is shared by every
+    /// measurement and carries most of the nonlinearity). The other states stay linearised
+    /// at the prior with their accumulated correction in `H dx`.
+    fn fold_attitude(&mut self) {
+        let dx = &mut self.scratch.dx;
+        let a = Vector3::new(dx[ATTITUDE], dx[ATTITUDE + 1], dx[ATTITUDE + 2]);
+        self.q = apply_error(&self.q, &a);
+        dx.fixed_rows_mut::<3>(ATTITUDE).fill(0.0);
+    }
+
+    /// Counts a magnetometer sample that was not taken (empty cell).
+    pub fn count_mag_not_sampled(&mut self) {
+        self.counts.magnetometer.not_sampled += 3;
+    }
+
+    fn mag_updates(&mut self, mag: &Vector3<f64>, b_gcrf: &Vector3<f64>) -> bool {
+        let r0 = self.noise.mag_sigma_nt.powi(2);
+        let mut any = false;
+        for axis in 0..3 {
+            let b_body = self.q.attitude_matrix() * b_gcrf;
+            let h = skew(&b_body);
+            self.scratch.h_idx.clear();
+            self.scratch.h_val.clear();
+            for k in 0..3 {
+                self.scratch.h_idx.push(ATTITUDE + k);
+                self.scratch.h_val.push(h[(axis, k)]);
+            }
+            let r = r0 + self.mag_second_order_var(&b_body);
+            let accepted =
+                self.scalar_update(Sensor::Magnetometer(axis), mag[axis], b_body[axis], r);
+            let c = &mut self.counts.magnetometer;
+            if accepted {
+                c.accepted += 1;
+                self.fold_attitude();
+            } else {
+                c.gated += 1;
+            }
+            any |= accepted;
+        }
+        any
+    }
+
+    /// Variance of the second-order term of `A b` under the attitude uncertainty, per axis:
+    /// `(1/2) [a x]^2 b` has size `|a|^2 |b| / 2`; with `tr P_aa = 3 v`, `var |a|^2 = 6 v^2`,
+    /// spread over three axes: `|b|^2 (tr P_aa)^2 / 18`. Zero when disabled.
+    fn mag_second_order_var(&self, b_body: &Vector3<f64>) -> f64 {
+        if !self.noise.second_order {
+            return 0.0;
+        }
+        let tr = self.p_entry(0, 0) + self.p_entry(1, 1) + self.p_entry(2, 2);
+        b_body.norm_squared() * tr * tr / 18.0
+    }
+
+    /// Variance of the second-order terms of `C n^T A s` (Gaussian second-order filter,
+    /// simplified): the relative angle `delta` between normal and Sun has variance
+    /// `sigma^2 = 2 tr(P_aa)/3 + P_d1 + P_d2` over two axes, the cosine's curvature gives
+    /// `-(1/2) C cos(theta) |delta|^2` with variance `(1/4) (C cos theta)^2 sigma^4`, and the
+    /// scale-angle product `dC sin(theta) delta` adds `(1/2) P_CC sigma^2`. It is large only
+    /// while the initial uncertainty is (and keeps the first updates from over-trusting the
+    /// linearisation); it vanishes as `P` shrinks. Zero when disabled.
+    fn photodiode_second_order_var(&self, i: usize, cos_incidence: f64) -> f64 {
+        if !self.noise.second_order {
+            return 0.0;
+        }
+        let mut angle_var =
+            2.0 * (self.p_entry(0, 0) + self.p_entry(1, 1) + self.p_entry(2, 2)) / 3.0;
+        if let Some(d) = self.layout.normal(i) {
+            angle_var += self.p_entry(d, d) + self.p_entry(d + 1, d + 1);
+        }
+        let sc = self.layout.scale(i);
+        let c = self.scale[i] * cos_incidence;
+        0.25 * c * c * angle_var * angle_var + 0.5 * self.p_entry(sc, sc) * angle_var
+    }
+
+    /// Entry `(i, j)` of the current covariance during a step: `P_0 - W W^T` (structured) or
+    /// `P` (dense, updated in place).
+    fn p_entry(&self, i: usize, j: usize) -> f64 {
+        let s = &self.scratch;
+        let pending: f64 = (0..s.w_count)
+            .map(|l| s.w_cols[(i, l)] * s.w_cols[(j, l)])
+            .sum();
+        self.p[(i, j)] - pending
+    }
+
+    /// `P <- P_0 - W W^T` for the step's accepted updates, as one matrix product, then the
+    /// upper triangle copied from the lower so that `P` stays exactly symmetric.
+    fn apply_downdates(&mut self) {
+        let s = &mut self.scratch;
+        let k = s.w_count;
+        if k == 0 {
+            return;
+        }
+        let w = s.w_cols.columns(0, k);
+        self.p.gemm(-1.0, &w, &w.transpose(), 1.0);
+        self.p.fill_upper_triangle_with_lower_triangle();
+        s.w_count = 0;
+    }
+
+    fn photodiode_updates(
+        &mut self,
+        t_s: f64,
+        pd_v: &[Option<f64>],
+        reference: &StepReference,
+        albedo: Option<&dyn AlbedoIrradiance>,
+    ) -> Result<bool, FilterError> {
+        let lit = reference.sun_fraction >= self.noise.min_sun_fraction;
+        let mut any = false;
+        for (i, sample) in pd_v.iter().enumerate() {
+            let counts = &mut self.counts.photodiode;
+            let Some(y) = *sample else {
+                counts.not_sampled += 1;
+                continue;
+            };
+            if !lit {
+                counts.shadowed += 1;
+                continue;
+            }
+            if !self.used[i] || self.scale[i] <= 0.0 {
+                counts.unused_sensor += 1;
+                continue;
+            }
+            let attitude = self.q.attitude_matrix();
+            let sun_body = attitude * reference.sun_gcrf_unit;
+            let cos_incidence = self.normal[i].dot(&sun_body);
+            if cos_incidence < self.noise.cos_fov {
+                counts.outside_fov += 1;
+                continue;
+            }
+            let scene = Scene {
+                attitude,
+                sun_body,
+                sun_fraction: reference.sun_fraction,
+                rate_body_rad_s: self.rate_est,
+                t_s,
+                albedo,
+            };
+            self.model
+                .partials_into(i, &scene, &mut self.scratch.partials)?;
+            self.fill_photodiode_row(i);
+            let albedo_sigma = self.scale[i] * self.noise.albedo_sigma_ratio;
+            let r = self.noise.photodiode_sigma_v.powi(2)
+                + albedo_sigma * albedo_sigma
+                + self.photodiode_second_order_var(i, cos_incidence);
+            let predicted = self.scratch.partials.value_v;
+            let accepted = self.scalar_update(Sensor::Photodiode(i), y, predicted, r);
+            let counts = &mut self.counts.photodiode;
+            if accepted {
+                counts.accepted += 1;
+                self.fold_attitude();
+            } else {
+                counts.gated += 1;
+            }
+            any |= accepted;
+        }
+        Ok(any)
+    }
+
+    /// The sparse H row of photodiode `i` from the model's partials: Eq. (20) for `a`,
+    /// Eq. (22) for `C`, the normal gradient projected on the tangent basis for `(d1, d2)`
+    /// (the singularity-free replacement of Eqs. 23-24), and the estimated parameters.
+    fn fill_photodiode_row(&mut self, i: usize) {
+        let s = &mut self.scratch;
+        let pa = &s.partials;
+        s.h_idx.clear();
+        s.h_val.clear();
+        for k in 0..3 {
+            s.h_idx.push(ATTITUDE + k);
+            s.h_val.push(pa.d_attitude[k]);
+        }
+        s.h_idx.push(self.layout.scale(i));
+        s.h_val.push(pa.d_scale);
+        if let Some(d) = self.layout.normal(i) {
+            let (e1, e2) = &self.basis[i];
+            s.h_idx.extend_from_slice(&[d, d + 1]);
+            s.h_val.push(pa.d_normal.dot(e1));
+            s.h_val.push(pa.d_normal.dot(e2));
+        }
+        for &k in self.layout.extras_of(i) {
+            let e = &self.layout.extras()[k];
+            s.h_idx.push(e.state);
+            s.h_val.push(pa.d_parameters[e.parameter]);
+        }
+    }
+
+    /// One scalar update with the row in `scratch.h_idx/h_val`, linearised at the prior:
+    /// innovation `y - h(x-) - H dx`, gain `K = P H^T / s` (Eq. 4), `dx += K nu` (Eq. 6),
+    /// `P -= (P H^T)(P H^T)^T / s` (Eq. 7, symmetric form; for the optimal gain it equals the
+    /// Joseph form), deferred: `w = P H^T / sqrt(s)` is stored and `P = P_0 - W W^T` is
+    /// formed once per step ([`Filter::apply_downdates`]); `P H^T` of later updates
+    /// subtracts the pending columns. Rejected when `nu^2 > gate^2 s`.
+    fn scalar_update(&mut self, sensor: Sensor, measured: f64, predicted: f64, r: f64) -> bool {
+        let s = &mut self.scratch;
+        let h_dx: f64 = s
+            .h_idx
+            .iter()
+            .zip(&s.h_val)
+            .map(|(&k, v)| v * s.dx[k])
+            .sum();
+        let nu = measured - predicted - h_dx;
+        let spread = match self.algebra {
+            Algebra::Structured => {
+                gather_columns(&self.p, &s.h_idx, &s.h_val, s.u.as_mut_slice());
+                // u = (P_0 - W W^T) H^T: subtract the pending updates.
+                for l in 0..s.w_count {
+                    let column = s.w_cols.column(l);
+                    let wh: f64 = s
+                        .h_idx
+                        .iter()
+                        .zip(&s.h_val)
+                        .map(|(&k, v)| v * column[k])
+                        .sum();
+                    s.u.axpy(-wh, &column, 1.0);
+                }
+                let hph: f64 = s.h_idx.iter().zip(&s.h_val).map(|(&k, v)| v * s.u[k]).sum();
+                hph + r
+            }
+            Algebra::Dense => dense::innovation_variance(&self.p, &s.h_idx, &s.h_val, r),
+        };
+        let accepted = nu * nu <= self.noise.gate_sigmas.powi(2) * spread;
+        self.records.push(UpdateRecord {
+            sensor,
+            measured,
+            residual: nu,
+            bound_3sigma: 3.0 * spread.sqrt(),
+            accepted,
+        });
+        if !accepted {
+            return false;
+        }
+        match self.algebra {
+            Algebra::Structured => {
+                s.dx.axpy(nu / spread, &s.u, 1.0);
+                let scale = 1.0 / spread.sqrt();
+                let mut column = s.w_cols.column_mut(s.w_count);
+                column.copy_from(&s.u);
+                column *= scale;
+                s.w_count += 1;
+            }
+            Algebra::Dense => {
+                dense::joseph_update(&mut self.p, &mut s.dx, &s.h_idx, &s.h_val, nu, r);
+            }
+        }
+        true
+    }
+
+    /// The multiplicative reset: `q <- dq(a) ⊗ q`, additive for bias, scales and parameters,
+    /// normals rotated along the tangent correction and their bases recomputed; the error
+    /// state returns to zero. The first-order covariance change of the reset (rotation of the
+    /// error frames by the correction) is neglected, as usual for the MEKF.
+    fn reset(&mut self) -> Result<(), FilterError> {
+        let dx = &self.scratch.dx;
+        let a = Vector3::new(dx[ATTITUDE], dx[ATTITUDE + 1], dx[ATTITUDE + 2]);
+        self.q = apply_error(&self.q, &a);
+        self.bias += Vector3::new(dx[BIAS], dx[BIAS + 1], dx[BIAS + 2]);
+        for i in 0..self.scale.len() {
+            self.scale[i] += dx[self.layout.scale(i)];
+            if let Some(d) = self.layout.normal(i)
+                && (dx[d] != 0.0 || dx[d + 1] != 0.0)
+            {
+                self.normal[i] = rotate_normal(&self.normal[i], dx[d], dx[d + 1]);
+                self.basis[i] = tangent_basis(&self.normal[i]);
+            }
+            let pd = &mut self.model.photodiodes_mut()[i];
+            pd.scale_v = self.scale[i];
+            pd.n_body = self.normal[i];
+        }
+        for e in self.layout.extras() {
+            let p = self.model.parameter_mut(e.parameter)?;
+            p.value += dx[e.state];
+        }
+        Ok(())
+    }
+
+    /// Attitude estimate.
+    pub fn q(&self) -> Quat {
+        self.q
+    }
+
+    /// Gyro bias estimate, rad/s.
+    pub fn bias_rad_s(&self) -> Vector3<f64> {
+        self.bias
+    }
+
+    /// Scale factor estimates, V.
+    pub fn scales_v(&self) -> &[f64] {
+        &self.scale
+    }
+
+    /// Normal estimates, body frame.
+    pub fn normals(&self) -> &[Vector3<f64>] {
+        &self.normal
+    }
+
+    /// Values of the extra states, in layout order.
+    pub fn extra_values(&self) -> Vec<f64> {
+        let params: Vec<f64> = self.model.parameters().map(|(_, p)| p.value).collect();
+        self.layout
+            .extras()
+            .iter()
+            .map(|e| params[e.parameter])
+            .collect()
+    }
+
+    /// Error-state covariance.
+    pub fn covariance(&self) -> &DMatrix<f64> {
+        &self.p
+    }
+
+    /// The state layout.
+    pub fn layout(&self) -> &StateLayout {
+        &self.layout
+    }
+
+    /// The measurement model with the current estimates.
+    pub fn model(&self) -> &MeasurementModel {
+        &self.model
+    }
+
+    /// The scalar updates of the last [`Filter::update`].
+    pub fn records(&self) -> &[UpdateRecord] {
+        &self.records
+    }
+
+    /// Counts since the start.
+    pub fn counts(&self) -> &UpdateCounts {
+        &self.counts
+    }
+
+    /// Diagonal process noise of the calibration states over the last step (entries 0..6
+    /// are zero).
+    pub fn calibration_noise(&self) -> &DVector<f64> {
+        &self.scratch.cal_noise
+    }
+
+    /// The last propagation's matrices.
+    pub fn last_propagation(&self) -> Option<&Propagation> {
+        self.last.as_ref()
+    }
+
+    /// The current calibration: scales, normals (az/el with sigmas), bias, parameters.
+    /// `fixed` supplies the normal sigmas when normals are not states (scale-only).
+    pub fn calibration(&self, fixed: Option<&Calibration>) -> Calibration {
+        let state = StateView {
+            bias: self.bias,
+            scale: &self.scale,
+            normal: &self.normal,
+            extras: self.extra_values(),
+            p: &self.p,
+        };
+        state.calibration(&self.layout, fixed)
+    }
+}
+
+/// A state and its covariance, borrowed from the filter or the smoother.
+pub(crate) struct StateView<'a> {
+    pub bias: Vector3<f64>,
+    pub scale: &'a [f64],
+    pub normal: &'a [Vector3<f64>],
+    pub extras: Vec<f64>,
+    pub p: &'a DMatrix<f64>,
+}
+
+impl StateView<'_> {
+    pub(crate) fn calibration(
+        &self,
+        layout: &StateLayout,
+        fixed: Option<&Calibration>,
+    ) -> Calibration {
+        let p = self.p;
+        let photodiodes = (0..layout.photodiodes())
+            .map(|i| {
+                let sc = layout.scale(i);
+                let scale_sigma = p[(sc, sc)].max(0.0).sqrt();
+                match layout.normal(i) {
+                    Some(d) => {
+                        let cov = Matrix2::new(
+                            p[(d, d)],
+                            p[(d, d + 1)],
+                            p[(d + 1, d)],
+                            p[(d + 1, d + 1)],
+                        );
+                        PdCalibration::from_normal(
+                            self.scale[i],
+                            scale_sigma,
+                            &self.normal[i],
+                            &cov,
+                        )
+                    }
+                    None => {
+                        let mut pd = PdCalibration::from_normal(
+                            self.scale[i],
+                            scale_sigma,
+                            &self.normal[i],
+                            &Matrix2::zeros(),
+                        );
+                        if let Some(prior) = fixed.and_then(|f| f.photodiodes.get(i)) {
+                            pd.azimuth_sigma_deg = prior.azimuth_sigma_deg;
+                            pd.elevation_sigma_deg = prior.elevation_sigma_deg;
+                        }
+                        pd
+                    }
+                }
+            })
+            .collect();
+        let sig = |k: usize| p[(k, k)].max(0.0).sqrt();
+        Calibration {
+            format_version: crate::calibration::CALIBRATION_FORMAT_VERSION,
+            photodiodes,
+            gyro_bias_rad_s: [self.bias.x, self.bias.y, self.bias.z],
+            gyro_bias_sigma_rad_s: [sig(BIAS), sig(BIAS + 1), sig(BIAS + 2)],
+            parameters: layout
+                .extras()
+                .iter()
+                .zip(&self.extras)
+                .map(|(e, v)| ParameterEstimate {
+                    name: e.name.clone(),
+                    unit: e.unit.clone(),
+                    value: *v,
+                    sigma: sig(e.state),
+                })
+                .collect(),
+        }
+    }
+}
+
+/// `u = P H^T` for a sparse row: a sum of a few columns of `P` (contiguous in column-major
+/// storage; written on slices so that the compiler vectorises the inner loop).
+fn gather_columns(p: &DMatrix<f64>, idx: &[usize], val: &[f64], u: &mut [f64]) {
+    let n = p.nrows();
+    let data = p.as_slice();
+    u.fill(0.0);
+    for (&k, &v) in idx.iter().zip(val) {
+        let column = &data[k * n..(k + 1) * n];
+        for (ui, pik) in u.iter_mut().zip(column) {
+            *ui += v * pik;
+        }
+    }
+}
+
+fn check_len(what: &'static str, expected: usize, found: usize) -> Result<(), FilterError> {
+    if expected == found {
+        Ok(())
+    } else {
+        Err(FilterError::LengthMismatch {
+            what,
+            expected,
+            found,
+        })
+    }
+}

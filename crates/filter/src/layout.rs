@@ -1,0 +1,133 @@
+//! The error-state layout: which state index holds what.
+//!
+//! ```text
+//! [ a (3) | beta (3) | pd 1: C, d1, d2 | pd 2: C, d1, d2 | ... | extra parameters ]
+//! ```
+//!
+//! The paper orders Eq. (17) as `[a, beta, C, alpha, eps]`; here each photodiode's states are
+//! contiguous, so that its H row (6 non-zeros: `a`, `C_i`, `d1_i`, `d2_i`) touches two short
+//! runs. `(d1, d2)` is the tangent-plane correction of the normal (see [`crate`] docs) in
+//! place of `(alpha, eps)`. Without normal states ([`crate::Mode::ScaleOnly`]) a photodiode
+//! has only `C`. Extra states are model parameters marked [`ParameterRole::Estimated`]
+//! (e.g. dark offsets added by the diagnosis workflow): adding one is a change of the
+//! measurement model's data, not of this code.
+//!
+//! [`ParameterRole::Estimated`]: pdcal_photodiode::ParameterRole::Estimated
+
+use pdcal_photodiode::{MeasurementModel, ParameterRole};
+
+/// State index of the attitude error `a` (3 states).
+pub const ATTITUDE: usize = 0;
+/// State index of the gyro bias `beta` (3 states).
+pub const BIAS: usize = 3;
+/// Number of attitude and bias states.
+pub const CORE: usize = 6;
+
+/// One estimated model parameter held as a state.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExtraState {
+    /// Index in [`MeasurementModel::parameters`] order.
+    pub parameter: usize,
+    /// State index.
+    pub state: usize,
+    /// The photodiode it acts on (`None`: all).
+    pub photodiode: Option<usize>,
+    /// Parameter name.
+    pub name: String,
+    /// Parameter unit.
+    pub unit: String,
+}
+
+/// Where each state lives.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StateLayout {
+    len: usize,
+    scale: Vec<usize>,
+    normal: Vec<Option<usize>>,
+    extras: Vec<ExtraState>,
+    pd_extras: Vec<Vec<usize>>,
+}
+
+impl StateLayout {
+    /// The layout for `model`'s photodiodes, with or without normal states, and one extra
+    /// state per parameter of `model` marked estimated.
+    pub fn new(model: &MeasurementModel, estimate_normals: bool) -> Self {
+        let m = model.photodiodes().len();
+        let per_pd = if estimate_normals { 3 } else { 1 };
+        let scale = (0..m).map(|i| CORE + per_pd * i).collect();
+        let normal = (0..m)
+            .map(|i| estimate_normals.then_some(CORE + per_pd * i + 1))
+            .collect();
+        let mut next = CORE + per_pd * m;
+        let mut extras = Vec::new();
+        for (k, (_, p)) in model.parameters().enumerate() {
+            if p.role == ParameterRole::Estimated {
+                extras.push(ExtraState {
+                    parameter: k,
+                    state: next,
+                    photodiode: p.photodiode,
+                    name: p.name.clone(),
+                    unit: p.unit.clone(),
+                });
+                next += 1;
+            }
+        }
+        let pd_extras = (0..m)
+            .map(|i| {
+                extras
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, e)| e.photodiode.is_none_or(|j| j == i))
+                    .map(|(k, _)| k)
+                    .collect()
+            })
+            .collect();
+        StateLayout {
+            len: next,
+            scale,
+            normal,
+            extras,
+            pd_extras,
+        }
+    }
+
+    /// Number of states `n`.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Always false (there are at least the 6 attitude and bias states).
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// Number of photodiodes.
+    pub fn photodiodes(&self) -> usize {
+        self.scale.len()
+    }
+
+    /// State index of `C_i`.
+    pub fn scale(&self, i: usize) -> usize {
+        self.scale[i]
+    }
+
+    /// State index of `d1_i` (`d2_i` follows), if normals are estimated.
+    pub fn normal(&self, i: usize) -> Option<usize> {
+        self.normal[i]
+    }
+
+    /// The extra states.
+    pub fn extras(&self) -> &[ExtraState] {
+        &self.extras
+    }
+
+    /// Indices into [`StateLayout::extras`] of the states that can act on photodiode `i`.
+    pub fn extras_of(&self, i: usize) -> &[usize] {
+        &self.pd_extras[i]
+    }
+
+    /// Largest number of non-zeros in a photodiode's H row.
+    pub fn max_row_len(&self) -> usize {
+        CORE + self.pd_extras.iter().map(Vec::len).max().unwrap_or(0)
+    }
+}

@@ -1,0 +1,90 @@
+//! What a run returns: per-step estimates, per-update residuals, the calibration and counts.
+//! Plain data; the driver writes the files (`estimates.csv`, `residuals.csv`,
+//! `calibration.ron`, `summary.json`).
+
+use nalgebra::DMatrix;
+use pdcal_attitude::Quat;
+
+use crate::calibration::Calibration;
+use crate::config::SensorSigmas;
+use crate::filter::{Sensor, UpdateCounts};
+use crate::layout::StateLayout;
+
+/// Estimates after the updates of one sample (one `estimates.csv` row).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepEstimate {
+    /// Telemetry row index.
+    pub index: usize,
+    /// Time, s since the dataset epoch.
+    pub t_s: f64,
+    /// Attitude, GCRF -> body, scalar last.
+    pub q: Quat,
+    /// 1-sigma attitude error about the body x, y, z axes, deg.
+    pub attitude_sigma_deg: [f64; 3],
+    /// Gyro bias, scales, normals (az/el) and parameters with their sigmas.
+    pub calibration: Calibration,
+}
+
+/// One scalar update (one `residuals.csv` row).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ResidualRecord {
+    /// Telemetry row index.
+    pub index: usize,
+    /// Time, s.
+    pub t_s: f64,
+    /// Sensor.
+    pub sensor: Sensor,
+    /// Measured value, V or nT.
+    pub measured: f64,
+    /// Measured minus predicted (Eq. 25), V or nT.
+    pub residual: f64,
+    /// `3 sqrt(H P H^T + R)`, V or nT.
+    pub bound_3sigma: f64,
+    /// Applied (true) or rejected by the gate.
+    pub accepted: bool,
+}
+
+/// The mode a run actually used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModeUsed {
+    /// Attitude, bias, scales, normals, with magnetometer.
+    Full,
+    /// Without magnetometer (requested or no `mag_*` columns).
+    PhotodiodeOnly,
+    /// Scales only, normals fixed at the prior (`with_magnetometer` tells whether the
+    /// magnetometer was used).
+    ScaleOnly {
+        /// Whether magnetometer updates were made.
+        with_magnetometer: bool,
+    },
+}
+
+/// Everything a calibration run produces.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrationRun {
+    /// Mode used.
+    pub mode: ModeUsed,
+    /// Telemetry row where the filter starts (rows before it are skipped).
+    pub start_index: usize,
+    /// The initial estimates (C = max output, nominal normals or the prior, zero bias).
+    pub initial: Calibration,
+    /// Which photodiodes took part (false: never lit in the data set).
+    pub used_photodiodes: Vec<bool>,
+    /// Sensor sigmas used (config, hints, defaults).
+    pub sensor_sigmas: SensorSigmas,
+    /// Forward filter, one entry per row from `start_index`.
+    pub forward: Vec<StepEstimate>,
+    /// RTS smoother, same rows (when enabled).
+    pub smoothed: Option<Vec<StepEstimate>>,
+    /// Every scalar update of the forward filter.
+    pub residuals: Vec<ResidualRecord>,
+    /// Forward filter's final calibration.
+    pub calibration: Calibration,
+    /// Update counts per sensor class.
+    pub counts: UpdateCounts,
+    /// State layout (which covariance index is which state).
+    pub layout: StateLayout,
+    /// Forward filter's final error-state covariance (for NEES; normals in the tangent basis
+    /// of the final normals).
+    pub final_covariance: DMatrix<f64>,
+}

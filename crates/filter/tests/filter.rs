@@ -1,0 +1,229 @@
+//! Low-level filter tests: covariance invariants, structured vs dense algebra, config and
+//! calibration files, the az/el sigma mapping.
+
+mod common;
+
+use common::Case;
+use nalgebra::{Matrix2, Vector3};
+use pdcal_attitude::{Quat, normal_from_az_el, rotate_normal};
+use pdcal_filter::calibration::az_el_sigmas;
+use pdcal_filter::smoother::tangent_log;
+use pdcal_filter::{
+    Algebra, Calibration, Filter, FilterConfig, FilterNoise, InitialState, Measurements,
+    StateLayout, paper_model,
+};
+use pdcal_photodiode::{DarkOffset, ParameterRole, Photodiode};
+
+/// A filter on `case`'s nominal layout, initialised near the truth at row 0.
+fn filter_for(case: &Case, q0: Quat, algebra: Algebra, with_dark_offset: bool) -> Filter {
+    let pds: Vec<Photodiode> = case
+        .nominal
+        .iter()
+        .map(|&(az, el)| Photodiode::from_az_el_deg(3.7, az, el, 0.015))
+        .collect();
+    let m = pds.len();
+    let mut model = paper_model(pds, &FilterConfig::default());
+    if with_dark_offset {
+        model.add_term(DarkOffset::new(&vec![0.0; m])).unwrap();
+        for k in 0..m {
+            model.parameter_mut(k).unwrap().role = ParameterRole::Estimated;
+        }
+    }
+    let layout = StateLayout::new(&model, true);
+    let extras = layout.extras().len();
+    let init = InitialState {
+        q: q0,
+        attitude_cov: nalgebra::Matrix3::identity() * 3f64.to_radians().powi(2),
+        bias_rad_s: Vector3::zeros(),
+        bias_sigma_rad_s: 0.5f64.to_radians(),
+        scale_v: vec![3.7; m],
+        scale_sigma_v: vec![0.5; m],
+        n_body: case
+            .nominal
+            .iter()
+            .map(|&(az, el)| normal_from_az_el(az.to_radians(), el.to_radians()))
+            .collect(),
+        normal_sigma_rad: 10f64.to_radians(),
+        extra_sigma: vec![0.1; extras],
+        used: vec![true; m],
+    };
+    let noise = FilterNoise {
+        gyro: pdcal_attitude::GyroNoise {
+            sigma_v_rad_sqrt_s: 1.3e-3,
+            sigma_u_rad_s_sqrt_s: 2e-6,
+        },
+        rate_change_fraction: 0.3,
+        scale_walk_var_per_s: vec![1e-9; m],
+        normal_walk_var_per_s: 1e-12,
+        extra_walk_var_per_s: vec![1e-10; extras],
+        photodiode_sigma_v: 0.015,
+        albedo_sigma_ratio: 50.0 / 1367.0,
+        mag_sigma_nt: 320.0,
+        gate_sigmas: 5.0,
+        cos_fov: 60f64.to_radians().cos(),
+        min_sun_fraction: 0.999,
+        second_order: true,
+    };
+    Filter::new(model, layout, init, noise, algebra).unwrap()
+}
+
+/// Runs `filter` over `steps` rows of `case`, calling `check` after every update.
+fn drive(case: &Case, filter: &mut Filter, steps: usize, mut check: impl FnMut(usize, &Filter)) {
+    let (_, tel, refs, _) = case.build();
+    let mut row = vec![None; tel.pd_v.len()];
+    for k in 0..steps {
+        if k > 0 {
+            let (a, b) = (tel.gyro_rad_s[k - 1].unwrap(), tel.gyro_rad_s[k].unwrap());
+            filter.propagate(
+                &(0.5 * (a + b)),
+                (b - a).norm(),
+                tel.t_s[k] - tel.t_s[k - 1],
+            );
+        }
+        for (i, slot) in row.iter_mut().enumerate() {
+            *slot = tel.pd_v[i][k];
+        }
+        let mag_nt = tel.mag_nt.as_ref().and_then(|m| m[k]);
+        filter
+            .update(
+                tel.t_s[k],
+                &Measurements { mag_nt, pd_v: &row },
+                &refs[k],
+                None,
+            )
+            .unwrap();
+        check(k, filter);
+    }
+}
+
+#[test]
+fn covariance_stays_symmetric_positive_definite() {
+    let case = Case::rax2(21, 3000);
+    let q0 = case.true_attitudes()[0];
+    let mut filter = filter_for(&case, q0, Algebra::Structured, true);
+    let mut min_eig = f64::INFINITY;
+    drive(&case, &mut filter, 3000, |k, f| {
+        let p = f.covariance();
+        // Exact symmetry: propagation writes transposed copies, updates are P -= w w^T.
+        assert_eq!(p, &p.transpose(), "asymmetric at row {k}");
+        let chol = p.clone().cholesky();
+        assert!(chol.is_some(), "not positive definite at row {k}");
+        if k % 500 == 0 {
+            min_eig = min_eig.min(p.clone().symmetric_eigenvalues().min());
+        }
+    });
+    eprintln!("57 + 17 states, 3000 rows: smallest eigenvalue seen {min_eig:e}");
+    assert_eq!(filter.layout().len(), 6 + 3 * 17 + 17);
+}
+
+#[test]
+fn structured_and_dense_algebra_agree() {
+    let mut case = Case::rax2(22, 300);
+    case.nominal.truncate(6);
+    case.true_normals.truncate(6);
+    case.true_scales.truncate(6);
+    case.dark_offsets.truncate(6);
+    let q0 = case.true_attitudes()[0];
+    let mut structured = filter_for(&case, q0, Algebra::Structured, false);
+    let mut dense = filter_for(&case, q0, Algebra::Dense, false);
+    let mut worst = (0.0f64, 0.0f64);
+    let mut states = Vec::new();
+    drive(&case, &mut structured, 300, |_, f| {
+        states.push((f.q(), f.covariance().clone(), f.normals().to_vec()))
+    });
+    let mut k = 0;
+    drive(&case, &mut dense, 300, |_, f| {
+        let (q, p, n) = &states[k];
+        // Component difference (angle_to's acos cannot resolve below ~2e-8).
+        let (a, b) = (q.canonical(), f.q().canonical());
+        let dq = [a.x - b.x, a.y - b.y, a.z - b.z, a.w - b.w]
+            .iter()
+            .fold(0.0f64, |m, d| m.max(d.abs()));
+        worst.0 = worst.0.max(dq);
+        worst.0 = worst.0.max(
+            n.iter()
+                .zip(f.normals())
+                .map(|(a, b)| (a - b).norm())
+                .fold(0.0, f64::max),
+        );
+        worst.1 = worst
+            .1
+            .max((p - f.covariance()).abs().max() / p.abs().max());
+        k += 1;
+    });
+    eprintln!(
+        "structured vs dense over 300 rows: state {:.2e}, covariance (relative) {:.2e}",
+        worst.0, worst.1
+    );
+    // Same arithmetic up to operation order: agreement to 1e-9 (observed ~1e-13).
+    assert!(worst.0 < 1e-9 && worst.1 < 1e-9, "{worst:?}");
+}
+
+#[test]
+fn config_round_trips_and_rejects_unknown_fields() {
+    let config = FilterConfig {
+        fov_half_angle_deg: 65.0,
+        mag_sigma_nt: Some(400.0),
+        ..FilterConfig::default()
+    };
+    let text = config.to_ron_string().unwrap();
+    assert_eq!(FilterConfig::from_ron_str(&text).unwrap(), config);
+    // Every field defaulted: an empty struct is the default config.
+    assert_eq!(
+        FilterConfig::from_ron_str("()").unwrap(),
+        FilterConfig::default()
+    );
+    assert!(FilterConfig::from_ron_str("(gate_sigma: 3.0)").is_err());
+    assert!(FilterConfig::from_ron_str("(gate_sigmas: -3.0)").is_err());
+    assert!(FilterConfig::from_ron_str("(fov_half_angle_deg: 95.0)").is_err());
+}
+
+#[test]
+fn calibration_round_trips() {
+    let case = Case::rax2(23, 50);
+    let q0 = case.true_attitudes()[0];
+    let filter = filter_for(&case, q0, Algebra::Structured, true);
+    let cal = filter.calibration(None);
+    let text = cal.to_ron_string().unwrap();
+    assert!(text.contains("scale_V"));
+    let back = Calibration::from_ron_str(&text).unwrap();
+    assert_eq!(back, cal);
+    assert_eq!(back.parameters.len(), 17);
+    assert!(Calibration::from_ron_str(&text.replace("scale_V", "scale_X")).is_err());
+}
+
+#[test]
+fn az_el_sigmas_match_finite_differences() {
+    // Off the pole: map a tangent covariance through finite differences of (az, el).
+    let n = normal_from_az_el(40f64.to_radians(), 25f64.to_radians());
+    let cov = Matrix2::new(4e-4, 1e-4, 1e-4, 9e-4);
+    let h = 1e-7;
+    let azel = |d1: f64, d2: f64| pdcal_attitude::az_el_from_normal(&rotate_normal(&n, d1, d2));
+    let (a0, l0) = azel(0.0, 0.0);
+    let (a1, l1) = azel(h, 0.0);
+    let (a2, l2) = azel(0.0, h);
+    let j = nalgebra::Matrix2::new((a1 - a0) / h, (a2 - a0) / h, (l1 - l0) / h, (l2 - l0) / h);
+    let expected = j * cov * j.transpose();
+    let (az_sigma, el_sigma) = az_el_sigmas(&n, &cov);
+    // Forward differences with h = 1e-7 are good to about 1e-7 relative.
+    assert!((az_sigma.unwrap() - expected[(0, 0)].sqrt()).abs() < 1e-6 * expected[(0, 0)].sqrt());
+    assert!((el_sigma - expected[(1, 1)].sqrt()).abs() < 1e-6 * expected[(1, 1)].sqrt());
+    // At the pole the azimuth sigma is undefined; the elevation sigma is the tangent sigma.
+    let (az, el) = az_el_sigmas(&Vector3::z(), &(Matrix2::identity() * 1e-4));
+    assert!(az.is_none());
+    assert!((el - 1e-2).abs() < 1e-12);
+}
+
+#[test]
+fn tangent_log_inverts_rotate_normal() {
+    for (az, el) in [(17.0, -10.0), (0.0, 90.0), (0.0, -90.0), (-162.0, -10.0)] {
+        let n = normal_from_az_el(f64::to_radians(az), f64::to_radians(el));
+        let m = rotate_normal(&n, 0.05, -0.08);
+        let (d1, d2) = tangent_log(&n, &m);
+        // Exact inverse up to rounding of the trigonometry.
+        assert!(
+            (d1 - 0.05).abs() < 1e-12 && (d2 + 0.08).abs() < 1e-12,
+            "{az} {el}: {d1} {d2}"
+        );
+    }
+}
