@@ -1,2 +1,63 @@
-//! Developer tasks.
-fn main() {}
+//! Developer tasks, run as `cargo xtask <task>` (alias in `.cargo/config.toml`).
+//!
+//! - `sim-calibrate [--seeds N] [--scenario NAME]`: Monte Carlo over seeds of simulate ->
+//!   calibrate -> evaluate, in parallel, with a progress bar; prints the accuracy table and
+//!   writes it to `out/sim-calibrate/<scenario>/`.
+//! - `bench`: runs the criterion benches that `docs/performance.md` quotes.
+
+mod monte_carlo;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Debug, Parser)]
+#[command(name = "xtask", about = "pdcal developer tasks")]
+struct Cli {
+    #[command(subcommand)]
+    task: Task,
+}
+
+#[derive(Debug, Subcommand)]
+enum Task {
+    /// Monte Carlo over seeds: simulate, calibrate, evaluate; the accuracy table.
+    SimCalibrate {
+        /// Number of seeds (1..=N).
+        #[arg(long, default_value_t = 20)]
+        seeds: u64,
+        /// Built-in scenario name or RON file.
+        #[arg(long, default_value = "rax2-like")]
+        scenario: String,
+        /// Run the filter without the magnetometer (photodiode-only mode).
+        #[arg(long)]
+        photodiode_only: bool,
+    },
+    /// Run the criterion benches quoted in docs/performance.md.
+    Bench,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.task {
+        Task::SimCalibrate { seeds, scenario, photodiode_only } => monte_carlo::run(seeds, &scenario, photodiode_only),
+        Task::Bench => bench(),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("xtask: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn bench() -> anyhow::Result<()> {
+    let benches = [("pdcal-albedo", "albedo"), ("pdcal-sim", "simulate"), ("pdcal-filter", "ekf")];
+    for (package, bench) in benches {
+        let status = std::process::Command::new(env!("CARGO"))
+            .args(["bench", "-p", package, "--bench", bench])
+            .status()?;
+        anyhow::ensure!(status.success(), "cargo bench -p {package} --bench {bench} failed");
+    }
+    Ok(())
+}

@@ -5,6 +5,9 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use pdcal_albedo::{AlbedoModel, MapChoice};
+
+/// The albedo model type, re-exported for callers that hold one (xtask).
+pub type AlbedoModelType = AlbedoModel;
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_filter::{Calibration, CalibrationRun, FilterConfig, Mode, RunInputs, StepReference};
 
