@@ -1,0 +1,1 @@
+//! Discrepancy discovery (in progress).
