@@ -31,6 +31,9 @@ enum Task {
         /// Run the filter without the magnetometer (photodiode-only mode).
         #[arg(long)]
         photodiode_only: bool,
+        /// Filter configuration RON (as `pdcal calibrate --config`).
+        #[arg(long)]
+        config: Option<std::path::PathBuf>,
     },
     /// Run the criterion benches quoted in docs/performance.md.
     Bench,
@@ -39,7 +42,12 @@ enum Task {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.task {
-        Task::SimCalibrate { seeds, scenario, photodiode_only } => monte_carlo::run(seeds, &scenario, photodiode_only),
+        Task::SimCalibrate {
+            seeds,
+            scenario,
+            photodiode_only,
+            config,
+        } => monte_carlo::run(seeds, &scenario, photodiode_only, config.as_deref()),
         Task::Bench => bench(),
     };
     match result {
@@ -52,12 +60,19 @@ fn main() -> ExitCode {
 }
 
 fn bench() -> anyhow::Result<()> {
-    let benches = [("pdcal-albedo", "albedo"), ("pdcal-sim", "simulate"), ("pdcal-filter", "ekf")];
+    let benches = [
+        ("pdcal-albedo", "albedo"),
+        ("pdcal-sim", "simulate"),
+        ("pdcal-filter", "ekf"),
+    ];
     for (package, bench) in benches {
         let status = std::process::Command::new(env!("CARGO"))
             .args(["bench", "-p", package, "--bench", bench])
             .status()?;
-        anyhow::ensure!(status.success(), "cargo bench -p {package} --bench {bench} failed");
+        anyhow::ensure!(
+            status.success(),
+            "cargo bench -p {package} --bench {bench} failed"
+        );
     }
     Ok(())
 }

@@ -43,6 +43,12 @@ fn photodiodes(calibration: &Calibration, noise_v: f64, fov_rad: f64) -> Vec<Pho
         .collect()
 }
 
+/// A photodiode whose calibrated scale sigma is above this fraction of its scale was not
+/// calibrated (too little sunlight inside its field of view): it is left out of both the
+/// initial and the calibrated Sun vector, as a user would leave it out of attitude
+/// determination, so the two sets stay comparable.
+pub const UNCALIBRATED_SCALE_SIGMA_FRACTION: f64 = 0.05;
+
 /// Computes the metrics from a finished run.
 pub fn metrics(
     meta: &DatasetMeta,
@@ -55,6 +61,13 @@ pub fn metrics(
     let noise_v = run.sensor_sigmas.photodiode_v;
     // Albedo reaches a photodiode over its whole hemisphere.
     let hemisphere = std::f64::consts::FRAC_PI_2;
+    let calibrated_ok: Vec<bool> = run
+        .calibration
+        .photodiodes
+        .iter()
+        .zip(&run.used_photodiodes)
+        .map(|(p, used)| *used && p.scale_sigma_v <= UNCALIBRATED_SCALE_SIGMA_FRACTION * p.scale_v)
+        .collect();
     let initial = photodiodes(&run.initial, noise_v, hemisphere);
     let calibrated = photodiodes(&run.calibration, noise_v, hemisphere);
     let options = SunVectorOptions::default();
@@ -68,7 +81,7 @@ pub fn metrics(
         let k = estimate.index;
         let reference = &references[k];
         if reference.sun_fraction < config.min_sun_fraction
-            || !read_outputs(telemetry, k, &mut outputs)
+            || !read_outputs(telemetry, k, &calibrated_ok, &mut outputs)
         {
             continue;
         }
@@ -107,12 +120,14 @@ pub fn metrics(
     Ok(out)
 }
 
-/// Copies row `k`'s photodiode outputs; false when any photodiode was not sampled.
-fn read_outputs(telemetry: &Telemetry, k: usize, outputs: &mut [f64]) -> bool {
-    for (out, column) in outputs.iter_mut().zip(&telemetry.pd_v) {
-        match column[k] {
-            Some(v) => *out = v,
-            None => return false,
+/// Copies row `k`'s photodiode outputs (0 for photodiodes left out, which the least
+/// squares then treats as dark); false when a photodiode in use was not sampled.
+fn read_outputs(telemetry: &Telemetry, k: usize, in_use: &[bool], outputs: &mut [f64]) -> bool {
+    for ((out, column), used) in outputs.iter_mut().zip(&telemetry.pd_v).zip(in_use) {
+        match (column[k], used) {
+            (_, false) => *out = 0.0,
+            (Some(v), true) => *out = v,
+            (None, true) => return false,
         }
     }
     true
