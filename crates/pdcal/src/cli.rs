@@ -29,6 +29,9 @@ pub enum Command {
         /// Output dataset directory.
         #[arg(long)]
         out: PathBuf,
+        /// Also write the figures of the simulated set (Figs. 2 and 3) into this directory.
+        #[arg(long)]
+        plots: Option<PathBuf>,
     },
     /// Calibrate a dataset: summary.json, calibration.ron, estimates.csv, residuals.csv,
     /// figures and index.html in OUT_DIR.
@@ -63,9 +66,13 @@ pub fn run(cli: Cli) -> Result<()> {
             scenario,
             seed,
             out,
+            plots,
         }) => {
             let scenario = crate::simulate::load_scenario(&scenario)?;
             let output = crate::simulate::run_to_dir(&scenario, seed, &out)?;
+            if let Some(dir) = plots {
+                crate::simulate::write_plots(&output, &dir)?;
+            }
             println!(
                 "simulated {} (seed {seed}): {} samples, {} photodiodes -> {}",
                 scenario.name,

@@ -28,3 +28,65 @@ pub fn run_to_dir(scenario: &Scenario, seed: u64, out: &Path) -> Result<SimOutpu
     pdcal_dataset::write_dataset(out, &output.to_dataset())?;
     Ok(output)
 }
+
+/// Figures of a simulated set, after the paper's Figs. 2 and 3: the raw photodiode outputs
+/// over time and the true Sun directions in the body frame (sunlit samples), written whole
+/// into `dir` (a directory of its own, so the dataset directory stays a pure dataset).
+pub fn write_plots(output: &SimOutput, dir: &Path) -> Result<()> {
+    let staging = crate::output::OutputDir::create(dir)?;
+    let telemetry = &output.telemetry;
+    let t_min: Vec<f64> = telemetry.t_s.iter().map(|t| t / 60.0).collect();
+    let columns: Vec<Vec<f64>> = telemetry
+        .pd_v
+        .iter()
+        .map(|c| c.iter().map(|v| v.unwrap_or(f64::NAN)).collect())
+        .collect();
+    let names: Vec<String> = (1..=columns.len()).map(|i| format!("pd{i:02}")).collect();
+    let series: Vec<pdcal_report::Series> = columns
+        .iter()
+        .zip(&names)
+        .map(|(c, n)| pdcal_report::Series::new(n, c, pdcal_report::Mark::Line))
+        .collect();
+    let title = format!(
+        "Raw photodiode outputs, {} (seed {})",
+        output.meta.name, output.seed
+    );
+    let figure = pdcal_report::Figure::new("fig02_raw_outputs", &title);
+    pdcal_report::lines(
+        staging.path(),
+        &figure,
+        &pdcal_report::LineAxes::new("time (min)", "output (V)"),
+        &t_min,
+        &series,
+    )?;
+    let sunlit: Vec<[f64; 3]> = output
+        .truth
+        .sun_body
+        .iter()
+        .zip(&output.truth.eclipse)
+        .filter(|(_, e)| **e > 0.5)
+        .map(|(s, _)| [s.x, s.y, s.z])
+        .collect();
+    let figure = pdcal_report::Figure::new(
+        "fig03_sun_directions",
+        "True Sun directions in the body frame (sunlit samples)",
+    );
+    let set = pdcal_report::DirectionSet {
+        name: "Sun direction",
+        dirs_body: &sunlit,
+    };
+    pdcal_report::sphere_directions(staging.path(), &figure, &[set])?;
+    let figures = [
+        ("Fig. 2: raw photodiode outputs", "fig02_raw_outputs"),
+        (
+            "Fig. 3: true Sun directions, body frame",
+            "fig03_sun_directions",
+        ),
+    ];
+    let rows = [
+        ("samples", telemetry.len().to_string()),
+        ("photodiodes", telemetry.pd_v.len().to_string()),
+    ];
+    pdcal_report::index_html(staging.path(), &output.meta.name, &rows, &figures)?;
+    staging.commit()
+}

@@ -1,0 +1,180 @@
+//! The file contracts of `docs/dataset-format.md` and `docs/cli-contract.md`, end to end:
+//! simulate -> read gives identical numbers, the same seed gives byte-identical files, a
+//! different seed different noise, and the output files carry the contract's keys.
+
+use std::path::Path;
+
+use pdcal_sim::Scenario;
+
+/// The default scenario cut to `minutes` (the RAX-2-like set starts in eclipse and enters
+/// sunlight at about 24 min).
+fn short_rax2(minutes: f64) -> Scenario {
+    let mut s = Scenario::rax2_like().unwrap();
+    s.duration_s = minutes * 60.0;
+    s
+}
+
+fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut out: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap())
+        .map(|e| {
+            (
+                e.file_name().to_string_lossy().into_owned(),
+                std::fs::read(e.path()).unwrap(),
+            )
+        })
+        .collect();
+    out.sort();
+    out
+}
+
+#[test]
+fn simulate_read_round_trip_and_seeds() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scenario = short_rax2(5.0);
+    let (a, b, c) = (
+        tmp.path().join("a"),
+        tmp.path().join("b"),
+        tmp.path().join("c"),
+    );
+    let sim = pdcal::simulate::run_to_dir(&scenario, 3, &a).unwrap();
+    pdcal::simulate::run_to_dir(&scenario, 3, &b).unwrap();
+    pdcal::simulate::run_to_dir(&scenario, 4, &c).unwrap();
+
+    let names: Vec<String> = files(&a).into_iter().map(|(n, _)| n).collect();
+    assert_eq!(
+        names,
+        ["dataset.ron", "telemetry.csv", "truth.csv", "truth.ron"]
+    );
+    assert_eq!(files(&a), files(&b), "same seed, same bytes");
+    let telemetry = |d: &Path| std::fs::read(d.join("telemetry.csv")).unwrap();
+    assert_ne!(telemetry(&a), telemetry(&c), "another seed, other noise");
+
+    let read = pdcal_dataset::read_dataset(&a).unwrap();
+    assert_eq!(
+        read,
+        sim.to_dataset(),
+        "reading gives the simulated numbers bit for bit"
+    );
+}
+
+fn keys(value: &serde_json::Value) -> Vec<String> {
+    value.as_object().unwrap().keys().cloned().collect()
+}
+
+/// Snapshot of the contract's keys from a tiny seeded run: these names are a contract with
+/// users' scripts (cli-contract.md), so a rename must fail here.
+#[test]
+fn calibrate_and_evaluate_outputs_carry_the_contract_keys() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (dataset, out) = (tmp.path().join("set"), tmp.path().join("out"));
+    pdcal::simulate::run_to_dir(&short_rax2(40.0), 5, &dataset).unwrap();
+    pdcal::calibrate::run_dir(&dataset, &out, &pdcal::calibrate::RunConfig::default()).unwrap();
+    pdcal::evaluate::run_dir(&dataset, &out).unwrap();
+
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+    for key in [
+        "format_version",
+        "dataset",
+        "photodiodes",
+        "gyro_bias_rad_s",
+        "sun_vector_magnitude",
+        "sun_direction_change_deg",
+        "residuals",
+        "runtime_s",
+    ] {
+        assert!(summary.get(key).is_some(), "summary.json lacks {key}");
+    }
+    let pd = &summary["photodiodes"][0];
+    for key in [
+        "index",
+        "scale_V",
+        "scale_sigma_V",
+        "azimuth_deg",
+        "azimuth_sigma_deg",
+        "elevation_deg",
+        "elevation_sigma_deg",
+        "initial",
+    ] {
+        assert!(pd.get(key).is_some(), "summary.json photodiode lacks {key}");
+    }
+    assert_eq!(
+        keys(&pd["initial"]),
+        ["azimuth_deg", "elevation_deg", "scale_V"]
+    );
+    assert!(
+        keys(&summary["sun_vector_magnitude"])
+            .starts_with(&["calibrated".to_string(), "initial".to_string()])
+    );
+    for key in ["photodiode_rms_V", "fraction_within_3sigma"] {
+        assert!(
+            summary["residuals"].get(key).is_some(),
+            "summary.json residuals lack {key}"
+        );
+    }
+
+    let header = std::fs::read_to_string(out.join("estimates.csv")).unwrap();
+    let header = header.lines().next().unwrap();
+    assert!(header.starts_with(
+        "t_s,q_x,q_y,q_z,q_w,att_sigma_x_deg,att_sigma_y_deg,att_sigma_z_deg,gyro_bias_x_rad_s,gyro_bias_y_rad_s,gyro_bias_z_rad_s,gyro_bias_sigma_x_rad_s"
+    ));
+    assert!(header.contains("pd01_scale_V,pd01_scale_sigma_V,pd01_azimuth_deg,pd01_azimuth_sigma_deg,pd01_elevation_deg,pd01_elevation_sigma_deg"));
+    let residuals = std::fs::read_to_string(out.join("residuals.csv")).unwrap();
+    assert!(residuals.starts_with("t_s,sensor,measured,residual,bound_3sigma,accepted"));
+
+    let evaluation: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("evaluation.json")).unwrap()).unwrap();
+    for key in ["photodiodes", "attitude", "consistency"] {
+        assert!(evaluation.get(key).is_some(), "evaluation.json lacks {key}");
+    }
+    for key in ["scale_error_V", "scale_error_percent", "normal_error_deg"] {
+        assert!(
+            evaluation["photodiodes"][0].get(key).is_some(),
+            "evaluation.json photodiode lacks {key}"
+        );
+    }
+    for name in [
+        "fig04_residuals.png",
+        "fig05_scale.svg",
+        "fig12_attitude_sigma.png",
+        "index.html",
+        "calibration.ron",
+    ] {
+        assert!(out.join(name).is_file(), "{name} missing");
+    }
+}
+
+/// Outputs are written whole or not at all: a failing calibration leaves no directory.
+#[test]
+fn a_failed_calibration_leaves_nothing_behind() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (dataset, out) = (tmp.path().join("set"), tmp.path().join("out"));
+    pdcal::simulate::run_to_dir(&short_rax2(5.0), 6, &dataset).unwrap();
+    // Corrupt one number: the reader must name the place and nothing may be written.
+    let path = dataset.join("telemetry.csv");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let mut cells: Vec<&str> = lines[3].split(',').collect();
+    cells[1] = "abc";
+    lines[3] = cells.join(",");
+    std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+    let Err(err) =
+        pdcal::calibrate::run_dir(&dataset, &out, &pdcal::calibrate::RunConfig::default())
+    else {
+        panic!("a corrupt telemetry.csv must be refused");
+    };
+    let message = format!("{err:#}");
+    assert!(message.contains("telemetry.csv:4:2"), "{message}");
+    assert!(!out.exists());
+    let leftovers: Vec<_> = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(
+        leftovers.len(),
+        1,
+        "only the dataset remains: {leftovers:?}"
+    );
+}
