@@ -378,7 +378,11 @@ mod tests {
         assert_eq!(fmt_sig(1234.0, 4), "1234");
         assert_eq!(fmt_sig(2.5e-7, 3), "2.50e-7");
         assert_eq!(tick_label(&20.0), "20");
-        assert_eq!(tick_label(&2.3125783e-17), "0", "accumulated tick noise at zero");
+        assert_eq!(
+            tick_label(&2.3125783e-17),
+            "0",
+            "accumulated tick noise at zero"
+        );
         assert_eq!(tick_label(&0.30000000000000004), "0.3");
         assert_eq!(tick_label(&-0.5), "-0.5");
         assert_eq!(tick_label(&1e-5), "1e-5");
