@@ -212,6 +212,7 @@ fn sun_vector_magnitudes(out: &SimOutput) -> Vec<f64> {
     let options = SunVectorOptions {
         threshold: LitThreshold::Volts(1e-6),
         min_singular_value: 0.3,
+        reject_backfacing: true,
     };
     (0..out.truth.len())
         .filter(|&k| out.truth.eclipse[k] == 1.0)
