@@ -139,6 +139,10 @@ impl AlbedoExpansion {
         self.sin_rho = view.sin_rho();
         self.gcrf_to_ecef = view.gcrf_to_ecef();
         for k in 0..c.len() {
+            // Slots of cells failing the tests (c = 0) add nothing.
+            if c[k] == 0.0 {
+                continue;
+            }
             let px = powers(ux[k]);
             let py = powers(uy[k]);
             let pz = powers(uz[k]);

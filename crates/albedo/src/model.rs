@@ -5,6 +5,7 @@ use std::f64::consts::{FRAC_PI_2, PI};
 
 use nalgebra::{Matrix3, Vector3};
 use thiserror::Error;
+use wide::f64x4;
 
 use crate::map::{MapChoice, MapError, ReflectivityMap};
 use crate::view::AlbedoView;
@@ -92,6 +93,13 @@ pub struct AlbedoModel {
     cos_lon: Vec<f64>,
     /// Per cell: ALB * dA / pi, km^2 (row-major like the map).
     weight_km2: Vec<f64>,
+    /// Columns per row rounded up to a multiple of [`TILE_COLS`] (the fast loop's rows).
+    n_pad: usize,
+    /// cos and sin of the column longitudes, padded (the padding repeats the last column).
+    cos_lon4: Vec<f64x4>,
+    sin_lon4: Vec<f64x4>,
+    /// Weights in padded rows; -1 marks padding (never kept).
+    weight4: Vec<f64x4>,
 }
 
 impl AlbedoModel {
@@ -133,7 +141,33 @@ impl AlbedoModel {
             let row = &map.values()[i * n_lon..(i + 1) * n_lon];
             weight_km2.extend(row.iter().map(|alb| alb * area_km2 / PI));
         }
+        // Rows padded to whole chunks: padding repeats the last column's longitude (so tile
+        // cones do not grow) with weight -1 (never kept).
+        let n_pad = n_lon.div_ceil(TILE_COLS) * TILE_COLS;
+        let padded = |f: &dyn Fn(usize) -> f64| -> Vec<f64x4> {
+            let cols: Vec<f64> = (0..n_pad).map(f).collect();
+            cols.chunks_exact(4)
+                .map(|q| f64x4::new([q[0], q[1], q[2], q[3]]))
+                .collect()
+        };
+        let cos_lon4 = padded(&|j| lon_rad[j.min(n_lon - 1)].cos());
+        let sin_lon4 = padded(&|j| lon_rad[j.min(n_lon - 1)].sin());
+        let weight4 = (0..n_lat)
+            .flat_map(|i| {
+                padded(&|j| {
+                    weight_km2
+                        .get(i * n_lon + j)
+                        .filter(|_| j < n_lon)
+                        .copied()
+                        .unwrap_or(-1.0)
+                })
+            })
+            .collect();
         Self {
+            n_pad,
+            cos_lon4,
+            sin_lon4,
+            weight4,
             n_lat,
             n_lon,
             dlat_rad,
@@ -181,11 +215,13 @@ impl AlbedoModel {
 
     /// Fills `view` with the lit cells seen by the satellite (paper Eq. 13, Basilisk's model).
     ///
-    /// Only the latitude rows and per row the longitude span that intersect the satellite's
-    /// visible cap (half-angle acos(R/|r_sat|)) are visited; each visited cell gets Basilisk's
-    /// exact tests f2 > 0 (seen) and f1 > 0 (lit). Cells are grouped into tiles of
-    /// [`TILE_ROWS`] x [`TILE_COLS`] cells for the sensor pass. No allocation once `view` has
-    /// grown to the largest cell count. A satellite at or below the surface sees nothing.
+    /// Only the latitude rows and per row the chunks of [`TILE_COLS`] columns that intersect
+    /// the satellite's visible cap (half-angle acos(R/|r_sat|)) are visited; each visited
+    /// cell gets Basilisk's exact tests f2 > 0 (seen) and f1 > 0 (lit), four cells at a time
+    /// (f64x4, branch-free: a cell failing them keeps its slot with c = 0). Cells are grouped
+    /// into tiles of [`TILE_ROWS`] x [`TILE_COLS`] cells, each with its sum of c u and a
+    /// bounding cone, for the sensor pass. No allocation once `view` has grown to the largest
+    /// cell count. A satellite at or below the surface sees nothing.
     pub fn compute_into(
         &self,
         view: &mut AlbedoView,
@@ -225,88 +261,110 @@ impl AlbedoModel {
         let (i_lo, i_hi) = cap.rows;
         let mut group = i_lo - i_lo % TILE_ROWS;
         while group <= i_hi {
-            let rows = group.max(i_lo)..(group + TILE_ROWS).min(i_hi + 1);
-            let spans: [Option<(i64, i64)>; TILE_ROWS] = std::array::from_fn(|r| {
-                if rows.contains(&(group + r)) {
-                    cap.span(self, group + r)
-                } else {
-                    None
-                }
-            });
-            let lo = spans.iter().flatten().map(|s| s.0).min();
-            let hi = spans.iter().flatten().map(|s| s.1).max();
-            if let (Some(lo), Some(hi)) = (lo, hi) {
-                let cells: i64 = spans.iter().flatten().map(|s| s.1 - s.0 + 1).sum();
-                view.reserve(cells as usize);
-                let cols = TILE_COLS as i64;
-                for chunk in lo.div_euclid(cols)..=hi.div_euclid(cols) {
-                    for (r, span) in spans.iter().enumerate() {
-                        let Some((s_lo, s_hi)) = *span else { continue };
-                        let (j_lo, j_hi) =
-                            (s_lo.max(chunk * cols), s_hi.min(chunk * cols + cols - 1));
-                        if j_lo > j_hi {
-                            continue;
-                        }
-                        // One wrap at most (the span is at most n_lon long): two plain runs.
-                        let n_lon = self.n_lon as i64;
-                        let start = j_lo.rem_euclid(n_lon) as usize;
-                        let len = (j_hi - j_lo + 1) as usize;
-                        let first = len.min(self.n_lon - start);
-                        self.fill_run(view, &step, group + r, start, start + first);
-                        self.fill_run(view, &step, group + r, 0, len - first);
-                    }
-                    view.end_tile();
-                }
+            // Rows without padding skip the padding test (monomorphised).
+            if self.n_pad == self.n_lon {
+                self.fill_group::<false>(view, &step, &cap, group);
+            } else {
+                self.fill_group::<true>(view, &step, &cap, group);
             }
             group += TILE_ROWS;
         }
+        view.finish();
         Ok(())
     }
 
-    /// Pushes the lit, seen cells of row `i`, columns `j_lo..j_hi`: a branch-free pass over
-    /// the run (vectorisable: the square root and division dominate), then an in-place
-    /// compaction that keeps the cells passing Basilisk's tests.
-    #[inline(always)]
-    fn fill_run(&self, view: &mut AlbedoView, step: &Step, i: usize, j_lo: usize, j_hi: usize) {
-        if j_hi <= j_lo {
-            return;
+    /// The tiles of rows `group..group + TILE_ROWS` (those in the cap): one tile per chunk of
+    /// [`TILE_COLS`] columns that any row's span reaches. Each row is swept once over its
+    /// chunks, writing each chunk's cells into its tile's block of slots.
+    fn fill_group<const PADDED: bool>(
+        &self,
+        view: &mut AlbedoView,
+        step: &Step,
+        cap: &Cap,
+        group: usize,
+    ) {
+        let mut chunks = [Chunks::EMPTY; TILE_ROWS];
+        let mut union: Option<(i64, i64)> = None;
+        for (row_chunks, span) in chunks.iter_mut().zip(cap.spans(self, group)) {
+            if let Some(span) = span {
+                *row_chunks = self.chunks(span);
+                // Every span contains the sub-satellite column, so their union is one
+                // interval.
+                union = Some(union.map_or(span, |u| (u.0.min(span.0), u.1.max(span.1))));
+            }
         }
-        let (cos_lat, sin_lat) = (self.cos_lat[i], self.sin_lat[i]);
-        let row = i * self.n_lon;
-        let cos_lon = &self.cos_lon[j_lo..j_hi];
-        let sin_lon = &self.sin_lon[j_lo..j_hi];
-        let weight = &self.weight_km2[row + j_lo..row + j_hi];
-        let (ux, uy, uz, c) = view.run_slots(j_hi - j_lo);
-        for k in 0..c.len() {
-            let r_hat = Vector3::new(cos_lat * cos_lon[k], cos_lat * sin_lon[k], sin_lat);
-            let (u, ck) = self.cell_term_raw(step, &r_hat, weight[k]);
-            ux[k] = u.x;
-            uy[k] = u.y;
-            uz[k] = u.z;
-            c[k] = ck;
+        let Some(union) = union else { return };
+        let tiles = self.chunks(union);
+        // Tile blocks in chunk order, each as long as the rows reaching its chunk.
+        let accs = view.group_accs();
+        let mut n_vec = 0;
+        for q in tiles.iter() {
+            let rows = chunks.iter().filter(|c| c.contains(q)).count();
+            accs.push(TileAcc::new(self.tile_axis(step, group, q), n_vec));
+            n_vec += rows * LANES_PER_CHUNK;
         }
-        view.commit_run(j_hi - j_lo);
+        let (mut slots, accs) = view.group_slots(n_vec);
+        for (r, row_chunks) in chunks.iter().enumerate() {
+            if row_chunks.is_empty() {
+                continue;
+            }
+            let row = RowConsts::new(self, step, group + r);
+            let base = (group + r) * self.n_pad / 4;
+            for q in row_chunks.iter() {
+                let acc = &mut accs[tiles.index(q)];
+                let out = acc.cursor..acc.cursor + LANES_PER_CHUNK;
+                acc.cursor = out.end;
+                let v0 = q as usize * LANES_PER_CHUNK;
+                let cols = v0..v0 + LANES_PER_CHUNK;
+                let (cos_lon, sin_lon) = (&self.cos_lon4[cols.clone()], &self.sin_lon4[cols]);
+                let weight = &self.weight4[base + v0..base + v0 + LANES_PER_CHUNK];
+                let [xs, ys, zs, cs] = &mut slots;
+                let (xs, ys) = (&mut xs[out.clone()], &mut ys[out.clone()]);
+                let (zs, cs) = (&mut zs[out.clone()], &mut cs[out]);
+                for k in 0..LANES_PER_CHUNK {
+                    let cell = row.cell::<PADDED>(cos_lon[k], sin_lon[k], weight[k]);
+                    acc.add(&cell);
+                    (xs[k], ys[k], zs[k], cs[k]) = (cell.u[0], cell.u[1], cell.u[2], cell.c);
+                }
+            }
+        }
+        view.end_group(n_vec);
     }
 
-    /// Like [`Self::cell_term_at`] without branches: c < 0 marks a cell that is not lit or
-    /// not seen (it is then dropped by the view).
-    #[inline(always)]
-    fn cell_term_raw(
-        &self,
-        step: &Step,
-        r_hat: &Vector3<f64>,
-        weight_km2: f64,
-    ) -> (Vector3<f64>, f64) {
-        let radius = self.radius_km;
-        let rd = r_hat.dot(&step.r_sat_ecef) - radius;
-        let a_sun = r_hat.dot(&step.r_sun_ecef);
-        let re = a_sun - radius;
-        let d = step.r_sat_ecef - r_hat * radius;
-        let inv_d = 1.0 / d.norm_squared().sqrt();
-        let inv_e = step.inv_sun_distance(radius, a_sun);
-        let c = weight_km2 * (re * inv_e) * (rd * inv_d) * inv_d * inv_d * step.au_sq;
-        let keep = rd > 0.0 && re > 0.0;
-        (-d * inv_d, if keep { c } else { -1.0 })
+    /// The chunks of [`TILE_COLS`] columns (indices into the padded row) holding the columns
+    /// of the unwrapped span `lo..=hi`.
+    fn chunks(&self, (lo, hi): (i64, i64)) -> Chunks {
+        let n = self.n_lon as i64;
+        let cols = TILE_COLS as i64;
+        let last = (self.n_pad / TILE_COLS) as i64 - 1;
+        if hi - lo + 1 >= n {
+            return Chunks::all(last);
+        }
+        let (lo_m, hi_m) = (lo.rem_euclid(n), hi.rem_euclid(n));
+        let (a, b) = (lo_m / cols, hi_m / cols);
+        if lo_m <= hi_m {
+            Chunks([(a, b), (1, 0)])
+        } else if b + 1 >= a {
+            // The two ends of a wrapped span share a chunk: the whole row.
+            Chunks::all(last)
+        } else {
+            Chunks([(0, b), (a, last)])
+        }
+    }
+
+    /// Unit vector from the satellite to the cell nearest the centre of the tile of rows
+    /// `group..group + TILE_ROWS` and chunk `q`: the axis of the tile's cone (any axis works;
+    /// the radius is measured from it).
+    fn tile_axis(&self, step: &Step, group: usize, q: i64) -> Vector3<f64> {
+        let i = (group + TILE_ROWS / 2).min(self.n_lat - 1);
+        let j = (q as usize * TILE_COLS + TILE_COLS / 2).min(self.n_lon - 1);
+        let d = self.r_hat_ecef(i, j) * self.radius_km - step.r_sat_ecef;
+        let norm = d.norm();
+        if norm > 0.0 {
+            d / norm
+        } else {
+            step.nadir_ecef
+        }
     }
 
     #[inline(always)]
@@ -386,9 +444,11 @@ impl AlbedoModel {
     }
 }
 
-/// Cells per tile along latitude and longitude (see [`AlbedoModel::compute_into`]).
-pub const TILE_ROWS: usize = 4;
-/// Cells per tile along longitude.
+/// Cells per tile along latitude (see [`AlbedoModel::compute_into`]). 8 x 8 measured best
+/// for the benchmark scene among 4..16 x 4..16: smaller tiles cost more per-tile work in both
+/// passes, larger ones more cells in the tiles a sensor's gate boundary crosses.
+pub const TILE_ROWS: usize = 8;
+/// Cells per tile along longitude (a multiple of 4: rows are computed four cells at a time).
 pub const TILE_COLS: usize = 8;
 
 /// Per-step quantities shared by all cells.
@@ -477,6 +537,211 @@ impl Step {
     }
 }
 
+/// f64x4 vectors per chunk of [`TILE_COLS`] cells.
+pub(crate) const LANES_PER_CHUNK: usize = TILE_COLS / 4;
+const _: () = assert!(TILE_COLS.is_multiple_of(4) && TILE_COLS > 0);
+
+/// A set of chunk indices in a row: up to two inclusive intervals (an empty one is (1, 0)).
+#[derive(Debug, Clone, Copy)]
+struct Chunks([(i64, i64); 2]);
+
+impl Chunks {
+    const EMPTY: Self = Self([(1, 0), (1, 0)]);
+
+    fn all(last: i64) -> Self {
+        Self([(0, last), (1, 0)])
+    }
+
+    fn contains(&self, q: i64) -> bool {
+        self.0.iter().any(|&(a, b)| a <= q && q <= b)
+    }
+
+    fn is_empty(&self) -> bool {
+        self.0.iter().all(|&(a, b)| a > b)
+    }
+
+    /// Position of chunk `q` (which must be in the set) in [`Chunks::iter`] order.
+    fn index(&self, q: i64) -> usize {
+        let [(a0, b0), (a1, _)] = self.0;
+        if q <= b0 {
+            (q - a0) as usize
+        } else {
+            (b0 - a0 + 1).max(0) as usize + (q - a1) as usize
+        }
+    }
+
+    fn iter(&self) -> impl Iterator<Item = i64> {
+        let [(a0, b0), (a1, b1)] = self.0;
+        (a0..=b0).chain(a1..=b1)
+    }
+}
+
+/// Four cells' terms: unit vectors u (satellite to cell, ECEF) and weights c (0 for a cell
+/// that fails Basilisk's tests).
+pub(crate) struct Cells4 {
+    u: [f64x4; 3],
+    c: f64x4,
+}
+
+/// A tile's sums while its cells are computed, in f64x4 lanes (reduced in
+/// [`AlbedoView::end_group`]).
+#[derive(Debug, Clone)]
+pub(crate) struct TileAcc {
+    /// Axis of the tile's cone (splat x, y, z).
+    axis: [f64x4; 3],
+    /// The axis as a vector.
+    pub(crate) axis_ecef: Vector3<f64>,
+    /// First cell vector of the tile's block, relative to the group.
+    pub(crate) start: usize,
+    /// Next cell vector to write.
+    pub(crate) cursor: usize,
+    /// Sum of c u.
+    pub(crate) cu: [f64x4; 3],
+    /// Smallest axis . u over the tile's cells.
+    pub(crate) min_t: f64x4,
+}
+
+impl TileAcc {
+    fn new(axis: Vector3<f64>, start: usize) -> Self {
+        Self {
+            axis: [
+                f64x4::splat(axis.x),
+                f64x4::splat(axis.y),
+                f64x4::splat(axis.z),
+            ],
+            axis_ecef: axis,
+            start,
+            cursor: start,
+            cu: [f64x4::ZERO; 3],
+            min_t: f64x4::ONE,
+        }
+    }
+
+    #[inline(always)]
+    fn add(&mut self, cell: &Cells4) {
+        let [x, y, z] = cell.u;
+        let c = cell.c;
+        self.cu[0] = c.mul_add(x, self.cu[0]);
+        self.cu[1] = c.mul_add(y, self.cu[1]);
+        self.cu[2] = c.mul_add(z, self.cu[2]);
+        // All cells bound the cone (cheaper than masking; padding repeats a real cell, and
+        // cells failing the tests only widen the cones of tiles on the horizon or the
+        // terminator).
+        let t = self.axis[0].mul_add(x, self.axis[1].mul_add(y, self.axis[2] * z));
+        self.min_t = self.min_t.fast_min(t);
+    }
+}
+
+/// Per-row constants of the cell loop (splat in f64x4): with
+/// r_hat = (cos_lat cos_lon, cos_lat sin_lon, sin_lat), every dot product with r_hat is
+/// a cos_lon + b sin_lon + c.
+struct RowConsts {
+    /// rd = r_hat . r_sat - R = sat[0] cos_lon + sat[1] sin_lon + sat[2].
+    sat: [f64x4; 3],
+    /// re = r_hat . r_sun - R = sun[0] cos_lon + sun[1] sin_lon + sun[2].
+    sun: [f64x4; 3],
+    /// |d|^2 = d2_0 + d2_1 rd, d = r_sat - R r_hat.
+    d2_0: f64x4,
+    d2_1: f64x4,
+    /// Floor of |d|^2 (keeps u finite for a satellite on a cell centre, whose c is 0).
+    tiny: f64x4,
+    /// u = (R r_hat - r_sat) / |d|: R cos_lat, -r_sat.x, -r_sat.y, R sin_lat - r_sat.z.
+    rcl: f64x4,
+    nsat: [f64x4; 2],
+    uz_num: f64x4,
+    /// The Sun is far: re kc/|r_sun - R r_hat| = re (b0 + re (b1 + re (b2 + re b3))), the
+    /// series of [`Step::inv_sun_distance`] in eps = e_0 + e_1 re expanded in powers of re;
+    /// else kc/sqrt(e_0 + e_1 re).
+    sun_series: bool,
+    e_0: f64x4,
+    e_1: f64x4,
+    b: [f64x4; 4],
+    /// (AU/|r_sun|)^2, times 1/S with the series.
+    kc: f64x4,
+}
+
+impl RowConsts {
+    fn new(model: &AlbedoModel, step: &Step, i: usize) -> Self {
+        let (cl, sl) = (model.cos_lat[i], model.sin_lat[i]);
+        let (s, p) = (&step.r_sat_ecef, &step.r_sun_ecef);
+        let radius = model.radius_km;
+        let r2 = radius * radius;
+        let v = f64x4::splat;
+        let (e_0, e_1, kc) = if step.sun_series {
+            // eps = (R^2 - 2 R r_hat.r_sun) / S^2 with r_hat.r_sun = re + R.
+            (
+                -r2 * step.inv_s2,
+                -2.0 * radius * step.inv_s2,
+                step.au_sq * step.inv_s,
+            )
+        } else {
+            (step.r_sun_norm2 - r2, -2.0 * radius, step.au_sq)
+        };
+        Self {
+            sat: [v(cl * s.x), v(cl * s.y), v(sl * s.z - radius)],
+            sun: [v(cl * p.x), v(cl * p.y), v(sl * p.z - radius)],
+            d2_0: v(step.r_sat_norm * step.r_sat_norm - r2),
+            d2_1: v(-2.0 * radius),
+            tiny: v(f64::MIN_POSITIVE),
+            rcl: v(radius * cl),
+            nsat: [v(-s.x), v(-s.y)],
+            uz_num: v(radius * sl - s.z),
+            sun_series: step.sun_series,
+            e_0: v(e_0),
+            e_1: v(e_1),
+            b: sun_series_in_re(e_0, e_1, kc).map(v),
+            kc: v(kc),
+        }
+    }
+
+    /// Basilisk's terms of four cells of the row at longitudes (cos, sin) with weights
+    /// ALB dA / pi: c = ALB f1 f2 dA / (pi |d|^2) (AU/|r_sun|)^2, and c = 0 for a cell that
+    /// is not lit or not seen (f1 <= 0 or f2 <= 0) or pads the row (weight < 0).
+    #[inline(always)]
+    fn cell<const PADDED: bool>(&self, cl: f64x4, sl: f64x4, w: f64x4) -> Cells4 {
+        let zero = f64x4::ZERO;
+        // f2 and f1 numerators: r_hat . r_sat - R and r_hat . r_sun - R.
+        let rd = self.sat[0].mul_add(cl, self.sat[1].mul_add(sl, self.sat[2]));
+        let re = self.sun[0].mul_add(cl, self.sun[1].mul_add(sl, self.sun[2]));
+        let d2 = self.d2_1.mul_add(rd, self.d2_0);
+        let inv_d = f64x4::ONE / d2.fast_max(self.tiny).sqrt();
+        // re kc / |r_sun - R r_hat|.
+        let f1 = if self.sun_series {
+            let [b0, b1, b2, b3] = self.b;
+            re * re.mul_add(re.mul_add(re.mul_add(b3, b2), b1), b0)
+        } else {
+            re * self.kc / self.e_1.mul_add(re, self.e_0).sqrt()
+        };
+        // rd > 0 and re > 0 (both finite: the inputs are checked).
+        let lit_seen = rd.fast_min(re).simd_gt(zero);
+        let keep = if PADDED {
+            lit_seen & w.simd_ge(zero)
+        } else {
+            lit_seen
+        };
+        let c = (w * f1) * rd * (inv_d * inv_d * inv_d);
+        Cells4 {
+            u: [
+                self.rcl.mul_add(cl, self.nsat[0]) * inv_d,
+                self.rcl.mul_add(sl, self.nsat[1]) * inv_d,
+                self.uz_num * inv_d,
+            ],
+            c: keep & c,
+        }
+    }
+}
+
+/// Coefficients b of kc (1 - eps/2 + 3/8 eps^2 - 5/16 eps^3) = b0 + b1 re + b2 re^2 +
+/// b3 re^3 for eps = e0 + e1 re (all terms of one sign for a lit cell: no cancellation).
+fn sun_series_in_re(e0: f64, e1: f64, kc: f64) -> [f64; 4] {
+    [
+        kc * (1.0 - e0 * (0.5 - e0 * (0.375 - 0.3125 * e0))),
+        kc * e1 * (-0.5 + e0 * (0.75 - 0.9375 * e0)),
+        kc * e1 * e1 * (0.375 - 0.9375 * e0),
+        kc * e1 * e1 * e1 * -0.3125,
+    ]
+}
+
 /// The rows and per-row longitude spans of the satellite's visible cap.
 struct Cap {
     rows: (usize, usize),
@@ -524,21 +789,47 @@ impl Cap {
 
     /// Unwrapped longitude index range [lo, hi] (at most n_lon long, indices taken modulo
     /// n_lon) of the cells of row `i` whose centres may be in the cap; `None` if none.
-    fn span(&self, model: &AlbedoModel, i: usize) -> Option<(i64, i64)> {
+    /// The spans of rows `group..group + TILE_ROWS` (`None` outside `rows`), with the
+    /// arc cosines taken four rows at a time.
+    fn spans(&self, model: &AlbedoModel, group: usize) -> [Option<(i64, i64)>; TILE_ROWS] {
+        // k > 1: no cell (rows outside the cap's rows get 2).
+        let mut k = [2.0f64; SPAN_LANES];
+        for (r, k) in k.iter_mut().enumerate().take(TILE_ROWS) {
+            let i = group + r;
+            if (self.rows.0..=self.rows.1).contains(&i) {
+                *k = self.span_k(model, i);
+            }
+        }
+        let mut half = [0.0f64; SPAN_LANES];
+        for (h, k) in half.chunks_exact_mut(4).zip(k.chunks_exact(4)) {
+            let k = f64x4::new([k[0], k[1], k[2], k[3]]);
+            h.copy_from_slice(&k.fast_clamp(-f64x4::ONE, f64x4::ONE).acos().to_array());
+        }
+        std::array::from_fn(|r| self.span_from(model, k[r], half[r]))
+    }
+
+    /// cos of the largest longitude offset of a centre in the cap, in row `i` (> 1: none;
+    /// <= -1: all).
+    fn span_k(&self, model: &AlbedoModel, i: usize) -> f64 {
+        if !self.cull {
+            return -1.0;
+        }
+        // Centre at angular distance <= cap from the sub-satellite point: cos(dlon) >= k.
+        let den = model.cos_lat[i] * self.cos_s;
+        if den > 1e-12 {
+            (self.cos_cap - model.sin_lat[i] * self.sin_s) / den
+        } else {
+            -1.0
+        }
+    }
+
+    /// The span from `k` (see [`Cap::span_k`]) and `half` = acos(k) (the cap's margin
+    /// covers the rounding of the arc cosine).
+    fn span_from(&self, model: &AlbedoModel, k: f64, half: f64) -> Option<(i64, i64)> {
         let n_lon = model.n_lon as i64;
         let full = || {
             let j_s = ((self.lon_s + PI) / model.dlon_rad).floor() as i64;
             Some((j_s - n_lon / 2, j_s - n_lon / 2 + n_lon - 1))
-        };
-        if !self.cull {
-            return full();
-        }
-        // Centre at angular distance <= cap from the sub-satellite point: cos(dlon) >= k.
-        let den = model.cos_lat[i] * self.cos_s;
-        let k = if den > 1e-12 {
-            (self.cos_cap - model.sin_lat[i] * self.sin_s) / den
-        } else {
-            -1.0
         };
         if k > 1.0 {
             return None;
@@ -546,7 +837,6 @@ impl Cap {
         if k <= -1.0 {
             return full();
         }
-        let half = k.acos();
         let lo = ((self.lon_s - half + PI) / model.dlon_rad - 0.5).floor() as i64;
         let hi = ((self.lon_s + half + PI) / model.dlon_rad - 0.5).ceil() as i64;
         if hi - lo + 1 >= n_lon {
@@ -556,6 +846,9 @@ impl Cap {
         }
     }
 }
+
+/// Rows per batch of arc cosines in [`Cap::spans`]: [`TILE_ROWS`] rounded up to 4.
+const SPAN_LANES: usize = TILE_ROWS.div_ceil(4) * 4;
 
 #[cfg(test)]
 mod tests {

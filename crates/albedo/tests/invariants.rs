@@ -5,7 +5,8 @@ use std::f64::consts::PI;
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use pdcal_albedo::{
-    AU_KM, AlbedoError, AlbedoIrradiance, AlbedoModel, AlbedoView, MapChoice, authalic_radius_km,
+    AU_KM, AlbedoError, AlbedoIrradiance, AlbedoModel, AlbedoView, MapChoice, TILE_COLS,
+    authalic_radius_km,
 };
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
@@ -101,6 +102,49 @@ fn fast_equals_unculled_and_naive() {
         }
     }
     eprintln!("worst fast-vs-naive relative difference: {worst:e}");
+}
+
+#[test]
+fn padded_rows_equal_naive() {
+    // TOMS in 2 x 10 deg blocks: 36 columns, not a multiple of TILE_COLS, so the fast loop
+    // pads each row (to 40) and must skip the padding; a non-uniform map catches any column
+    // shift. Same 1e-12 relative tolerance as above.
+    let map = MapChoice::TomsMean1p25x1
+        .load()
+        .unwrap()
+        .coarsen(2, 8)
+        .unwrap();
+    assert_ne!(map.n_lon() % TILE_COLS, 0);
+    let model = AlbedoModel::new(&map);
+    let mut rng = StdRng::seed_from_u64(17);
+    let (mut fast, mut all) = (AlbedoView::new(), AlbedoView::new());
+    for k in 0..14 {
+        let (r_sat, r_sun, rot) = random_geometry(&mut rng, k);
+        model.compute_into(&mut fast, &r_sat, &r_sun, &rot).unwrap();
+        model
+            .compute_into_unculled(&mut all, &r_sat, &r_sun, &rot)
+            .unwrap();
+        assert_eq!(fast.len(), all.len(), "geometry {k}");
+        // Padding never counts: at most every real cell is lit and seen.
+        assert!(fast.len() <= model.n_cells());
+        let mut normals: Vec<Vector3<f64>> = (0..5).map(|_| random_unit(&mut rng)).collect();
+        normals.push(fast.nadir_gcrf());
+        let cos_fov = vec![0.3; normals.len()];
+        let mut naive = vec![(0.0, Vector3::zeros()); normals.len()];
+        model
+            .naive_ratios(&r_sat, &r_sun, &rot, &normals, &cos_fov, &mut naive)
+            .unwrap();
+        for (m, n) in normals.iter().enumerate() {
+            let want = naive[m].0;
+            let scale = want.abs().max(1e-16 / 1e-12);
+            for got in [fast.ratio(n, cos_fov[m]), all.ratio(n, cos_fov[m])] {
+                assert!(
+                    (got - want).abs() / scale < 1e-12,
+                    "geometry {k} normal {m}: {got:e} vs {want:e}"
+                );
+            }
+        }
+    }
 }
 
 #[test]
