@@ -10,14 +10,32 @@ use pdcal_photodiode::{Photodiode, SunEstimate, SunVectorOptions, estimate_sun_v
 
 use crate::{FilterConfig, FilterError, StepReference};
 
-/// Maximum output of each photodiode over the data set (the paper's initial `C`), and
-/// whether it exceeds `threshold_v` (a photodiode that never does is treated as not lit:
-/// covered, failed or always shadowed). A never-lit photodiode gets the median of the others'
-/// maxima so that its reported value is sensible.
+/// A lit photodiode whose maximum output stays below this fraction of the median maximum
+/// of the lit photodiodes never faced the Sun near its normal (its maximum is a grazing or
+/// albedo output): its maximum is no estimate of its scale factor.
+pub const DIM_FRACTION: f64 = 0.8;
+
+/// The paper's initial scale factors (IV.B: the maximum measured output) with the cases
+/// where that rule fails made explicit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InitialScales {
+    /// Initial `C` per photodiode, V.
+    pub scale_v: Vec<f64>,
+    /// Whether the photodiode's maximum exceeds the lit threshold (a photodiode that never
+    /// does is treated as not lit: covered, failed or always shadowed).
+    pub used: Vec<bool>,
+    /// Whether the initial value is the median of the others' maxima rather than the
+    /// photodiode's own (never lit, or dim: below [`DIM_FRACTION`] of the median). That
+    /// assumes photodiodes of one type, so the filter gives these a wider initial sigma.
+    pub from_median: Vec<bool>,
+}
+
+/// Maximum output of each photodiode over the data set (the paper's initial `C`); a
+/// never-lit or dim photodiode gets the median of the lit photodiodes' maxima.
 pub fn initial_scales(
     telemetry: &Telemetry,
     threshold_v: f64,
-) -> Result<(Vec<f64>, Vec<bool>), FilterError> {
+) -> Result<InitialScales, FilterError> {
     let maxima: Vec<f64> = telemetry
         .pd_v
         .iter()
@@ -40,12 +58,21 @@ pub fn initial_scales(
     }
     lit.sort_by(f64::total_cmp);
     let median = lit[lit.len() / 2];
-    let scales = maxima
+    let from_median: Vec<bool> = maxima
         .iter()
         .zip(&used)
-        .map(|(&m, &u)| if u { m } else { median })
+        .map(|(&m, &u)| !u || m < DIM_FRACTION * median)
         .collect();
-    Ok((scales, used))
+    let scale_v = maxima
+        .iter()
+        .zip(&from_median)
+        .map(|(&m, &f)| if f { median } else { m })
+        .collect();
+    Ok(InitialScales {
+        scale_v,
+        used,
+        from_median,
+    })
 }
 
 /// The first usable sample and the attitude there.

@@ -99,8 +99,9 @@ pub fn calibrate_with_model(
         }
         _ => None,
     };
-    let (max_scales, used) =
-        initial_scales(tel, config.min_lit_output_sigmas * sigmas.photodiode_v)?;
+    let initial = initial_scales(tel, config.min_lit_output_sigmas * sigmas.photodiode_v)?;
+    let used = initial.used.clone();
+    let max_scales = initial.scale_v.clone();
     let (scale_v, scale_sigma_v, n_body): (Vec<f64>, Vec<f64>, Vec<Vector3<f64>>) = match prior {
         Some(prior) => (
             prior.photodiodes.iter().map(|p| p.scale_v).collect(),
@@ -118,7 +119,12 @@ pub fn calibrate_with_model(
             max_scales.clone(),
             max_scales
                 .iter()
-                .map(|c| config.initial_scale_sigma_fraction * c)
+                .zip(&initial.from_median)
+                .map(|(c, &median)| {
+                    // A median-based value is an assumption (same sensor type): 2x wider.
+                    let widen = if median { 2.0 } else { 1.0 };
+                    widen * config.initial_scale_sigma_fraction * c
+                })
                 .collect(),
             inputs
                 .meta
