@@ -63,14 +63,39 @@ const SINGULAR_GUARD: f64 = 1e-10;
 /// azimuth/elevation partials of Eqs. (23)-(24), which vanish or turn there.
 pub fn tangent_basis(n: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
     let c = -TANGENT_BASIS_SINGULAR_DIRECTION;
-    let u0 = Vector3::new(1.0, -1.0, 0.0) / 2f64.sqrt();
+    carried_basis(n, &c, &(Vector3::new(1.0, -1.0, 0.0) / 2f64.sqrt()))
+}
+
+/// A tangent basis of `n` that is smooth everywhere except at `-reference`: the basis of
+/// [`tangent_basis`] at `reference`, carried to `n` by the smallest rotation.
+///
+/// A filter that estimates a normal near its initial value passes that initial value as
+/// `reference`; the break then lies 180 deg from the estimate, wherever the sensor is mounted
+/// (the fixed break of [`tangent_basis`] sits on the corner directions `±(1,1,1)/sqrt(3)`
+/// that canted sensors of a box-shaped spacecraft may well use).
+pub fn tangent_basis_about(
+    n: &Vector3<f64>,
+    reference: &Vector3<f64>,
+) -> (Vector3<f64>, Vector3<f64>) {
+    let r = reference.normalize();
+    let (u0, _) = tangent_basis(&r);
+    carried_basis(n, &r, &u0)
+}
+
+/// Carries the frame `(u0, c x u0, c)` to `n` by the smallest rotation taking `c` to `n`
+/// (Rodrigues, `k = c x n`: `R = I + [k x] + [k x]^2 / (1 + c·n)`), re-orthonormalised.
+fn carried_basis(
+    n: &Vector3<f64>,
+    c: &Vector3<f64>,
+    u0: &Vector3<f64>,
+) -> (Vector3<f64>, Vector3<f64>) {
     let one_plus_cos = 1.0 + c.dot(n);
     let e1 = if one_plus_cos > SINGULAR_GUARD {
         let k = c.cross(n);
-        u0 + k.cross(&u0) + k.cross(&k.cross(&u0)) / one_plus_cos
+        u0 + k.cross(u0) + k.cross(&k.cross(u0)) / one_plus_cos
     } else {
         // The half-turn about u0 also takes c to -c and keeps u0.
-        u0
+        *u0
     };
     let e1 = (e1 - n * n.dot(&e1)).normalize();
     let e2 = n.cross(&e1);
@@ -84,6 +109,17 @@ pub fn tangent_basis(n: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
 /// output, and `d n'/d d1 = e1`, `d n'/d d2 = e2` at zero.
 pub fn rotate_normal(n: &Vector3<f64>, d1: f64, d2: f64) -> Vector3<f64> {
     let (e1, e2) = tangent_basis(n);
+    rotate_normal_in(n, (&e1, &e2), d1, d2)
+}
+
+/// [`rotate_normal`] in a given tangent basis `(e1, e2)` of `n` (e.g. from
+/// [`tangent_basis_about`]).
+pub fn rotate_normal_in(
+    n: &Vector3<f64>,
+    (e1, e2): (&Vector3<f64>, &Vector3<f64>),
+    d1: f64,
+    d2: f64,
+) -> Vector3<f64> {
     let t = e1 * d1 + e2 * d2;
     let theta = t.norm();
     let sinc = if theta > 0.0 {

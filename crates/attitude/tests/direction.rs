@@ -8,7 +8,7 @@ use std::f64::consts::{FRAC_PI_2, PI};
 use nalgebra::Vector3;
 use pdcal_attitude::{
     TANGENT_BASIS_SINGULAR_DIRECTION, az_el_from_normal, normal_from_az_el, normal_partials,
-    rotate_normal, tangent_basis,
+    rotate_normal, rotate_normal_in, tangent_basis, tangent_basis_about,
 };
 
 /// Unit-size products and sums: tens of ulps.
@@ -165,4 +165,58 @@ fn rotate_normal_is_exact_and_its_derivative_is_the_basis() {
         assert_eq!(rotate_normal(&n, 0.0, 0.0), n.normalize());
     }
     eprintln!("rotate_normal derivative vs basis: worst {worst:e}");
+}
+
+/// A sensor mounted on the fixed basis' break (the corner direction -(1,1,1)/sqrt(3), as
+/// the sso-6u scenario's canted photodiode 9 is): the basis about its own initial normal
+/// is orthonormal, right-handed and continuous in a whole neighbourhood, where the fixed
+/// basis jumps.
+#[test]
+fn basis_about_a_reference_is_smooth_at_the_fixed_break() {
+    let reference = TANGENT_BASIS_SINGULAR_DIRECTION;
+    let mut rng = common::rng(47);
+    let mut worst_jump_about: f64 = 0.0;
+    let mut worst_jump_fixed: f64 = 0.0;
+    for _ in 0..500 {
+        // Two normals 1e-6 rad apart within 5 deg of the reference.
+        let tilt = common::uniform(&mut rng, 0.0, 5f64.to_radians());
+        let dir = common::uniform(&mut rng, -PI, PI);
+        let n = rotate_normal(&reference, tilt * dir.cos(), tilt * dir.sin());
+        let m = rotate_normal(&n, 1e-6, 0.0);
+        let (a1, a2) = tangent_basis_about(&n, &reference);
+        assert!((a1.norm() - 1.0).abs() < ROUNDING && (a2.norm() - 1.0).abs() < ROUNDING);
+        assert!(
+            a1.dot(&n).abs() < ROUNDING
+                && a2.dot(&n).abs() < ROUNDING
+                && a1.dot(&a2).abs() < ROUNDING
+        );
+        assert!((a1.cross(&a2) - n).norm() < 1e-12, "right-handed");
+        let (b1, _) = tangent_basis_about(&m, &reference);
+        worst_jump_about = worst_jump_about.max((a1 - b1).norm());
+        worst_jump_fixed = worst_jump_fixed.max((tangent_basis(&n).0 - tangent_basis(&m).0).norm());
+    }
+    // Smooth: a 1e-6 rad step moves the basis by O(1e-6); the fixed basis turns by O(1).
+    assert!(
+        worst_jump_about < 1e-5,
+        "basis about the reference jumped {worst_jump_about:e}"
+    );
+    assert!(
+        worst_jump_fixed > 0.1,
+        "the fixed basis is expected to break here ({worst_jump_fixed:e})"
+    );
+}
+
+/// `rotate_normal_in` with a basis from `tangent_basis_about` moves along that basis.
+#[test]
+fn rotate_normal_in_a_given_basis_has_the_basis_as_derivative() {
+    let reference = TANGENT_BASIS_SINGULAR_DIRECTION;
+    let n = rotate_normal(&reference, 0.01, -0.02);
+    let (e1, e2) = tangent_basis_about(&n, &reference);
+    let h = 1e-6;
+    let d1 = (rotate_normal_in(&n, (&e1, &e2), h, 0.0) - rotate_normal_in(&n, (&e1, &e2), -h, 0.0))
+        / (2.0 * h);
+    let d2 = (rotate_normal_in(&n, (&e1, &e2), 0.0, h) - rotate_normal_in(&n, (&e1, &e2), 0.0, -h))
+        / (2.0 * h);
+    // Central difference of a smooth unit-size function at h = 1e-6: error ~h^2 + eps/h.
+    assert!((d1 - e1).norm() < 1e-8 && (d2 - e2).norm() < 1e-8);
 }
