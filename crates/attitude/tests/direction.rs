@@ -195,14 +195,16 @@ fn basis_about_a_reference_is_smooth_at_the_fixed_break() {
         worst_jump_about = worst_jump_about.max((a1 - b1).norm());
         worst_jump_fixed = worst_jump_fixed.max((tangent_basis(&n).0 - tangent_basis(&m).0).norm());
     }
-    // Smooth: a 1e-6 rad step moves the basis by O(1e-6); the fixed basis turns by O(1).
+    // Smooth: a 1e-6 rad step moves the basis by O(1e-6); near its break the fixed basis
+    // turns as 1/distance, over a hundred times faster (a filter's reset then scrambles the
+    // meaning of the normal's covariance).
     assert!(
         worst_jump_about < 1e-5,
         "basis about the reference jumped {worst_jump_about:e}"
     );
     assert!(
-        worst_jump_fixed > 0.1,
-        "the fixed basis is expected to break here ({worst_jump_fixed:e})"
+        worst_jump_fixed > 100.0 * worst_jump_about,
+        "fixed {worst_jump_fixed:e}, about {worst_jump_about:e}"
     );
 }
 
