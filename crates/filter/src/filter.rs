@@ -4,9 +4,10 @@
 
 use nalgebra::{DMatrix, DVector, Dyn, Matrix2, Matrix3, Matrix6, OMatrix, U6, Vector3};
 use pdcal_attitude::mekf::{apply_error, process_noise, state_transition};
-use pdcal_attitude::{GyroNoise, Quat, rotate_normal, skew, tangent_basis};
+use pdcal_attitude::{GyroNoise, Quat, rotate_normal_in, skew, tangent_basis};
 use pdcal_photodiode::{AlbedoIrradiance, MeasurementModel, Partials, Scene};
 
+use crate::algebra::{self, Pending};
 use crate::calibration::{Calibration, ParameterEstimate, PdCalibration};
 use crate::dense;
 use crate::layout::{ATTITUDE, BIAS, CORE, StateLayout};
@@ -174,17 +175,19 @@ pub struct Filter {
 /// Preallocated work space: nothing is allocated per step.
 struct Scratch {
     dx: DVector<f64>,
-    u: DVector<f64>,
+    /// `P H^T` of the current update (padded length, see [`algebra::padded`]).
+    u: Vec<f64>,
     rows6: OMatrix<f64, U6, Dyn>,
     h_idx: Vec<usize>,
     h_val: Vec<f64>,
     partials: Partials,
     cal_noise: DVector<f64>,
     /// Columns `w_l = P_l H_l^T / sqrt(s_l)` of this step's accepted updates: during a step
-    /// `P = P_0 - W W^T`, applied once at the end as a rank-k product (one gemm).
-    w_cols: DMatrix<f64>,
-    /// Number of columns of `w_cols` in use.
-    w_count: usize,
+    /// `P = P_0 - W W^T`, applied once at the end as a rank-k downdate of the lower
+    /// triangle ([`algebra::apply_pending`]).
+    pending: Pending,
+    /// `-W[idx, :]^T h` of the current update.
+    w_dot_h: Vec<f64>,
 }
 
 impl Filter {
@@ -254,14 +257,14 @@ impl Filter {
             basis: normal.iter().map(tangent_basis).collect(),
             scratch: Scratch {
                 dx: DVector::zeros(n),
-                u: DVector::zeros(n),
+                u: vec![0.0; algebra::padded(n)],
                 rows6: OMatrix::<f64, U6, Dyn>::zeros(n),
                 h_idx: Vec::with_capacity(row),
                 h_val: Vec::with_capacity(row),
                 partials,
                 cal_noise: DVector::zeros(n),
-                w_cols: DMatrix::zeros(n, 3 + m),
-                w_count: 0,
+                pending: Pending::new(n, 3 + m),
+                w_dot_h: Vec::with_capacity(3 + m),
             },
             layout,
             model,
@@ -360,7 +363,7 @@ impl Filter {
         check_len("photodiode samples", self.scale.len(), meas.pd_v.len())?;
         self.records.clear();
         self.scratch.dx.fill(0.0);
-        self.scratch.w_count = 0;
+        self.scratch.pending.clear();
         let mut any = false;
         if let Some(mag) = meas.mag_nt {
             any |= self.mag_updates(&mag, &reference.b_gcrf_nt);
@@ -424,7 +427,7 @@ impl Filter {
         if !self.noise.second_order {
             return 0.0;
         }
-        let tr = self.p_entry(0, 0) + self.p_entry(1, 1) + self.p_entry(2, 2);
+        let tr = self.p_diag(0) + self.p_diag(1) + self.p_diag(2);
         b_body.norm_squared() * tr * tr / 18.0
     }
 
@@ -439,38 +442,26 @@ impl Filter {
         if !self.noise.second_order {
             return 0.0;
         }
-        let mut angle_var =
-            2.0 * (self.p_entry(0, 0) + self.p_entry(1, 1) + self.p_entry(2, 2)) / 3.0;
+        let mut angle_var = 2.0 * (self.p_diag(0) + self.p_diag(1) + self.p_diag(2)) / 3.0;
         if let Some(d) = self.layout.normal(i) {
-            angle_var += self.p_entry(d, d) + self.p_entry(d + 1, d + 1);
+            angle_var += self.p_diag(d) + self.p_diag(d + 1);
         }
         let sc = self.layout.scale(i);
         let c = self.scale[i] * cos_incidence;
-        0.25 * c * c * angle_var * angle_var + 0.5 * self.p_entry(sc, sc) * angle_var
+        0.25 * c * c * angle_var * angle_var + 0.5 * self.p_diag(sc) * angle_var
     }
 
-    /// Entry `(i, j)` of the current covariance during a step: `P_0 - W W^T` (structured) or
-    /// `P` (dense, updated in place).
-    fn p_entry(&self, i: usize, j: usize) -> f64 {
-        let s = &self.scratch;
-        let pending: f64 = (0..s.w_count)
-            .map(|l| s.w_cols[(i, l)] * s.w_cols[(j, l)])
-            .sum();
-        self.p[(i, j)] - pending
+    /// Diagonal entry `i` of the current covariance during a step: `P_0 - W W^T`
+    /// (structured) or `P` (dense, updated in place).
+    fn p_diag(&self, i: usize) -> f64 {
+        self.p[(i, i)] - self.scratch.pending.diagonal(i)
     }
 
-    /// `P <- P_0 - W W^T` for the step's accepted updates, as one matrix product, then the
-    /// upper triangle copied from the lower so that `P` stays exactly symmetric.
+    /// `P <- P_0 - W W^T` for the step's accepted updates (lower triangle, one rank-k
+    /// downdate), then the upper triangle copied from the lower so that `P` stays exactly
+    /// symmetric.
     fn apply_downdates(&mut self) {
-        let s = &mut self.scratch;
-        let k = s.w_count;
-        if k == 0 {
-            return;
-        }
-        let w = s.w_cols.columns(0, k);
-        self.p.gemm(-1.0, &w, &w.transpose(), 1.0);
-        self.p.fill_upper_triangle_with_lower_triangle();
-        s.w_count = 0;
+        algebra::apply_pending(self.p.as_mut_slice(), &mut self.scratch.pending);
     }
 
     fn photodiode_updates(
@@ -576,18 +567,15 @@ impl Filter {
         let nu = measured - predicted - h_dx;
         let spread = match self.algebra {
             Algebra::Structured => {
-                gather_columns(&self.p, &s.h_idx, &s.h_val, s.u.as_mut_slice());
-                // u = (P_0 - W W^T) H^T: subtract the pending updates.
-                for l in 0..s.w_count {
-                    let column = s.w_cols.column(l);
-                    let wh: f64 = s
-                        .h_idx
-                        .iter()
-                        .zip(&s.h_val)
-                        .map(|(&k, v)| v * column[k])
-                        .sum();
-                    s.u.axpy(-wh, &column, 1.0);
-                }
+                // u = (P_0 - W W^T) H^T: the pending updates subtracted.
+                algebra::sparse_times(
+                    self.p.as_slice(),
+                    &s.pending,
+                    &s.h_idx,
+                    &s.h_val,
+                    &mut s.w_dot_h,
+                    &mut s.u,
+                );
                 let hph: f64 = s.h_idx.iter().zip(&s.h_val).map(|(&k, v)| v * s.u[k]).sum();
                 hph + r
             }
@@ -606,12 +594,11 @@ impl Filter {
         }
         match self.algebra {
             Algebra::Structured => {
-                s.dx.axpy(nu / spread, &s.u, 1.0);
-                let scale = 1.0 / spread.sqrt();
-                let mut column = s.w_cols.column_mut(s.w_count);
-                column.copy_from(&s.u);
-                column *= scale;
-                s.w_count += 1;
+                let gain = nu / spread;
+                for (x, u) in s.dx.iter_mut().zip(&s.u) {
+                    *x += gain * u;
+                }
+                s.pending.push(&s.u, 1.0 / spread.sqrt());
             }
             Algebra::Dense => {
                 dense::joseph_update(&mut self.p, &mut s.dx, &s.h_idx, &s.h_val, nu, r);
@@ -634,7 +621,10 @@ impl Filter {
             if let Some(d) = self.layout.normal(i)
                 && (dx[d] != 0.0 || dx[d + 1] != 0.0)
             {
-                self.normal[i] = rotate_normal(&self.normal[i], dx[d], dx[d + 1]);
+                // The cached basis is tangent_basis(normal[i]): rotate_normal without
+                // recomputing it.
+                let (e1, e2) = &self.basis[i];
+                self.normal[i] = rotate_normal_in(&self.normal[i], (e1, e2), dx[d], dx[d + 1]);
                 self.basis[i] = tangent_basis(&self.normal[i]);
             }
             let pd = &mut self.model.photodiodes_mut()[i];
@@ -796,20 +786,6 @@ impl StateView<'_> {
                     sigma: sig(e.state),
                 })
                 .collect(),
-        }
-    }
-}
-
-/// `u = P H^T` for a sparse row: a sum of a few columns of `P` (contiguous in column-major
-/// storage; written on slices so that the compiler vectorises the inner loop).
-fn gather_columns(p: &DMatrix<f64>, idx: &[usize], val: &[f64], u: &mut [f64]) {
-    let n = p.nrows();
-    let data = p.as_slice();
-    u.fill(0.0);
-    for (&k, &v) in idx.iter().zip(val) {
-        let column = &data[k * n..(k + 1) * n];
-        for (ui, pik) in u.iter_mut().zip(column) {
-            *ui += v * pik;
         }
     }
 }

@@ -29,12 +29,14 @@
 //!   `P` are recomputed.
 //! - Updates (Eqs. 4-7): sequential scalar updates, the attitude relinearised after each
 //!   accepted one; `P -= w w^T`, `w = P H^T / sqrt(s)` (the optimal-gain Joseph form),
-//!   deferred within a step and applied as one rank-k product `P_0 - W W^T` (a gemm, which
-//!   nalgebra runs through `matrixmultiply`'s runtime-dispatched SIMD kernels; a plain loop
-//!   stays at the SSE2 baseline and was 3 times slower), P kept exactly symmetric. The
-//!   measurement variance adds the second-order (curvature) term of the measurement
-//!   function under the current covariance (see [`FilterConfig::second_order_noise`]). Photodiode rows (Eq. 15 with albedo; Eqs. 20-24 through the
-//!   photodiode crate's partials, albedo partials neglected by default) have 6 non-zeros;
+//!   deferred within a step: `P H^T` of a later update is `P_0 H^T - W (W^T H^T)`, and at the
+//!   end of the step one rank-k downdate of the lower triangle, mirrored so that `P` stays
+//!   exactly symmetric (the kernels in `algebra`: run-time dispatched AVX2/AVX-512 through
+//!   `pulp`, since the workspace builds for the SSE2 baseline). The measurement variance
+//!   adds the second-order (curvature) term of the measurement function under the current
+//!   covariance (see [`FilterConfig::second_order_noise`]). Photodiode rows (Eq. 15 with
+//!   albedo; Eqs. 20-24 through the photodiode crate's partials, albedo partials as
+//!   [`FilterConfig::albedo_partials`] says) have 6 non-zeros;
 //!   magnetometer rows `[(A b) x]` 3. Innovation gate per scalar.
 //! - Photodiodes are used only in full Sun (`sun_fraction >= 0.999`), when sampled, when the
 //!   photodiode lit at least once in the data set, and when the predicted incidence angle is
@@ -61,9 +63,19 @@
 //! | `epsilon` (Eq. 25) | [`ResidualRecord::residual`] | V, nT |
 //!
 //! # Why hand-written
-//! No crate provides an MEKF or RTS smoother with multiplicative attitude; the linear algebra
-//! is nalgebra's (column axpy, gemm, Cholesky).
+//! No crate provides an MEKF or RTS smoother with multiplicative attitude. The linear algebra
+//! is nalgebra's for the small fixed-size parts, faer's for the smoother's dense `n x n`
+//! Cholesky solve and products, and two short `pulp` kernels for the filter's covariance
+//! update (why not faer there: see `algebra`).
+//!
+//! # Cost
+//! Per step with `m` photodiodes (`n = 6 + 3 m` states, `k <= m + 3` scalar updates):
+//! propagation `~36 n` multiply-adds (only the 6 attitude/bias rows change), each update
+//! `6 n` for `P H^T` plus `n l` for the `l` pending downdates, and one rank-k downdate of the
+//! lower triangle, `k n^2 / 2`: about `1.6e5` flops for 17 photodiodes. The smoother's step
+//! is `O(n^3)` (Cholesky of the predicted covariance, `n` right-hand sides, two products).
 
+mod algebra;
 pub mod calibration;
 pub mod config;
 pub mod dense;
