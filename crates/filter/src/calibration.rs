@@ -41,8 +41,26 @@ impl PdCalibration {
         n_body: &Vector3<f64>,
         tangent_cov: &Matrix2<f64>,
     ) -> Self {
+        Self::from_normal_in(
+            scale_v,
+            scale_sigma_v,
+            n_body,
+            &tangent_basis(n_body),
+            tangent_cov,
+        )
+    }
+
+    /// [`PdCalibration::from_normal`] with the covariance in the tangent basis `basis` of
+    /// the normal (the filter's [`crate::StateLayout::tangent_basis`]).
+    pub fn from_normal_in(
+        scale_v: f64,
+        scale_sigma_v: f64,
+        n_body: &Vector3<f64>,
+        basis: &(Vector3<f64>, Vector3<f64>),
+        tangent_cov: &Matrix2<f64>,
+    ) -> Self {
         let (az, el) = az_el_from_normal(n_body);
-        let (az_sigma, el_sigma) = az_el_sigmas(n_body, tangent_cov);
+        let (az_sigma, el_sigma) = az_el_sigmas_in(n_body, basis, tangent_cov);
         PdCalibration {
             scale_v,
             scale_sigma_v,
@@ -70,7 +88,16 @@ impl PdCalibration {
 /// The azimuth sigma is `None` at the pole (where `cos(el)` vanishes) and when it would
 /// exceed 180 deg (the uncertainty region contains the pole: any azimuth fits).
 pub fn az_el_sigmas(n: &Vector3<f64>, cov: &Matrix2<f64>) -> (Option<f64>, f64) {
-    let (e1, e2) = tangent_basis(n);
+    az_el_sigmas_in(n, &tangent_basis(n), cov)
+}
+
+/// [`az_el_sigmas`] for a covariance expressed in the tangent basis `(e1, e2)` of `n`
+/// (e.g. [`crate::StateLayout::tangent_basis`]).
+pub fn az_el_sigmas_in(
+    n: &Vector3<f64>,
+    (e1, e2): &(Vector3<f64>, Vector3<f64>),
+    cov: &Matrix2<f64>,
+) -> (Option<f64>, f64) {
     let (az, el) = az_el_from_normal(n);
     let (sa, ca) = az.sin_cos();
     let (se, ce) = el.sin_cos();

@@ -4,7 +4,7 @@
 
 use nalgebra::{DMatrix, DVector, Dyn, Matrix2, Matrix3, Matrix6, OMatrix, U6, Vector3};
 use pdcal_attitude::mekf::{apply_error, process_noise, state_transition};
-use pdcal_attitude::{GyroNoise, Quat, rotate_normal_in, skew, tangent_basis};
+use pdcal_attitude::{GyroNoise, Quat, rotate_normal_in, skew};
 use pdcal_photodiode::{AlbedoIrradiance, MeasurementModel, Partials, Scene};
 
 use crate::algebra::{self, Pending};
@@ -195,7 +195,7 @@ impl Filter {
     /// state `layout` built from the same model.
     pub fn new(
         mut model: MeasurementModel,
-        layout: StateLayout,
+        mut layout: StateLayout,
         init: InitialState,
         noise: FilterNoise,
         algebra: Algebra,
@@ -239,6 +239,7 @@ impl Filter {
             p[(e.state, e.state)] = s * s;
         }
         let normal: Vec<Vector3<f64>> = init.n_body.iter().map(|n| n.normalize()).collect();
+        layout.set_reference_normals(&normal);
         for (pd, (c, nb)) in model
             .photodiodes_mut()
             .iter_mut()
@@ -254,7 +255,9 @@ impl Filter {
         };
         let row = layout.max_row_len();
         Ok(Filter {
-            basis: normal.iter().map(tangent_basis).collect(),
+            basis: (0..normal.len())
+                .map(|i| layout.tangent_basis(i, &normal[i]))
+                .collect(),
             scratch: Scratch {
                 dx: DVector::zeros(n),
                 u: vec![0.0; algebra::padded(n)],
@@ -621,11 +624,11 @@ impl Filter {
             if let Some(d) = self.layout.normal(i)
                 && (dx[d] != 0.0 || dx[d + 1] != 0.0)
             {
-                // The cached basis is tangent_basis(normal[i]): rotate_normal without
+                // The cached basis is the layout's basis at normal[i]: rotate in it without
                 // recomputing it.
                 let (e1, e2) = &self.basis[i];
                 self.normal[i] = rotate_normal_in(&self.normal[i], (e1, e2), dx[d], dx[d + 1]);
-                self.basis[i] = tangent_basis(&self.normal[i]);
+                self.basis[i] = self.layout.tangent_basis(i, &self.normal[i]);
             }
             let pd = &mut self.model.photodiodes_mut()[i];
             pd.scale_v = self.scale[i];
@@ -746,10 +749,11 @@ impl StateView<'_> {
                             p[(d + 1, d)],
                             p[(d + 1, d + 1)],
                         );
-                        PdCalibration::from_normal(
+                        PdCalibration::from_normal_in(
                             self.scale[i],
                             scale_sigma,
                             &self.normal[i],
+                            &layout.tangent_basis(i, &self.normal[i]),
                             &cov,
                         )
                     }

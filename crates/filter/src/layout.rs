@@ -14,6 +14,7 @@
 //!
 //! [`ParameterRole::Estimated`]: pdcal_photodiode::ParameterRole::Estimated
 
+use nalgebra::Vector3;
 use pdcal_photodiode::{MeasurementModel, ParameterRole};
 
 /// State index of the attitude error `a` (3 states).
@@ -46,6 +47,8 @@ pub struct StateLayout {
     normal: Vec<Option<usize>>,
     extras: Vec<ExtraState>,
     pd_extras: Vec<Vec<usize>>,
+    /// Per photodiode, the normal the tangent bases are taken about (its initial value).
+    reference_normals: Vec<Vector3<f64>>,
 }
 
 impl StateLayout {
@@ -88,6 +91,25 @@ impl StateLayout {
             normal,
             extras,
             pd_extras,
+            reference_normals: model.photodiodes().iter().map(|p| p.n_body).collect(),
+        }
+    }
+
+    /// Sets the normals the tangent bases are taken about (the filter's initial normals).
+    pub fn set_reference_normals(&mut self, normals: &[Vector3<f64>]) {
+        self.reference_normals = normals.to_vec();
+    }
+
+    /// The tangent basis in which photodiode `i`'s normal correction `(d1, d2)` and its
+    /// covariance are expressed when the normal is `n`: smooth everywhere except at the
+    /// antipode of the photodiode's initial normal
+    /// ([`pdcal_attitude::tangent_basis_about`]). A fixed global basis would break on some
+    /// mounting direction (the attitude crate's sits on the cube corner -(1,1,1)/sqrt(3),
+    /// where the sso-6u scenario mounts a photodiode), scrambling that sensor's covariance.
+    pub fn tangent_basis(&self, i: usize, n: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+        match self.reference_normals.get(i) {
+            Some(r) => pdcal_attitude::tangent_basis_about(n, r),
+            None => pdcal_attitude::tangent_basis(n),
         }
     }
 

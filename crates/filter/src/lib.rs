@@ -15,11 +15,15 @@
 //! Error state (see [`layout`]): `[a, beta, (C_i, d1_i, d2_i) per photodiode, extras]`.
 //! Eq. (16)'s azimuth/elevation is singular at elevation +-90 deg, where RAX-2's photodiodes
 //! 13-17 sit (the azimuth partial Eq. 23 vanishes there). Instead each normal carries a
-//! 2-parameter correction `(d1, d2)` in its own tangent plane (`pdcal_attitude::tangent_basis`,
-//! smooth everywhere a box-shaped spacecraft mounts sensors): `n <- rotate_normal(n, d1, d2)`
-//! after each update, then `d = 0`, exactly like the multiplicative attitude reset. Azimuth,
-//! elevation and their sigmas are reported by mapping the 2x2 tangent covariance
-//! ([`calibration::az_el_sigmas`]); the azimuth sigma is `None` where it is undefined.
+//! 2-parameter correction `(d1, d2)` in its own tangent plane, in a basis carried from the
+//! photodiode's initial normal ([`StateLayout::tangent_basis`], smooth everywhere except at
+//! the antipode of that initial normal, which an estimate never reaches):
+//! `n <- rotate_normal_in(n, basis, d1, d2)` after each update, then `d = 0`, exactly like the
+//! multiplicative attitude reset. Azimuth, elevation and their sigmas are reported by mapping
+//! the 2x2 tangent covariance ([`calibration::az_el_sigmas_in`]); the azimuth sigma is `None`
+//! where it is undefined. (A single global basis breaks somewhere: the first version used one
+//! with its break on the cube corner -(1,1,1)/sqrt(3), where the sso-6u scenario mounts
+//! photodiode 9, and that sensor ended up to 14 sigma off.)
 //!
 //! # Filter
 //!

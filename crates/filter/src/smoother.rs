@@ -25,7 +25,7 @@
 
 use nalgebra::{DMatrix, DVector, Matrix6, Vector3};
 use pdcal_attitude::mekf::{apply_error, error_vector};
-use pdcal_attitude::{Quat, rotate_normal, tangent_basis};
+use pdcal_attitude::{Quat, rotate_normal_in, tangent_basis};
 
 use crate::FilterError;
 use crate::calibration::Calibration;
@@ -285,7 +285,8 @@ impl SmoothedState {
         for i in 0..layout.photodiodes() {
             d[layout.scale(i)] = self.scale[i] - prev.scale[i];
             if let Some(k) = layout.normal(i) {
-                let (d1, d2) = tangent_log(&prev.normal[i], &self.normal[i]);
+                let basis = layout.tangent_basis(i, &prev.normal[i]);
+                let (d1, d2) = tangent_log_in(&prev.normal[i], &self.normal[i], &basis);
                 d[k] = d1;
                 d[k + 1] = d2;
             }
@@ -306,7 +307,9 @@ impl SmoothedState {
         for i in 0..layout.photodiodes() {
             self.scale[i] += delta[layout.scale(i)];
             if let Some(k) = layout.normal(i) {
-                self.normal[i] = rotate_normal(&self.normal[i], delta[k], delta[k + 1]);
+                let (e1, e2) = layout.tangent_basis(i, &self.normal[i]);
+                self.normal[i] =
+                    rotate_normal_in(&self.normal[i], (&e1, &e2), delta[k], delta[k + 1]);
             }
         }
         for (e, v) in layout.extras().iter().zip(self.extras.iter_mut()) {
@@ -336,6 +339,16 @@ impl SmoothedState {
 /// The tangent correction `(d1, d2)` with `rotate_normal(from, d1, d2) == to`: the inverse
 /// of [`rotate_normal`] (log map on the sphere), in [`tangent_basis`]`(from)`.
 pub fn tangent_log(from: &Vector3<f64>, to: &Vector3<f64>) -> (f64, f64) {
+    tangent_log_in(from, to, &tangent_basis(from))
+}
+
+/// [`tangent_log`] in a given tangent basis `(e1, e2)` of `from` (e.g. the filter's
+/// [`StateLayout::tangent_basis`]).
+pub fn tangent_log_in(
+    from: &Vector3<f64>,
+    to: &Vector3<f64>,
+    (e1, e2): &(Vector3<f64>, Vector3<f64>),
+) -> (f64, f64) {
     let c = from.dot(to);
     let t = to - from * c;
     let sin = t.norm();
@@ -343,6 +356,5 @@ pub fn tangent_log(from: &Vector3<f64>, to: &Vector3<f64>) -> (f64, f64) {
         return (0.0, 0.0);
     }
     let v = t * (sin.atan2(c) / sin);
-    let (e1, e2) = tangent_basis(from);
-    (v.dot(&e1), v.dot(&e2))
+    (v.dot(e1), v.dot(e2))
 }

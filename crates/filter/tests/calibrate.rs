@@ -4,7 +4,7 @@ mod common;
 
 use common::{Case, angle_deg};
 use nalgebra::{Matrix3, Vector3};
-use pdcal_filter::smoother::tangent_log;
+use pdcal_filter::smoother::tangent_log_in;
 use pdcal_filter::{CalibrationRun, FilterConfig, Mode, ModeUsed, RunInputs, Sensor, calibrate};
 
 fn run(case: &Case, config: &FilterConfig, mode: &Mode) -> CalibrationRun {
@@ -42,7 +42,8 @@ fn calibration_nees(case: &Case, run: &CalibrationRun) -> (f64, usize) {
     let mut nees = 0.0;
     let mut dof = 0;
     for (i, pd) in run.calibration.photodiodes.iter().enumerate() {
-        let (d1, d2) = tangent_log(&pd.n_body(), &case.true_normals[i]);
+        let n = pd.n_body();
+        let (d1, d2) = tangent_log_in(&n, &case.true_normals[i], &layout.tangent_basis(i, &n));
         let e = Vector3::new(case.true_scales[i] - pd.scale_v, d1, d2);
         let (s, d) = (layout.scale(i), layout.normal(i).expect("normal states"));
         let idx = [s, d, d + 1];
@@ -138,7 +139,8 @@ fn tilted_pole_photodiode_is_recovered() {
     let run = run(&case, &no_smoother(), &Mode::Full);
     let pd = run.calibration.photodiodes[12];
     let err = angle_deg(&pd.n_body(), &truth);
-    let (d1, d2) = tangent_log(&pd.n_body(), &truth);
+    let n = pd.n_body();
+    let (d1, d2) = tangent_log_in(&n, &truth, &run.layout.tangent_basis(12, &n));
     let d = run.layout.normal(12).unwrap();
     let p = &run.final_covariance;
     let cov = nalgebra::Matrix2::new(p[(d, d)], p[(d, d + 1)], p[(d + 1, d)], p[(d + 1, d + 1)]);
