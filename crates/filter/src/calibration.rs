@@ -103,12 +103,12 @@ pub fn az_el_sigmas_in(
     let (se, ce) = el.sin_cos();
     let e_az = Vector3::new(-sa, ca, 0.0);
     let e_el = Vector3::new(-se * ca, -se * sa, ce);
-    let j_el = nalgebra::RowVector2::new(e_el.dot(&e1), e_el.dot(&e2));
+    let j_el = nalgebra::RowVector2::new(e_el.dot(e1), e_el.dot(e2));
     let el_var = (j_el * cov * j_el.transpose())[0];
     let horizontal = n.x.hypot(n.y);
     let az_sigma = (horizontal > 1e-12)
         .then(|| {
-            let j_az = nalgebra::RowVector2::new(e_az.dot(&e1), e_az.dot(&e2)) / horizontal;
+            let j_az = nalgebra::RowVector2::new(e_az.dot(e1), e_az.dot(e2)) / horizontal;
             (j_az * cov * j_az.transpose())[0].max(0.0).sqrt()
         })
         .filter(|s| *s <= std::f64::consts::PI);
