@@ -3,8 +3,11 @@
 //! - `sim-calibrate [--seeds N] [--scenario NAME]`: Monte Carlo over seeds of simulate ->
 //!   calibrate -> evaluate, in parallel, with a progress bar; prints the accuracy table and
 //!   writes it to `out/sim-calibrate/<scenario>/`.
+//! - `diagnose-demo`: simulates rax2-like with albedo and dark offsets hidden, diagnoses
+//!   it from the `cosine` base, prints the rounds and gaps; outputs in `out/diagnose-demo/`.
 //! - `bench`: runs the criterion benches that `docs/performance.md` quotes.
 
+mod diagnose_demo;
 mod monte_carlo;
 
 use std::process::ExitCode;
@@ -35,6 +38,8 @@ enum Task {
         #[arg(long)]
         config: Option<std::path::PathBuf>,
     },
+    /// Simulate rax2-like with albedo and dark offsets hidden, diagnose from `cosine`.
+    DiagnoseDemo,
     /// Run the criterion benches quoted in docs/performance.md.
     Bench,
 }
@@ -48,6 +53,7 @@ fn main() -> ExitCode {
             photodiode_only,
             config,
         } => monte_carlo::run(seeds, &scenario, photodiode_only, config.as_deref()),
+        Task::DiagnoseDemo => diagnose_demo::run(std::path::Path::new("out/diagnose-demo")),
         Task::Bench => bench(),
     };
     match result {

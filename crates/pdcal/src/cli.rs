@@ -53,6 +53,18 @@ pub enum Command {
         /// The calibrate command's output directory.
         out: PathBuf,
     },
+    /// Find the effects the model is missing, add them, show the gap shrink: writes
+    /// diagnosis.json, report.md, figures and index.html in OUT_DIR.
+    Diagnose {
+        /// Dataset directory (dataset.ron, telemetry.csv; truth.* only for the report).
+        dataset: PathBuf,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+        /// The model to start from: cosine (Eq. 11) or paper (Eq. 15, with albedo).
+        #[arg(long, default_value = "paper", value_parser = ["cosine", "paper"])]
+        base_model: String,
+    },
 }
 
 /// Where the default run writes (relative to the working directory).
@@ -99,6 +111,17 @@ pub fn run(cli: Cli) -> Result<()> {
                 outcome.runtime_s,
                 out.display()
             );
+            Ok(())
+        }
+        Some(Command::Diagnose {
+            dataset,
+            out,
+            base_model,
+        }) => {
+            let base: pdcal_diagnose::BaseModel = base_model.parse()?;
+            let outcome = crate::diagnose::run_dir(&dataset, &out, base)?;
+            print!("{}", crate::diagnose::console_summary(&outcome));
+            eprintln!("diagnosis -> {}", out.display());
             Ok(())
         }
         Some(Command::Evaluate { dataset, out }) => {

@@ -8,6 +8,7 @@
 pub mod calibrate;
 pub mod cli;
 pub mod default_run;
+pub mod diagnose;
 pub mod evaluate;
 pub mod figures;
 pub mod files;

@@ -1,0 +1,568 @@
+//! The candidate effects: each fits its own parameters on the residuals of the current
+//! model (linear least squares on its signature, or a small grid search for the nonlinear
+//! ones), and is scored by its HAC Wald statistic (the log-likelihood gain, twice) minus
+//! the BIC penalty of its parameters.
+
+use nalgebra::Vector3;
+use pdcal_photodiode::{FovRolloff, ShadowMode};
+use serde::Serialize;
+
+use crate::model::{AddedEffect, ModelSpec};
+use crate::residuals::{PdSample, Residuals, in_umbra};
+use crate::stats::{Entry, WaldFit, hac_wald};
+
+/// Every candidate effect id, in the contract's order.
+pub const CANDIDATES: [&str; 9] = pdcal_dataset::Effect::IDS;
+
+/// One candidate's fit and score.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CandidateFit {
+    /// Effect id.
+    pub id: &'static str,
+    /// The effect with its fitted parameters, as it would be added.
+    pub effect: AddedEffect,
+    /// HAC Wald statistic of the signature's amplitudes (2x the log-likelihood gain).
+    pub wald: f64,
+    /// Parameters the effect adds (the BIC's k).
+    pub parameters: usize,
+    /// Observations carrying its signature.
+    pub samples: usize,
+    /// `wald/2 - k ln(N)/2`, nats; N = all scalar observations.
+    pub score: f64,
+    /// One line: what was fitted to what.
+    pub evidence: String,
+}
+
+/// Residual against a candidate's regressor, for the figures.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Signature {
+    /// x-axis label.
+    pub x_label: String,
+    /// y-axis label.
+    pub y_label: String,
+    /// Regressor values.
+    pub x: Vec<f64>,
+    /// Residuals.
+    pub y: Vec<f64>,
+}
+
+impl Signature {
+    /// Mean of `y` in `bins` equal bins of `x` over `[lo, hi]` (NaN for empty bins), and
+    /// the bin centres.
+    pub fn binned(&self, lo: f64, hi: f64, bins: usize) -> (Vec<f64>, Vec<f64>) {
+        let bins = bins.max(1);
+        let width = (hi - lo) / bins as f64;
+        let mut sum = vec![0.0; bins];
+        let mut count = vec![0usize; bins];
+        if width > 0.0 {
+            for (x, y) in self.x.iter().zip(&self.y) {
+                if !(x.is_finite() && y.is_finite()) || *x < lo || *x > hi {
+                    continue;
+                }
+                let b = (((x - lo) / width) as usize).min(bins - 1);
+                sum[b] += y;
+                count[b] += 1;
+            }
+        }
+        let centres = (0..bins).map(|b| lo + (b as f64 + 0.5) * width).collect();
+        let means = sum
+            .iter()
+            .zip(&count)
+            .map(|(s, &n)| if n > 0 { s / n as f64 } else { f64::NAN })
+            .collect();
+        (centres, means)
+    }
+
+    /// Smallest and largest finite `x` (or `(0, 1)` when none).
+    pub fn x_range(&self) -> (f64, f64) {
+        let (lo, hi) = self
+            .x
+            .iter()
+            .filter(|x| x.is_finite())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &x| {
+                (l.min(x), h.max(x))
+            });
+        if lo < hi { (lo, hi) } else { (0.0, 1.0) }
+    }
+}
+
+/// Scores every candidate not in `spec` on `res`; `n_pd` photodiodes, HAC window `max_lag`
+/// rows. Sorted best first.
+pub fn score_candidates(
+    res: &Residuals,
+    spec: &ModelSpec,
+    n_pd: usize,
+    max_lag: usize,
+) -> Vec<CandidateFit> {
+    let mut fits: Vec<CandidateFit> = CANDIDATES
+        .iter()
+        .filter(|id| !spec.contains(id))
+        .filter_map(|id| score_one(id, res, n_pd, max_lag))
+        .collect();
+    fits.sort_by(|a, b| b.score.total_cmp(&a.score));
+    fits
+}
+
+/// Fits and scores one candidate (whether or not the model already holds it: a second fit
+/// of an added effect measures what its fitted constants still miss).
+pub fn score_one(id: &str, res: &Residuals, n_pd: usize, max_lag: usize) -> Option<CandidateFit> {
+    let n_obs = (res.pd.len() + 3 * res.mag.len() + 3 * res.gyro.len()).max(2) as f64;
+    fit_candidate(id, res, n_pd, max_lag).map(|mut f| {
+        f.score = 0.5 * f.wald - 0.5 * f.parameters as f64 * n_obs.ln();
+        f
+    })
+}
+
+fn fit_candidate(id: &str, res: &Residuals, n_pd: usize, lag: usize) -> Option<CandidateFit> {
+    match id {
+        "albedo" => Some(albedo(res, lag)),
+        "fov-rolloff" => Some(fov_rolloff(res, lag)),
+        "dark-offset" => Some(dark_offset(res, n_pd, lag)),
+        "saturation" => Some(saturation(res, lag)),
+        "penumbra" => Some(penumbra(res, lag)),
+        "time-offset" => Some(time_offset(res, lag)),
+        "scale-drift" => Some(scale_drift(res, n_pd, lag)),
+        "mag-bias" => (!res.mag.is_empty()).then(|| mag_bias(res, lag)),
+        "gyro-scale" => (!res.gyro.is_empty()).then(|| gyro_scale(res, lag)),
+        _ => None,
+    }
+}
+
+/// A physical effect acts in one direction (albedo and penumbra add light, roll-off and
+/// clipping remove it): a fitted amplitude of the wrong sign is no evidence for it.
+fn signed(mut fit: WaldFit) -> WaldFit {
+    if fit.amplitudes.first().is_some_and(|a| *a <= 0.0) {
+        fit.wald = 0.0;
+    }
+    fit
+}
+
+fn candidate(
+    id: &'static str,
+    effect: AddedEffect,
+    fit: &WaldFit,
+    parameters: usize,
+    evidence: String,
+) -> CandidateFit {
+    CandidateFit {
+        id,
+        effect,
+        wald: fit.wald,
+        parameters,
+        samples: fit.samples,
+        score: 0.0,
+        evidence: format!(
+            "{evidence}; Wald {:.1} over {} samples",
+            fit.wald, fit.samples
+        ),
+    }
+}
+
+fn pd_var(res: &Residuals) -> f64 {
+    res.sigma_pd_v * res.sigma_pd_v
+}
+
+fn pd_entries(
+    res: &Residuals,
+    signature: impl Fn(&PdSample) -> Option<(usize, f64)>,
+) -> Vec<Entry> {
+    res.pd
+        .iter()
+        .filter_map(|p| {
+            signature(p).map(|(param, s)| Entry {
+                row: p.row,
+                param,
+                r: p.residual_v,
+                s,
+            })
+        })
+        .collect()
+}
+
+/// `albedo`: one gain on `C E_a/E_AM0` at the estimated normal (1 when albedo is missing).
+fn albedo(res: &Residuals, lag: usize) -> CandidateFit {
+    let entries = pd_entries(res, |p| Some((0, p.albedo_v)));
+    let fit = signed(hac_wald(&entries, 1, lag, &[pd_var(res)]));
+    let evidence = format!(
+        "photodiode residual vs C E_a/E_AM0 (albedo regressor): gain {:.3}",
+        fit.amplitudes[0]
+    );
+    candidate("albedo", AddedEffect::Albedo, &fit, 1, evidence)
+}
+
+/// Width of the incidence-angle bins of the roll-off search, deg.
+const FOV_BIN_DEG: f64 = 0.25;
+/// Grid step of the roll-off start and cutoff, deg.
+const FOV_STEP_DEG: f64 = 0.5;
+/// Smallest roll-off start searched, deg (below, the cosine law is the calibration's).
+const FOV_MIN_START_DEG: f64 = 20.0;
+
+/// `fov-rolloff`: grid search of the taper's start and cutoff on binned sums of
+/// `r C c` and `(C c)^2` (the gain of a pattern `s = C c (taper - 1)` is
+/// `sum 2 g r y - g^2 y^2` per bin), then the Wald statistic of its amplitude.
+fn fov_rolloff(res: &Residuals, lag: usize) -> CandidateFit {
+    let bins = (90.0 / FOV_BIN_DEG) as usize;
+    let mut ry = vec![0.0; bins];
+    let mut yy = vec![0.0; bins];
+    for p in res.pd.iter().filter(|p| p.direct_v > 0.0) {
+        let theta = p.cos_incidence.clamp(-1.0, 1.0).acos().to_degrees();
+        let b = ((theta / FOV_BIN_DEG) as usize).min(bins - 1);
+        ry[b] += p.residual_v * p.direct_v;
+        yy[b] += p.direct_v * p.direct_v;
+    }
+    let centre_cos: Vec<f64> = (0..bins)
+        .map(|b| ((b as f64 + 0.5) * FOV_BIN_DEG).to_radians().cos())
+        .collect();
+    let mut best = (0.0, 89.0, 90.0);
+    let steps = ((90.0 - FOV_MIN_START_DEG) / FOV_STEP_DEG) as usize;
+    for i in 0..steps {
+        let start = FOV_MIN_START_DEG + i as f64 * FOV_STEP_DEG;
+        let mut cutoff = start + FOV_STEP_DEG;
+        while cutoff <= 90.0 + 1e-9 {
+            if let Ok(law) = FovRolloff::from_deg(start, cutoff.min(90.0)) {
+                let first = (start / FOV_BIN_DEG) as usize;
+                let gain: f64 = (first..bins)
+                    .map(|b| {
+                        let g = law.factor(centre_cos[b]) - 1.0;
+                        2.0 * g * ry[b] - g * g * yy[b]
+                    })
+                    .sum();
+                if gain > best.0 {
+                    best = (gain, start, cutoff.min(90.0));
+                }
+            }
+            cutoff += FOV_STEP_DEG;
+        }
+    }
+    let (_, start, cutoff) = best;
+    let law = FovRolloff::from_deg(start, cutoff).ok();
+    let entries = pd_entries(res, |p| {
+        let law = law.as_ref()?;
+        (p.direct_v > 0.0).then(|| (0, p.direct_v * (law.factor(p.cos_incidence) - 1.0)))
+    });
+    let fit = signed(hac_wald(&entries, 1, lag, &[pd_var(res)]));
+    let evidence = format!(
+        "photodiode residual vs incidence: raised-cosine roll-off from {start:.1} to {cutoff:.1} deg, \
+         amplitude {:.2}",
+        fit.amplitudes[0]
+    );
+    let effect = AddedEffect::FovRolloff {
+        start_rad: start.to_radians(),
+        cutoff_rad: cutoff.to_radians(),
+    };
+    candidate("fov-rolloff", effect, &fit, 2, evidence)
+}
+
+/// `dark-offset`: per-photodiode mean residual in umbra (no direct Sun, no albedo).
+fn dark_offset(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
+    let entries = pd_entries(res, |p| in_umbra(p).then_some((p.pd, 1.0)));
+    let fit = hac_wald(&entries, n_pd, lag, &vec![pd_var(res); n_pd]);
+    let (lo, hi) = fit
+        .amplitudes
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
+            (l.min(v), h.max(v))
+        });
+    let evidence = format!(
+        "photodiode residual in umbra, per photodiode: offsets {:.4} .. {:.4} V",
+        lo, hi
+    );
+    let effect = AddedEffect::DarkOffset {
+        volts: fit.amplitudes.clone(),
+    };
+    let k = fit.active;
+    candidate("dark-offset", effect, &fit, k, evidence)
+}
+
+/// `saturation`: the clip level is the largest measured output (a real sensor clips after
+/// noise, so clipped samples sit exactly on it); signature `min(y, L) - y` of the model's
+/// pre-stage output `y`.
+fn saturation(res: &Residuals, lag: usize) -> CandidateFit {
+    let level = res
+        .pd
+        .iter()
+        .map(|p| p.measured_v)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let at_level = res.pd.iter().filter(|p| p.measured_v >= level).count();
+    let entries = pd_entries(res, |p| {
+        (p.pre_stage_v > level).then_some((0, level - p.pre_stage_v))
+    });
+    let fit = signed(hac_wald(&entries, 1, lag, &[pd_var(res)]));
+    let evidence = format!(
+        "photodiode residual vs predicted output: clipped at {level:.4} V ({at_level} samples \
+         exactly there), amplitude {:.2}",
+        fit.amplitudes[0]
+    );
+    candidate(
+        "saturation",
+        AddedEffect::Saturation { volts: level },
+        &fit,
+        1,
+        evidence,
+    )
+}
+
+/// `penumbra`: gain on `(nu - hard(nu)) C n^T s` while the Sun is partly hidden.
+fn penumbra(res: &Residuals, lag: usize) -> CandidateFit {
+    let entries = pd_entries(res, |p| {
+        let nu = p.sun_fraction;
+        (nu > 0.0 && nu < 1.0 && p.unshadowed_v > 0.0)
+            .then(|| (0, (nu - ShadowMode::Hard.factor(nu)) * p.unshadowed_v))
+    });
+    let fit = signed(hac_wald(&entries, 1, lag, &[pd_var(res)]));
+    let evidence = format!(
+        "photodiode residual vs (nu - hard(nu)) C n^T s in penumbra: gain {:.2}",
+        fit.amplitudes[0]
+    );
+    candidate("penumbra", AddedEffect::Penumbra, &fit, 1, evidence)
+}
+
+/// `time-offset`: photodiodes sampled `delta` late see `s + delta (w x s)`. The filter's
+/// attitude can follow the photodiodes part of the way (`A(t - g delta)`), moving that part
+/// of the signature into the magnetometer (`-g delta w x b`); both amplitudes are fitted
+/// (`a_pd = (1 - g) delta`, `a_mag = -g delta`, so `delta = a_pd - a_mag`), two parameters.
+fn time_offset(res: &Residuals, lag: usize) -> CandidateFit {
+    let mut entries = pd_entries(res, |p| {
+        (p.time_offset_v_s != 0.0).then_some((0, p.time_offset_v_s))
+    });
+    for m in &res.mag {
+        for a in 0..3 {
+            entries.push(Entry {
+                row: m.row,
+                param: 1,
+                r: m.residual_nt[a],
+                s: m.time_offset_nt_s[a],
+            });
+        }
+    }
+    let fit = hac_wald(&entries, 2, lag, &[pd_var(res), res.sigma_mag_nt.powi(2)]);
+    let (a_pd, a_mag) = (fit.amplitudes[0], fit.amplitudes[1]);
+    let seconds = a_pd - a_mag;
+    let evidence = format!(
+        "photodiode residual vs C n^T (w x s): {a_pd:.3} s; magnetometer residual vs w x b: \
+         {:.3} s; offset {seconds:.3} s",
+        -a_mag
+    );
+    let k = fit.active;
+    candidate(
+        "time-offset",
+        AddedEffect::TimeOffset { seconds },
+        &fit,
+        k,
+        evidence,
+    )
+}
+
+/// `scale-drift`: per photodiode, the residual against `C dI/dC t/3600` made orthogonal to
+/// `C dI/dC` (a constant scale error is the calibration's, not an effect).
+fn scale_drift(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
+    let mut x1x1 = vec![0.0; n_pd];
+    let mut x1x2 = vec![0.0; n_pd];
+    for p in res.pd.iter().filter(|p| p.scale_v > 0.0 && p.pd < n_pd) {
+        x1x1[p.pd] += p.scale_v * p.scale_v;
+        x1x2[p.pd] += p.scale_v * p.scale_v * p.t_s / 3600.0;
+    }
+    let beta: Vec<f64> = x1x1
+        .iter()
+        .zip(&x1x2)
+        .map(|(a, b)| if *a > 0.0 { b / a } else { 0.0 })
+        .collect();
+    let entries = pd_entries(res, |p| {
+        (p.scale_v > 0.0 && p.pd < n_pd).then(|| (p.pd, p.scale_v * (p.t_s / 3600.0 - beta[p.pd])))
+    });
+    let fit = hac_wald(&entries, n_pd, lag, &vec![pd_var(res); n_pd]);
+    let (lo, hi) = fit
+        .amplitudes
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
+            (l.min(v), h.max(v))
+        });
+    let evidence = format!(
+        "photodiode residual vs C dI/dC t, per photodiode: {:.2} .. {:.2} %/h",
+        100.0 * lo,
+        100.0 * hi
+    );
+    let k = fit.active;
+    let effect = AddedEffect::ScaleDrift {
+        fraction_per_hour: fit.amplitudes.clone(),
+    };
+    candidate("scale-drift", effect, &fit, k, evidence)
+}
+
+/// `mag-bias`: body-frame mean of the magnetometer residuals.
+fn mag_bias(res: &Residuals, lag: usize) -> CandidateFit {
+    let entries: Vec<Entry> = res
+        .mag
+        .iter()
+        .flat_map(|m| {
+            (0..3).map(move |a| Entry {
+                row: m.row,
+                param: a,
+                r: m.residual_nt[a],
+                s: 1.0,
+            })
+        })
+        .collect();
+    let fit = hac_wald(&entries, 3, lag, &[res.sigma_mag_nt.powi(2); 3]);
+    let b = [fit.amplitudes[0], fit.amplitudes[1], fit.amplitudes[2]];
+    let evidence = format!(
+        "magnetometer residual mean, body frame: [{:.0}, {:.0}, {:.0}] nT",
+        b[0], b[1], b[2]
+    );
+    candidate(
+        "mag-bias",
+        AddedEffect::MagBias { bias_nt: b },
+        &fit,
+        3,
+        evidence,
+    )
+}
+
+/// Rows per block over which a gyro-bias error counts as constant (10 min at 1 Hz; the
+/// bias walk of the built-in gyros moves it by about 1e-4 deg/s in that time).
+const GYRO_BLOCK_ROWS: usize = 600;
+/// Signal-to-noise an axis's rate variation needs to carry a gyro-scale signature.
+const GYRO_MIN_SNR: f64 = 10.0;
+
+/// `gyro-scale`: a gyro reading `(1 + e) w` turns the attitude by `e w dt` more than the
+/// measurements allow, so the smoothed attitude's step rotation minus the gyro's is
+/// `-e w dt` per axis. A bias error adds a slowly varying term: the signature is the gyro
+/// rotation minus its mean over blocks of [`GYRO_BLOCK_ROWS`] rows, which also leaves an
+/// axis whose rate stays constant (a spin axis, where scale and bias cannot be told apart)
+/// without a signature. The regressor is the gyro rotation from the samples *around* the
+/// step ([`crate::residuals::GyroSample::rotation_nearby_rad`]): the step's own samples carry
+/// gyro noise that is also in the residual and would pass for a scale error.
+fn gyro_scale(res: &Residuals, lag: usize) -> CandidateFit {
+    let block = |row: usize| row / GYRO_BLOCK_ROWS;
+    let blocks = res.gyro.last().map_or(0, |g| block(g.row) + 1);
+    let mut sum = vec![Vector3::<f64>::zeros(); blocks];
+    let mut count = vec![0usize; blocks];
+    for g in &res.gyro {
+        sum[block(g.row)] += g.rotation_nearby_rad;
+        count[block(g.row)] += 1;
+    }
+    let mean: Vec<Vector3<f64>> = sum
+        .iter()
+        .zip(&count)
+        .map(|(s, &n)| s / n.max(1) as f64)
+        .collect();
+    // An axis carries a signature only where the rate varies well above the regressor's own
+    // noise (std of the block-demeaned rate >= GYRO_MIN_SNR times the noise of a mean of
+    // 2 NEARBY samples); a spin axis at constant rate does not, and fitting it would fit
+    // noise shared between the regressor and the smoothed attitude.
+    let mut var = Vector3::<f64>::zeros();
+    for g in &res.gyro {
+        let d = (g.rotation_nearby_rad - mean[block(g.row)]) / g.dt_s;
+        var += d.component_mul(&d);
+    }
+    var /= res.gyro.len().max(1) as f64;
+    let noise_var = res.sigma_gyro_rad_s.powi(2) / (2 * crate::residuals::NEARBY) as f64;
+    let usable: Vec<bool> = (0..3)
+        .map(|a| var[a] >= GYRO_MIN_SNR.powi(2) * noise_var)
+        .collect();
+    let entries: Vec<Entry> = res
+        .gyro
+        .iter()
+        .flat_map(|g| {
+            let m = mean[block(g.row)];
+            let usable = &usable;
+            (0..3).filter(move |&a| usable[a]).map(move |a| Entry {
+                row: g.row,
+                param: a,
+                r: g.residual_rad[a],
+                s: -(g.rotation_nearby_rad[a] - m[a]),
+            })
+        })
+        .collect();
+    let fit = hac_wald(&entries, 3, lag, &[]);
+    let e = [fit.amplitudes[0], fit.amplitudes[1], fit.amplitudes[2]];
+    let k = fit.active;
+    let evidence = format!(
+        "attitude step rotation beyond the gyro vs the gyro rotation: scale errors \
+         [{:.4}, {:.4}, {:.4}]",
+        e[0], e[1], e[2]
+    );
+    candidate(
+        "gyro-scale",
+        AddedEffect::GyroScale { scale_error: e },
+        &fit,
+        k,
+        evidence,
+    )
+}
+
+/// The residual signature that tells effect `id` apart: its regressor against the
+/// residual of the sensor it affects.
+pub fn signature(id: &str, res: &Residuals) -> Signature {
+    let pd = |x_label: &str, f: &dyn Fn(&PdSample) -> Option<(f64, f64)>| {
+        let (x, y) = res.pd.iter().filter_map(f).unzip();
+        Signature {
+            x_label: x_label.to_owned(),
+            y_label: "photodiode residual (V)".to_owned(),
+            x,
+            y,
+        }
+    };
+    match id {
+        "albedo" => pd("C E_a/E_AM0 at the estimated normal (V)", &|p| {
+            Some((p.albedo_v, p.residual_v))
+        }),
+        "fov-rolloff" => pd("incidence angle (deg)", &|p| {
+            (p.direct_v > 0.0).then(|| {
+                (
+                    p.cos_incidence.clamp(-1.0, 1.0).acos().to_degrees(),
+                    p.residual_v,
+                )
+            })
+        }),
+        "dark-offset" => pd("photodiode (umbra samples)", &|p| {
+            in_umbra(p).then(|| ((p.pd + 1) as f64, p.residual_v))
+        }),
+        "saturation" => pd("predicted output before clipping (V)", &|p| {
+            (p.pre_stage_v > 0.0).then_some((p.pre_stage_v, p.residual_v))
+        }),
+        "penumbra" => pd("illuminated fraction of the Sun", &|p| {
+            (p.sun_fraction > 0.0 && p.sun_fraction < 1.0 && p.unshadowed_v > 0.0)
+                .then_some((p.sun_fraction, p.residual_v))
+        }),
+        "time-offset" => pd("C n^T (w x s) (V/s)", &|p| {
+            (p.time_offset_v_s != 0.0).then_some((p.time_offset_v_s, p.residual_v))
+        }),
+        "scale-drift" => {
+            let mut sig = pd("time (min)", &|p| {
+                (p.direct_v > 1.0).then(|| (p.t_s / 60.0, p.residual_v / p.scale_v))
+            });
+            sig.y_label = "relative photodiode residual r / (C dI/dC)".to_owned();
+            sig
+        }
+        "mag-bias" => {
+            let (x, y) = res
+                .mag
+                .iter()
+                .flat_map(|m| (0..3).map(move |a| ((a + 1) as f64, m.residual_nt[a])))
+                .unzip();
+            Signature {
+                x_label: "magnetometer axis (1 = x, 2 = y, 3 = z)".to_owned(),
+                y_label: "magnetometer residual (nT)".to_owned(),
+                x,
+                y,
+            }
+        }
+        "gyro-scale" => {
+            let (x, y) = res
+                .gyro
+                .iter()
+                .flat_map(|g| {
+                    (0..3).map(move |a| (g.rotation_rad[a] / g.dt_s, g.residual_rad[a] / g.dt_s))
+                })
+                .unzip();
+            Signature {
+                x_label: "gyro rate, any axis (rad/s)".to_owned(),
+                y_label: "smoothed minus gyro rate (rad/s)".to_owned(),
+                x,
+                y,
+            }
+        }
+        _ => Signature::default(),
+    }
+}

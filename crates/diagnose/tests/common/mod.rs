@@ -1,0 +1,99 @@
+//! Shared set-up of the diagnosis tests: simulate a rax2-like scenario with chosen effects,
+//! build the references the way the driver does, and diagnose.
+
+#![allow(dead_code)]
+
+use pdcal_albedo::{AlbedoModel, MapChoice};
+use pdcal_dataset::{Effect, OrbitSpec};
+use pdcal_diagnose::{BaseModel, DiagnoseConfig, DiagnoseInputs, Diagnosis, diagnose};
+use pdcal_ephem::{ReferenceModel, TleOrbit};
+use pdcal_filter::StepReference;
+use pdcal_sim::{Scenario, SimOutput, simulate};
+
+/// Duration of the default tests' data sets, s: 90 min (the data set starts in eclipse and enters the next one at 85 min)
+/// and most of the sphere of Sun directions while keeping each filter run short.
+pub const SHORT_S: f64 = 5400.0;
+
+/// The rax2-like scenario with exactly these effects and this duration.
+pub fn scenario(effects: Vec<Effect>, duration_s: f64) -> Scenario {
+    let mut s = Scenario::rax2_like().expect("built-in scenario");
+    s.effects = effects;
+    s.duration_s = duration_s;
+    s
+}
+
+/// The paper's albedo (the only effect of a control data set).
+pub fn albedo() -> Effect {
+    Effect::Albedo {
+        map: "toms-mean-1p25x1".into(),
+    }
+}
+
+/// One reference per telemetry row, from the dataset's TLE (as `pdcal::references`).
+pub fn references(sim: &SimOutput) -> Vec<StepReference> {
+    let OrbitSpec::Tle { line1, line2 } = &sim.meta.orbit else {
+        panic!("simulated data sets carry a TLE");
+    };
+    let orbit = TleOrbit::from_lines(line1, line2).expect("TLE");
+    let model = ReferenceModel::new(sim.meta.epoch_utc.epoch(), Box::new(orbit)).expect("model");
+    sim.telemetry
+        .t_s
+        .iter()
+        .map(|&t| StepReference::from(&model.at(t).expect("reference")))
+        .collect()
+}
+
+/// The filter's albedo model.
+pub fn albedo_model() -> AlbedoModel {
+    AlbedoModel::from_choice(&MapChoice::TomsMean1p25x1).expect("TOMS map")
+}
+
+/// Simulates and diagnoses; also returns the simulation.
+pub fn run(scenario: &Scenario, seed: u64, base: BaseModel) -> (SimOutput, Diagnosis) {
+    let sim = simulate(scenario, seed).expect("simulation");
+    let refs = references(&sim);
+    let albedo = albedo_model();
+    let inputs = DiagnoseInputs {
+        meta: &sim.meta,
+        telemetry: &sim.telemetry,
+        references: &refs,
+        albedo: &albedo,
+        truth: Some(&sim.constants.photodiodes),
+    };
+    let d = diagnose(&inputs, base, &DiagnoseConfig::default()).expect("diagnosis");
+    (sim, d)
+}
+
+/// One line per round and the final check, for the test log.
+pub fn describe(d: &Diagnosis) -> String {
+    let mut s = format!("verdict {}\n", d.verdict());
+    for r in &d.rounds {
+        s += &format!(
+            "  {} score {:.1}: {}\n    pd rms {:.4} -> {:.4} V, inside {:.3} -> {:.3}, |s| std {:.4} -> {:.4}, mag {:.0} -> {:.0} nT, gyro {:.2e} -> {:.2e}, cal {:?} -> {:?}\n",
+            r.found,
+            r.score,
+            r.evidence,
+            r.gap_before.photodiode_rms_v,
+            r.gap_after.photodiode_rms_v,
+            r.gap_before.fraction_within_3sigma,
+            r.gap_after.fraction_within_3sigma,
+            r.gap_before.sun_vector_magnitude_std,
+            r.gap_after.sun_vector_magnitude_std,
+            r.gap_before.magnetometer_rms_nt,
+            r.gap_after.magnetometer_rms_nt,
+            r.gap_before.gyro_residual_rms_rad_s,
+            r.gap_after.gyro_residual_rms_rad_s,
+            r.gap_before
+                .calibration
+                .map(|c| (c.worst_normal_error_deg, c.worst_scale_error_percent)),
+            r.gap_after
+                .calibration
+                .map(|c| (c.worst_normal_error_deg, c.worst_scale_error_percent)),
+        );
+    }
+    s += "  final check:";
+    for c in d.final_candidates.iter().take(9) {
+        s += &format!(" {} {:.1} (W {:.1});", c.id, c.score, c.wald);
+    }
+    s
+}

@@ -1,0 +1,301 @@
+//! `pdcal diagnose DATASET_DIR --out OUT_DIR [--base-model cosine|paper]`: find, name and
+//! add the effects the model is missing (`pdcal-diagnose`), and write `diagnosis.json`,
+//! `report.md`, the residual-signature figures and `index.html`, whole or not at all.
+
+use std::fmt::Write as _;
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use pdcal_dataset::{DatasetMeta, Telemetry};
+use pdcal_diagnose::{BaseModel, DiagnoseConfig, DiagnoseInputs, Diagnosis, Gap, Signature};
+use pdcal_report::{BinRange, Figure, HistogramPanel, LineAxes, Mark, Series, histograms, lines};
+
+use crate::output::{OutputDir, write_file_atomic};
+
+/// Bins of the binned residual-signature figures.
+const SIGNATURE_BINS: usize = 40;
+
+/// A finished diagnosis and its run time.
+pub struct DiagnoseOutcome {
+    /// The diagnosis.
+    pub diagnosis: Diagnosis,
+    /// Wall-clock time of the diagnosis (all calibrations and fits), s.
+    pub runtime_s: f64,
+}
+
+/// Diagnoses a dataset held in memory. `truth` (truth.ron's photodiodes) only adds the
+/// calibration errors to the report; no decision reads it.
+pub fn run(
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+    truth: Option<&[pdcal_dataset::TruePd]>,
+    base: BaseModel,
+) -> Result<DiagnoseOutcome> {
+    let references = crate::references::step_references(meta, telemetry)?;
+    let albedo = crate::calibrate::albedo_model()?;
+    let inputs = DiagnoseInputs {
+        meta,
+        telemetry,
+        references: &references,
+        albedo: &albedo,
+        truth,
+    };
+    let start = Instant::now();
+    let diagnosis =
+        pdcal_diagnose::diagnose(&inputs, base, &DiagnoseConfig::default()).context("diagnosis")?;
+    Ok(DiagnoseOutcome {
+        diagnosis,
+        runtime_s: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// `pdcal diagnose DATASET_DIR --out OUT_DIR [--base-model ...]`.
+pub fn run_dir(dataset: &Path, out: &Path, base: BaseModel) -> Result<DiagnoseOutcome> {
+    let meta = pdcal_dataset::read_meta(dataset)?;
+    let telemetry = pdcal_dataset::read_telemetry(dataset, &meta)?;
+    // truth.* only for the report's calibration errors, when a simulator wrote it.
+    let truth = pdcal_dataset::read_truth(dataset, &meta)?;
+    let outcome = run(
+        &meta,
+        &telemetry,
+        truth.as_ref().map(|(_, c)| c.photodiodes.as_slice()),
+        base,
+    )?;
+    write_outputs(out, &meta, &outcome)?;
+    Ok(outcome)
+}
+
+/// Writes diagnosis.json, report.md, the figures and index.html into `out`, whole or not
+/// at all.
+pub fn write_outputs(out: &Path, meta: &DatasetMeta, outcome: &DiagnoseOutcome) -> Result<()> {
+    let dir = OutputDir::create(out)?;
+    let d = &outcome.diagnosis;
+    let json = serde_json::to_string_pretty(&d.summary())?;
+    write_file_atomic(&dir.file("diagnosis.json"), json.as_bytes())?;
+    let figures = round_figures(dir.path(), d)?;
+    let report = report_text(meta, outcome, &figures);
+    write_file_atomic(&dir.file("report.md"), report.as_bytes())?;
+    let rows = index_rows(d);
+    pdcal_report::index_html(
+        dir.path(),
+        &format!("pdcal diagnose: {}", meta.name),
+        &rows,
+        &figures,
+    )?;
+    dir.commit()
+}
+
+/// Two figures per round: the binned signature before and after, and the residual
+/// histograms of the affected sensor before and after.
+fn round_figures(dir: &Path, d: &Diagnosis) -> Result<Vec<(String, String)>> {
+    let mut out = Vec::new();
+    for (n, round) in d.rounds.iter().enumerate() {
+        let stem = format!("round{}_{}_signature", n + 1, round.found);
+        let title = format!("Round {}: {} (residual signature)", n + 1, round.found);
+        signature_figure(
+            dir,
+            &stem,
+            &title,
+            &round.signature_before,
+            &round.signature_after,
+        )?;
+        out.push((
+            format!(
+                "Round {}: mean residual against the {} regressor, before and after adding it",
+                n + 1,
+                round.found
+            ),
+            stem,
+        ));
+        let stem = format!("round{}_{}_histogram", n + 1, round.found);
+        let before = &round.signature_before.y;
+        let after = &round.signature_after.y;
+        let panels = [
+            HistogramPanel {
+                label: "before",
+                values: before,
+            },
+            HistogramPanel {
+                label: "after",
+                values: after,
+            },
+        ];
+        histograms(
+            dir,
+            &Figure::new(
+                &stem,
+                &format!("Round {}: {} residuals", n + 1, round.found),
+            ),
+            &round.signature_before.y_label,
+            40,
+            BinRange::Shared,
+            &panels,
+        )?;
+        out.push((
+            format!(
+                "Round {}: residuals carrying the {} signature, before and after",
+                n + 1,
+                round.found
+            ),
+            stem,
+        ));
+    }
+    Ok(out)
+}
+
+fn signature_figure(
+    dir: &Path,
+    stem: &str,
+    title: &str,
+    before: &Signature,
+    after: &Signature,
+) -> Result<()> {
+    let (lo, hi) = before.x_range();
+    let (x, y_before) = before.binned(lo, hi, SIGNATURE_BINS);
+    let (_, y_after) = after.binned(lo, hi, SIGNATURE_BINS);
+    let series = [
+        Series::new("before", &y_before, Mark::Circle).with_colour([220, 40, 40]),
+        Series::new("after", &y_after, Mark::Dot).with_colour([30, 80, 220]),
+    ];
+    lines(
+        dir,
+        &Figure::new(stem, title),
+        &LineAxes::new(&before.x_label, &format!("mean {}", before.y_label)),
+        &x,
+        &series,
+    )?;
+    Ok(())
+}
+
+fn gap_line(g: &Gap) -> String {
+    let mut s = format!(
+        "photodiode RMS {:.4} V (noise {:.4}), {:.1} % inside 3 sigma, Sun-vector |s| {:.4} +- {:.4}",
+        g.photodiode_rms_v,
+        g.photodiode_noise_v,
+        100.0 * g.fraction_within_3sigma,
+        g.sun_vector_magnitude_mean,
+        g.sun_vector_magnitude_std
+    );
+    if g.magnetometer_rms_nt.is_finite() {
+        let _ = write!(
+            s,
+            ", magnetometer RMS {:.0} nT (noise {:.0})",
+            g.magnetometer_rms_nt, g.magnetometer_noise_nt
+        );
+    }
+    let _ = write!(
+        s,
+        ", attitude rate beyond gyro RMS {:.2e} rad/s",
+        g.gyro_residual_rms_rad_s
+    );
+    if let Some(c) = g.calibration {
+        let _ = write!(
+            s,
+            "; true errors: worst normal {:.2} deg, worst scale {:.2} %",
+            c.worst_normal_error_deg, c.worst_scale_error_percent
+        );
+    }
+    s
+}
+
+/// The human report (Markdown text).
+pub fn report_text(
+    meta: &DatasetMeta,
+    outcome: &DiagnoseOutcome,
+    figures: &[(String, String)],
+) -> String {
+    let d = &outcome.diagnosis;
+    let mut s = String::new();
+    let _ = writeln!(s, "# pdcal diagnose: {}\n", meta.name);
+    let _ = writeln!(
+        s,
+        "Base model `{}`; verdict **{}**; final model: {}; {:.1} s.\n",
+        d.base_model.as_str(),
+        d.verdict(),
+        if d.final_spec.effect_ids().is_empty() {
+            "direct Sun only".to_owned()
+        } else {
+            format!("direct Sun + {}", d.final_spec.effect_ids().join(" + "))
+        },
+        outcome.runtime_s
+    );
+    for (n, r) in d.rounds.iter().enumerate() {
+        let _ = writeln!(s, "## Round {}: {}\n", n + 1, r.found);
+        let _ = writeln!(s, "- evidence: {}", r.evidence);
+        let _ = writeln!(
+            s,
+            "- score {:.1} nats above the BIC (threshold {:.1}); runner-up: {}",
+            r.score,
+            d.threshold,
+            r.candidates
+                .get(1)
+                .map_or("none".to_owned(), |c| format!("{} {:.1}", c.id, c.score))
+        );
+        let _ = writeln!(s, "- added: {:?}", r.effect);
+        let _ = writeln!(s, "- before: {}", gap_line(&r.gap_before));
+        let _ = writeln!(s, "- after:  {}\n", gap_line(&r.gap_after));
+    }
+    let _ = writeln!(s, "## Final check\n");
+    for c in d.final_candidates.iter() {
+        let _ = writeln!(s, "- {} {:.1}: {}", c.id, c.score, c.evidence);
+    }
+    let _ = writeln!(
+        s,
+        "\nNothing above the threshold of {:.1} nats: the data support no further effect.\n",
+        d.threshold
+    );
+    let _ = writeln!(s, "Final gap: {}\n", gap_line(&d.final_gap));
+    let _ = writeln!(s, "## Figures\n");
+    for (caption, stem) in figures {
+        let _ = writeln!(s, "- {caption}: {stem}.png, {stem}.svg");
+    }
+    s
+}
+
+fn index_rows(d: &Diagnosis) -> Vec<(String, String)> {
+    let mut rows = vec![
+        ("base model".to_owned(), d.base_model.as_str().to_owned()),
+        ("verdict".to_owned(), d.verdict()),
+    ];
+    for (n, r) in d.rounds.iter().enumerate() {
+        rows.push((
+            format!("round {}: {} (score {:.0})", n + 1, r.found, r.score),
+            format!(
+                "photodiode RMS {:.4} -> {:.4} V",
+                r.gap_before.photodiode_rms_v, r.gap_after.photodiode_rms_v
+            ),
+        ));
+    }
+    rows
+}
+
+/// One line per round and the final check, for the terminal.
+pub fn console_summary(outcome: &DiagnoseOutcome) -> String {
+    let d = &outcome.diagnosis;
+    let mut s = format!(
+        "diagnose from `{}`: verdict {} ({:.1} s)\n",
+        d.base_model.as_str(),
+        d.verdict(),
+        outcome.runtime_s
+    );
+    for (n, r) in d.rounds.iter().enumerate() {
+        let _ = writeln!(s, "  round {}: {} (score {:.1})", n + 1, r.found, r.score);
+        let _ = writeln!(s, "    {}", r.evidence);
+        let _ = writeln!(s, "    before: {}", gap_line(&r.gap_before));
+        let _ = writeln!(s, "    after:  {}", gap_line(&r.gap_after));
+    }
+    match d.final_candidates.first() {
+        Some(c) => {
+            let _ = writeln!(
+                s,
+                "  then none: best remaining {} at {:.1} <= threshold {:.1}",
+                c.id, c.score, d.threshold
+            );
+        }
+        None => {
+            let _ = writeln!(s, "  then none: no candidate left");
+        }
+    }
+    s
+}
