@@ -177,3 +177,35 @@ fn a_hand_written_dataset_calibrates() {
         );
     }
 }
+
+/// Diagnosis works unchanged on data another tool wrote: from the `paper` base (which is
+/// exactly how these data were made) nothing is missing; from the `cosine` base the albedo
+/// is found first.
+#[test]
+fn a_hand_written_dataset_diagnoses() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dataset = tmp.path().join("hand-made");
+    std::fs::create_dir(&dataset).unwrap();
+    write_dataset(&dataset);
+    let paper = pdcal::diagnose::run_dir(
+        &dataset,
+        &tmp.path().join("paper"),
+        pdcal_diagnose::BaseModel::Paper,
+    )
+    .unwrap();
+    assert_eq!(paper.diagnosis.verdict(), "none");
+    let cosine = pdcal::diagnose::run_dir(
+        &dataset,
+        &tmp.path().join("cosine"),
+        pdcal_diagnose::BaseModel::Cosine,
+    )
+    .unwrap();
+    let first = cosine.diagnosis.rounds.first().map(|r| r.found);
+    assert_eq!(
+        first,
+        Some("albedo"),
+        "verdict {}",
+        cosine.diagnosis.verdict()
+    );
+    assert!(tmp.path().join("cosine/diagnosis.json").is_file());
+}
