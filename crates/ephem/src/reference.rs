@@ -14,7 +14,7 @@ use crate::time::{self, TimeError};
 use crate::{OrbitError, OrbitSource, eclipse, frames};
 
 /// Failure to build a reference sample.
-#[derive(Debug, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ReferenceError {
     /// The sample time could not be formed from the epoch and `t_s`.
     #[error("reference time: {0}")]

@@ -1,6 +1,5 @@
 //! The simulation run: dynamics, environment, sensors and effects into the dataset types.
 
-use hifitime::Epoch;
 use nalgebra::{Matrix3, Vector3, Vector4};
 use pdcal_albedo::{AlbedoError, AlbedoModel, AlbedoView, MapChoice, MapError};
 use pdcal_attitude::Quat;
@@ -8,8 +7,8 @@ use pdcal_dataset::{
     Dataset, DatasetMeta, Effect, EpochUtc, FORMAT_VERSION, NoiseHints, OrbitSpec, Telemetry,
     TruePd, TruthConstants, TruthSeries,
 };
-use pdcal_ephem::igrf::{Igrf, IgrfError};
-use pdcal_ephem::{LowPrecisionSun, OrbitError, OrbitSource, SunEphemeris, TimeError, TleOrbit};
+use pdcal_ephem::igrf::IgrfError;
+use pdcal_ephem::{OrbitError, ReferenceError, ReferenceModel, TimeError, TleOrbit};
 use pdcal_photodiode::{
     Albedo, DarkOffset, FovRolloff, MeasurementModel, Penumbra, Photodiode, PhotodiodeError,
     Saturation, ScaleDrift, Scene, ShadowMode,
@@ -175,12 +174,9 @@ struct Environment {
     nu: f64,
 }
 
-/// The ephemeris sources of a run.
-struct Ephemeris {
-    epoch: Epoch,
-    orbit: TleOrbit,
-    igrf: Igrf,
-}
+/// The ephemeris of a run: the same [`ReferenceModel`] the filter's driver uses, so truth
+/// and filter see identical reference vectors.
+struct Ephemeris(ReferenceModel);
 
 impl Ephemeris {
     fn new(scenario: &Scenario) -> Result<Self, SimError> {
@@ -188,32 +184,29 @@ impl Ephemeris {
         let ScenarioOrbit::Tle { line1, line2 } = &scenario.orbit;
         let orbit = TleOrbit::from_lines(line1, line2)
             .map_err(|source| SimError::Orbit { t_s: 0.0, source })?;
-        let igrf = Igrf::igrf14().map_err(|source| SimError::Field { t_s: 0.0, source })?;
-        Ok(Ephemeris { epoch, orbit, igrf })
+        ReferenceModel::new(epoch, Box::new(orbit))
+            .map(Ephemeris)
+            .map_err(|e| reference_error(0.0, e))
     }
 
     fn at(&self, t_s: f64) -> Result<Environment, SimError> {
-        let epoch = pdcal_ephem::time::offset(self.epoch, t_s)?;
-        let r_gcrf_km = self
-            .orbit
-            .position_gcrf_km(epoch)
-            .map_err(|source| SimError::Orbit { t_s, source })?;
-        let r_sun_gcrf_km = LowPrecisionSun.sun_gcrf_km(epoch);
-        // B_gcrf = R^T B_ecef(R r), as `Igrf::field_gcrf_nt`, keeping R for the albedo.
-        let gcrf_to_ecef = pdcal_ephem::frames::gcrf_to_itrf(epoch);
-        let b_gcrf_nt = gcrf_to_ecef.transpose()
-            * self
-                .igrf
-                .field_ecef_nt(&(gcrf_to_ecef * r_gcrf_km), epoch)
-                .map_err(|source| SimError::Field { t_s, source })?;
+        let r = self.0.at(t_s).map_err(|e| reference_error(t_s, e))?;
         Ok(Environment {
-            gcrf_to_ecef,
-            r_gcrf_km,
-            r_sun_gcrf_km,
-            sun_gcrf: (r_sun_gcrf_km - r_gcrf_km).normalize(),
-            b_gcrf_nt,
-            nu: pdcal_ephem::eclipse::illuminated_fraction(&r_gcrf_km, &r_sun_gcrf_km),
+            gcrf_to_ecef: r.gcrf_to_itrf,
+            r_gcrf_km: r.r_gcrf_km,
+            r_sun_gcrf_km: r.sun_gcrf_km,
+            sun_gcrf: r.sun_gcrf_unit,
+            b_gcrf_nt: r.b_gcrf_nt,
+            nu: r.sun_fraction,
         })
+    }
+}
+
+fn reference_error(t_s: f64, error: ReferenceError) -> SimError {
+    match error {
+        ReferenceError::Time(e) => SimError::Time(e),
+        ReferenceError::Orbit(source) => SimError::Orbit { t_s, source },
+        ReferenceError::Field(source) => SimError::Field { t_s, source },
     }
 }
 
