@@ -21,25 +21,7 @@ use pdcal_albedo::{
 };
 
 /// RAX-2 photodiode azimuth/elevation, deg (docs/rax2-scenario.md).
-const AZ_EL_DEG: [(f64, f64); 17] = [
-    (17.0, -10.0),
-    (0.0, 20.0),
-    (-17.0, -10.0),
-    (-162.0, -10.0),
-    (180.0, 20.0),
-    (162.0, -10.0),
-    (72.0, 10.0),
-    (107.0, 10.0),
-    (90.0, -20.0),
-    (-107.0, 10.0),
-    (-72.0, 10.0),
-    (-90.0, -20.0),
-    (0.0, 90.0),
-    (0.0, 90.0),
-    (0.0, 90.0),
-    (0.0, -90.0),
-    (0.0, -90.0),
-];
+const AZ_EL_DEG: [(f64, f64); 17] = pdcal_attitude::RAX2_TABLE1_AZ_EL_DEG;
 
 struct Scene {
     r_sat: Vector3<f64>,

@@ -2,6 +2,28 @@
 
 use nalgebra::Vector3;
 
+/// Table 1 of the paper: the intended (azimuth, elevation) of RAX-2's 17 photodiodes,
+/// degrees, in pdNN order. The one copy every test, bench and scenario check uses.
+pub const RAX2_TABLE1_AZ_EL_DEG: [(f64, f64); 17] = [
+    (17.0, -10.0),
+    (0.0, 20.0),
+    (-17.0, -10.0),
+    (-162.0, -10.0),
+    (180.0, 20.0),
+    (162.0, -10.0),
+    (72.0, 10.0),
+    (107.0, 10.0),
+    (90.0, -20.0),
+    (-107.0, 10.0),
+    (-72.0, 10.0),
+    (-90.0, -20.0),
+    (0.0, 90.0),
+    (0.0, 90.0),
+    (0.0, 90.0),
+    (0.0, -90.0),
+    (0.0, -90.0),
+];
+
 /// Unit normal of Eq. (16): `n = [cos(el) cos(az), cos(el) sin(az), sin(el)]^T`.
 pub fn normal_from_az_el(azimuth_rad: f64, elevation_rad: f64) -> Vector3<f64> {
     let (sa, ca) = azimuth_rad.sin_cos();

@@ -9,25 +9,7 @@ use pdcal_photodiode::*;
 use rand::RngExt;
 
 /// Table 1 of the paper (rax2-scenario.md), degrees.
-const RAX2_AZ_EL_DEG: [(f64, f64); 17] = [
-    (17.0, -10.0),
-    (0.0, 20.0),
-    (-17.0, -10.0),
-    (-162.0, -10.0),
-    (180.0, 20.0),
-    (162.0, -10.0),
-    (72.0, 10.0),
-    (107.0, 10.0),
-    (90.0, -20.0),
-    (-107.0, 10.0),
-    (-72.0, 10.0),
-    (-90.0, -20.0),
-    (0.0, 90.0),
-    (0.0, 90.0),
-    (0.0, 90.0),
-    (0.0, -90.0),
-    (0.0, -90.0),
-];
+const RAX2_AZ_EL_DEG: [(f64, f64); 17] = pdcal_attitude::RAX2_TABLE1_AZ_EL_DEG;
 
 fn rax2(rng: &mut rand::rngs::StdRng) -> Vec<Photodiode> {
     RAX2_AZ_EL_DEG

@@ -559,25 +559,7 @@ mod tests {
             s.photodiodes.scale_v,
             Spread::Uniform { min: 3.5, max: 3.9 }
         );
-        let table1 = [
-            (17.0, -10.0),
-            (0.0, 20.0),
-            (-17.0, -10.0),
-            (-162.0, -10.0),
-            (180.0, 20.0),
-            (162.0, -10.0),
-            (72.0, 10.0),
-            (107.0, 10.0),
-            (90.0, -20.0),
-            (-107.0, 10.0),
-            (-72.0, 10.0),
-            (-90.0, -20.0),
-            (0.0, 90.0),
-            (0.0, 90.0),
-            (0.0, 90.0),
-            (0.0, -90.0),
-            (0.0, -90.0),
-        ];
+        let table1 = pdcal_attitude::RAX2_TABLE1_AZ_EL_DEG;
         for (m, (az, el)) in s.photodiodes.nominal.iter().zip(table1) {
             assert_eq!((m.azimuth_deg, m.elevation_deg), (az, el));
         }

@@ -13,25 +13,7 @@ use rand::rngs::StdRng;
 use rand_distr::{Distribution, Normal};
 
 /// Table 1 of the paper: intended azimuth/elevation, deg.
-pub const RAX2_NOMINAL: [(f64, f64); 17] = [
-    (17.0, -10.0),
-    (0.0, 20.0),
-    (-17.0, -10.0),
-    (-162.0, -10.0),
-    (180.0, 20.0),
-    (162.0, -10.0),
-    (72.0, 10.0),
-    (107.0, 10.0),
-    (90.0, -20.0),
-    (-107.0, 10.0),
-    (-72.0, 10.0),
-    (-90.0, -20.0),
-    (0.0, 90.0),
-    (0.0, 90.0),
-    (0.0, 90.0),
-    (0.0, -90.0),
-    (0.0, -90.0),
-];
+pub const RAX2_NOMINAL: [(f64, f64); 17] = pdcal_attitude::RAX2_TABLE1_AZ_EL_DEG;
 
 /// One synthetic case.
 #[derive(Clone, Debug)]
