@@ -106,11 +106,14 @@ pub fn score_candidates(
 /// Fits and scores one candidate (whether or not the model already holds it: a second fit
 /// of an added effect measures what its fitted constants still miss).
 pub fn score_one(id: &str, res: &Residuals, n_pd: usize, max_lag: usize) -> Option<CandidateFit> {
+    fit_candidate(id, res, n_pd, max_lag).map(|f| scored(f, res))
+}
+
+/// `f` with its score: `wald/2 - k ln(N)/2`, N every scalar observation of `res`.
+pub(crate) fn scored(mut f: CandidateFit, res: &Residuals) -> CandidateFit {
     let n_obs = (res.pd.len() + 3 * res.mag.len() + 3 * res.gyro.len()).max(2) as f64;
-    fit_candidate(id, res, n_pd, max_lag).map(|mut f| {
-        f.score = 0.5 * f.wald - 0.5 * f.parameters as f64 * n_obs.ln();
-        f
-    })
+    f.score = 0.5 * f.wald - 0.5 * f.parameters as f64 * n_obs.ln();
+    f
 }
 
 fn fit_candidate(id: &str, res: &Residuals, n_pd: usize, lag: usize) -> Option<CandidateFit> {

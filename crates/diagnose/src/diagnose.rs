@@ -11,8 +11,9 @@ use pdcal_photodiode::Photodiode;
 use serde::Serialize;
 
 use crate::DiagnoseError;
-use crate::candidates::{CandidateFit, Signature, score_candidates, score_one, signature};
+use crate::candidates::{CandidateFit, Signature, score_candidates, score_one, scored, signature};
 use crate::model::{AddedEffect, BaseModel, ModelSpec};
+use crate::refit::time_offset_refit;
 use crate::residuals::{FULL_SUN, ResidualInputs, Residuals, mean_std, residuals, rms};
 
 /// Version of `diagnosis.json`.
@@ -262,7 +263,14 @@ pub fn diagnose(
     let initial_residuals = res.clone();
     let mut rounds = Vec::new();
     loop {
-        let candidates = score_candidates(&res, &spec, n_pd, config.max_lag_rows);
+        let candidates = rescored_by_refit(
+            inputs,
+            &spec,
+            config,
+            &run,
+            &res,
+            score_candidates(&res, &spec, n_pd, config.max_lag_rows),
+        )?;
         let best = candidates
             .first()
             .filter(|c| c.score > config.threshold)
@@ -351,6 +359,45 @@ fn residual_inputs<'a>(
     }
 }
 
+/// `time-offset` (when not in `spec`) scored again from a refit instead of its residual
+/// regression ([`crate::refit`]); sorted best first.
+fn rescored_by_refit(
+    inputs: &DiagnoseInputs<'_>,
+    spec: &ModelSpec,
+    config: &DiagnoseConfig,
+    run: &CalibrationRun,
+    res: &Residuals,
+    mut candidates: Vec<CandidateFit>,
+) -> Result<Vec<CandidateFit>, DiagnoseError> {
+    for c in candidates.iter_mut() {
+        if c.id == "time-offset" {
+            let refit = scored(time_offset_refit(inputs, spec, config, run)?, res);
+            let linear = format!("; residual regression: Wald {:.1}", c.wald);
+            *c = refit;
+            c.evidence += &linear;
+        }
+    }
+    candidates.sort_by(|a, b| b.score.total_cmp(&a.score));
+    Ok(candidates)
+}
+
+/// Calibrates with the model `spec` describes, forward filter only (no smoother), and
+/// adopts the filter's estimates of its estimated effects: what a refit score needs.
+pub(crate) fn forward_run(
+    inputs: &DiagnoseInputs<'_>,
+    spec: &mut ModelSpec,
+    config: &DiagnoseConfig,
+) -> Result<CalibrationRun, DiagnoseError> {
+    let filter = FilterConfig {
+        smoother: false,
+        ..config.filter.clone()
+    };
+    let telemetry = spec.corrected_telemetry(inputs.telemetry);
+    let run = filter_run(inputs, spec, &filter, &telemetry)?;
+    spec.adopt_estimates(&run.calibration);
+    Ok(run)
+}
+
 /// Calibrates with the model `spec` describes (its sensor corrections applied to the
 /// telemetry), adopts the filter's estimates of its estimated effects, and computes the
 /// residuals over every sample.
@@ -360,32 +407,42 @@ pub fn calibrate_and_residuals(
     config: &DiagnoseConfig,
 ) -> Result<(CalibrationRun, Residuals), DiagnoseError> {
     let telemetry = spec.corrected_telemetry(inputs.telemetry);
+    let run = filter_run(inputs, spec, &config.filter, &telemetry)?;
+    spec.adopt_estimates(&run.calibration);
+    let res = residuals(&residual_inputs(inputs, &telemetry, config), spec, &run)?;
+    Ok((run, res))
+}
+
+/// One calibration with the model `spec` describes on `telemetry` (already corrected).
+fn filter_run(
+    inputs: &DiagnoseInputs<'_>,
+    spec: &ModelSpec,
+    filter: &FilterConfig,
+    telemetry: &Telemetry,
+) -> Result<CalibrationRun, DiagnoseError> {
     let nominal: Vec<Photodiode> = inputs
         .meta
         .photodiodes
         .iter()
         .map(|m| Photodiode::from_az_el_deg(1.0, m.azimuth_deg, m.elevation_deg, 0.0))
         .collect();
-    let model = spec.measurement_model(nominal, &config.filter)?;
+    let model = spec.measurement_model(nominal, filter)?;
     // Without albedo in the model, the filter's start (photodiode Sun vector) must not
     // remove it either.
     let albedo = spec.contains("albedo").then_some(inputs.albedo);
     let run_inputs = RunInputs {
         meta: inputs.meta,
-        telemetry: &telemetry,
+        telemetry,
         references: inputs.references,
         albedo,
     };
-    let run = calibrate_with_model(
+    Ok(calibrate_with_model(
         &run_inputs,
-        &config.filter,
+        filter,
         &Mode::Full,
         model,
         Algebra::Structured,
-    )?;
-    spec.adopt_estimates(&run.calibration);
-    let res = residuals(&residual_inputs(inputs, &telemetry, config), spec, &run)?;
-    Ok((run, res))
+    )?)
 }
 
 /// The gap of one set of residuals.

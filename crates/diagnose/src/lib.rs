@@ -13,7 +13,9 @@
 //!    score it: HAC Wald statistic (twice the log-likelihood gain, with a Newey-West
 //!    covariance over telemetry rows, [`stats`]) over 2, minus the BIC penalty
 //!    `k ln(N)/2`; the best is named only if its score exceeds a threshold set on control
-//!    seeds ([`DEFAULT_THRESHOLD`]);
+//!    seeds ([`DEFAULT_THRESHOLD`]); `time-offset`, which the calibration absorbs before
+//!    the residuals are formed, is scored instead by a refit ([`refit`]): the forward
+//!    filter's innovation log-likelihood with the offset as a state against without;
 //! 4. add it ([`ModelSpec`]): a photodiode term of `pdcal-photodiode` (fitted constants as
 //!    `Fixed` parameters, or `Estimated` filter states for `time-offset` and `scale-drift`),
 //!    or a correction of the telemetry (`mag-bias`, `gyro-scale`: the filter has no such
@@ -48,6 +50,7 @@ pub mod candidates;
 mod diagnose;
 mod error;
 pub mod model;
+pub mod refit;
 pub mod residuals;
 pub mod stats;
 
@@ -59,4 +62,5 @@ pub use diagnose::{
 };
 pub use error::DiagnoseError;
 pub use model::{AddedEffect, BaseModel, ModelSpec};
+pub use refit::innovation_log_likelihood_gain;
 pub use residuals::{Residuals, residuals};
