@@ -1,7 +1,11 @@
 //! The onboard moment expansion against the full model (TOMS map), over random LEO geometries
 //! and random normals, for fov 90 and 60 deg.
 
+mod common;
+
 use std::f64::consts::PI;
+
+use common::random_unit;
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use pdcal_albedo::{
@@ -10,20 +14,6 @@ use pdcal_albedo::{
 };
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
-
-fn random_unit(rng: &mut StdRng) -> Vector3<f64> {
-    loop {
-        let v = Vector3::new(
-            rng.random::<f64>() * 2.0 - 1.0,
-            rng.random::<f64>() * 2.0 - 1.0,
-            rng.random::<f64>() * 2.0 - 1.0,
-        );
-        let n = v.norm();
-        if n > 0.1 && n <= 1.0 {
-            return v / n;
-        }
-    }
-}
 
 struct Stats {
     max: f64,

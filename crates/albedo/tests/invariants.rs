@@ -1,7 +1,11 @@
 //! Invariants: night side, normals away from Earth, culled == unculled == naive, no growth
 //! of the buffers after warm-up, the gradient of the ratio, typed errors on bad input.
 
+mod common;
+
 use std::f64::consts::PI;
+
+use common::random_unit;
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use pdcal_albedo::{
@@ -13,20 +17,6 @@ use rand::{RngExt, SeedableRng};
 
 fn toms() -> AlbedoModel {
     AlbedoModel::from_choice(&MapChoice::TomsMean1p25x1).unwrap()
-}
-
-fn random_unit(rng: &mut StdRng) -> Vector3<f64> {
-    loop {
-        let v = Vector3::new(
-            rng.random::<f64>() * 2.0 - 1.0,
-            rng.random::<f64>() * 2.0 - 1.0,
-            rng.random::<f64>() * 2.0 - 1.0,
-        );
-        let n = v.norm();
-        if n > 0.1 && n <= 1.0 {
-            return v / n;
-        }
-    }
 }
 
 fn random_rotation(rng: &mut StdRng) -> Matrix3<f64> {

@@ -256,16 +256,20 @@ fn fov_rolloff(res: &Residuals, lag: usize) -> CandidateFit {
     candidate("fov-rolloff", effect, &fit, 2, evidence)
 }
 
+/// Smallest and largest of `values` (infinities when empty), for the evidence lines.
+fn min_max(values: &[f64]) -> (f64, f64) {
+    values
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
+            (l.min(v), h.max(v))
+        })
+}
+
 /// `dark-offset`: per-photodiode mean residual in umbra (no direct Sun, no albedo).
 fn dark_offset(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
     let entries = pd_entries(res, |p| in_umbra(p).then_some((p.pd, 1.0)));
     let fit = hac_wald(&entries, n_pd, lag, &vec![pd_var(res); n_pd]);
-    let (lo, hi) = fit
-        .amplitudes
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
-            (l.min(v), h.max(v))
-        });
+    let (lo, hi) = min_max(&fit.amplitudes);
     let evidence = format!(
         "photodiode residual in umbra, per photodiode: offsets {:.4} .. {:.4} V",
         lo, hi
@@ -374,12 +378,7 @@ fn scale_drift(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
         (p.scale_v > 0.0 && p.pd < n_pd).then(|| (p.pd, p.scale_v * (p.t_s / 3600.0 - beta[p.pd])))
     });
     let fit = hac_wald(&entries, n_pd, lag, &vec![pd_var(res); n_pd]);
-    let (lo, hi) = fit
-        .amplitudes
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
-            (l.min(v), h.max(v))
-        });
+    let (lo, hi) = min_max(&fit.amplitudes);
     let evidence = format!(
         "photodiode residual vs C dI/dC t, per photodiode: {:.2} .. {:.2} %/h",
         100.0 * lo,

@@ -72,7 +72,7 @@ pub enum AddedEffect {
     },
     /// `penumbra`: the direct Sun scaled by the illuminated fraction (no parameters).
     Penumbra,
-    /// `time-offset`: a filter state, initialised at the residual fit.
+    /// `time-offset`: a filter state, initialised at the refit's estimate ([`crate::refit`]).
     TimeOffset {
         /// Tag minus sampling time, s.
         seconds: f64,

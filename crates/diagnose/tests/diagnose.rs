@@ -8,8 +8,7 @@ mod common;
 use common::*;
 use pdcal_dataset::Effect;
 use pdcal_diagnose::{
-    AddedEffect, BaseModel, DiagnoseConfig, DiagnoseInputs, Diagnosis, Gap, ModelSpec,
-    calibrate_and_residuals, gap,
+    AddedEffect, BaseModel, DiagnoseConfig, Diagnosis, Gap, ModelSpec, calibrate_and_residuals, gap,
 };
 
 /// The sensor an effect shows in.
@@ -38,13 +37,7 @@ const SCALE_BOUND_PERCENT: f64 = 1.0;
 fn gyro_floor(sim: &pdcal_sim::SimOutput, truth: [f64; 3]) -> f64 {
     let refs = references(sim);
     let albedo = albedo_model();
-    let inputs = DiagnoseInputs {
-        meta: &sim.meta,
-        telemetry: &sim.telemetry,
-        references: &refs,
-        albedo: &albedo,
-        truth: None,
-    };
+    let inputs = inputs(sim, &refs, &albedo, false);
     let mut spec = ModelSpec::new(BaseModel::Paper);
     spec.added
         .push(AddedEffect::GyroScale { scale_error: truth });

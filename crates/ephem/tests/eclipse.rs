@@ -1,17 +1,15 @@
 //! Conical eclipse model (Montenbruck & Gill §3.4.2) against fixtures/reference/eclipse.csv,
 //! plus region boundaries, continuity and range invariants.
 
+mod common;
+
+use common::reference_rows;
 use nalgebra::Vector3;
 use pdcal_ephem::eclipse::{
     EARTH_RADIUS_KM, EclipseRegion, SUN_RADIUS_KM, eclipse, illuminated_fraction,
     illuminated_fraction_with_radii,
 };
 use serde::Deserialize;
-
-const ECLIPSE_CSV: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../fixtures/reference/eclipse.csv"
-);
 
 /// Acceptance bound of issue 2 on ν.
 const ACCEPT_TOL: f64 = 0.01;
@@ -43,11 +41,7 @@ struct EclipseRow {
 }
 
 fn rows() -> Vec<EclipseRow> {
-    let mut reader = csv::Reader::from_path(ECLIPSE_CSV).expect("eclipse.csv opens");
-    reader
-        .deserialize()
-        .collect::<Result<Vec<EclipseRow>, _>>()
-        .expect("eclipse.csv parses")
+    reference_rows("eclipse.csv")
 }
 
 fn positions(row: &EclipseRow) -> (Vector3<f64>, Vector3<f64>) {

@@ -1,46 +1,14 @@
 //! `gcrf_to_itrf` against `fixtures/reference/igrf_frames.csv` (skyfield, IAU 2006/2000A,
 //! true UT1, polar motion ignored).
 
+mod common;
+
+use common::{FramesRow, reference_rows};
 use nalgebra::Vector3;
 use pdcal_ephem::{frames, time};
-use serde::Deserialize;
 
-const TABLE: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../fixtures/reference/igrf_frames.csv"
-);
-
-#[derive(Deserialize)]
-struct Row {
-    id: u32,
-    utc: String,
-    x_ecef_km: f64,
-    y_ecef_km: f64,
-    z_ecef_km: f64,
-    #[serde(rename = "Bx_ecef_nT")]
-    bx_ecef_nt: f64,
-    #[serde(rename = "By_ecef_nT")]
-    by_ecef_nt: f64,
-    #[serde(rename = "Bz_ecef_nT")]
-    bz_ecef_nt: f64,
-    x_gcrf_km: f64,
-    y_gcrf_km: f64,
-    z_gcrf_km: f64,
-    #[serde(rename = "Bx_gcrf_nT")]
-    bx_gcrf_nt: f64,
-    #[serde(rename = "By_gcrf_nT")]
-    by_gcrf_nt: f64,
-    #[serde(rename = "Bz_gcrf_nT")]
-    bz_gcrf_nt: f64,
-    ut1_minus_utc_s: f64,
-}
-
-fn rows() -> Vec<Row> {
-    let mut reader = csv::Reader::from_path(TABLE).expect("igrf_frames.csv is in fixtures");
-    reader
-        .deserialize()
-        .map(|r| r.expect("a well-formed row"))
-        .collect()
+fn rows() -> Vec<FramesRow> {
+    reference_rows("igrf_frames.csv")
 }
 
 fn angle_deg(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {

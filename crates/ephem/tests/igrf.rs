@@ -1,21 +1,16 @@
 //! IGRF-14 synthesis against ppigrf 2.1.0 (fixtures/reference/igrf.csv, igrf_frames.csv),
 //! against finite differences of its own potential, and against physical invariants.
 
+mod common;
+
 use std::str::FromStr;
+
+use common::{FramesRow, reference_rows};
 
 use hifitime::Epoch;
 use nalgebra::Vector3;
 use pdcal_ephem::igrf::{Igrf, IgrfError};
 use serde::Deserialize;
-
-const IGRF_CSV: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../fixtures/reference/igrf.csv"
-);
-const FRAMES_CSV: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../fixtures/reference/igrf_frames.csv"
-);
 
 /// Component tolerance against ppigrf (nT). The README gives 0.5 nT for the same model, of
 /// which ≤ 0.25 nT comes from time conventions and float order; 1 nT is the acceptance bound
@@ -47,38 +42,6 @@ struct IgrfRow {
     f_nt: f64,
 }
 
-#[derive(Debug, Deserialize)]
-struct FramesRow {
-    id: u32,
-    utc: String,
-    x_ecef_km: f64,
-    y_ecef_km: f64,
-    z_ecef_km: f64,
-    #[serde(rename = "Bx_ecef_nT")]
-    bx_ecef_nt: f64,
-    #[serde(rename = "By_ecef_nT")]
-    by_ecef_nt: f64,
-    #[serde(rename = "Bz_ecef_nT")]
-    bz_ecef_nt: f64,
-    x_gcrf_km: f64,
-    y_gcrf_km: f64,
-    z_gcrf_km: f64,
-    #[serde(rename = "Bx_gcrf_nT")]
-    bx_gcrf_nt: f64,
-    #[serde(rename = "By_gcrf_nT")]
-    by_gcrf_nt: f64,
-    #[serde(rename = "Bz_gcrf_nT")]
-    bz_gcrf_nt: f64,
-}
-
-fn read_rows<T: for<'de> Deserialize<'de>>(path: &str) -> Vec<T> {
-    let mut reader = csv::Reader::from_path(path).expect("reference table opens");
-    reader
-        .deserialize()
-        .collect::<Result<Vec<T>, _>>()
-        .expect("reference table parses")
-}
-
 fn epoch(utc: &str) -> Epoch {
     Epoch::from_str(utc).expect("ISO 8601 UTC time parses")
 }
@@ -90,7 +53,7 @@ fn model() -> Igrf {
 #[test]
 fn spherical_components_match_ppigrf() {
     let igrf = model();
-    let rows: Vec<IgrfRow> = read_rows(IGRF_CSV);
+    let rows: Vec<IgrfRow> = reference_rows("igrf.csv");
     assert_eq!(rows.len(), 60);
     let mut max_err: f64 = 0.0;
     for row in &rows {
@@ -140,7 +103,7 @@ fn geodetic_north_east_down_match_ppigrf() {
     const R_TOL_KM: f64 = 1e-5;
     const COLAT_TOL_DEG: f64 = 1e-7;
     let igrf = model();
-    let rows: Vec<IgrfRow> = read_rows(IGRF_CSV);
+    let rows: Vec<IgrfRow> = reference_rows("igrf.csv");
     let mut max_err: f64 = 0.0;
     for row in &rows {
         let lat_gd = row.lat_gd_deg.to_radians();
@@ -179,7 +142,7 @@ fn geodetic_north_east_down_match_ppigrf() {
 #[test]
 fn ecef_vectors_match_igrf_frames() {
     let igrf = model();
-    let rows: Vec<FramesRow> = read_rows(FRAMES_CSV);
+    let rows: Vec<FramesRow> = reference_rows("igrf_frames.csv");
     assert_eq!(rows.len(), 10);
     let mut max_err: f64 = 0.0;
     for row in &rows {
@@ -206,7 +169,7 @@ fn gcrf_vectors_match_igrf_frames() {
     const MAGNITUDE_TOL_NT: f64 = 10.0;
     let igrf = model();
     let (mut max_angle_deg, mut max_mag_nt): (f64, f64) = (0.0, 0.0);
-    for row in &read_rows::<FramesRow>(FRAMES_CSV) {
+    for row in &reference_rows::<FramesRow>("igrf_frames.csv") {
         let r_gcrf = Vector3::new(row.x_gcrf_km, row.y_gcrf_km, row.z_gcrf_km);
         let b = igrf
             .field_gcrf_nt(&r_gcrf, epoch(&row.utc))

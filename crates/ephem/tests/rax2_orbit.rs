@@ -1,14 +1,13 @@
 //! The RAX-2-like TLE (docs/rax2-scenario.md) against `fixtures/reference/rax2_tle_teme.csv`
 //! (python-sgp4 WGS-72 'i' for TEME; skyfield TEME -> GCRF, IAU 2006/2000A).
 
+mod common;
+
+use common::reference_rows;
 use nalgebra::Vector3;
 use pdcal_ephem::{OrbitSource, TleOrbit, time};
 use serde::Deserialize;
 
-const TABLE: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../fixtures/reference/rax2_tle_teme.csv"
-);
 const L1: &str = "1 37853U 11061D   11308.77065972  .00000000  00000-0  20000-4 0  9997";
 const L2: &str = "2 37853 101.7000  50.0000 0300509 130.0000 230.0000 14.86144463  1000";
 
@@ -33,9 +32,7 @@ struct Row {
 #[test]
 fn rax2_tle_in_teme_and_gcrf() {
     let tle = TleOrbit::from_lines(L1, L2).expect("the scenario TLE has valid checksums");
-    let mut reader = csv::Reader::from_path(TABLE).expect("rax2_tle_teme.csv is in fixtures");
-    for row in reader.deserialize::<Row>() {
-        let row = row.expect("a well-formed row");
+    for row in reference_rows::<Row>("rax2_tle_teme.csv") {
         // The utc column is the exact instant (the TLE epoch is 0.19 ms before 18:29:45Z).
         let t = time::parse_utc(&row.utc).expect("valid utc");
         assert!((time::seconds_between(tle.epoch(), t) / 60.0 - row.tsince_min).abs() < 1e-9);

@@ -1,14 +1,12 @@
 //! The low-precision Sun against `fixtures/reference/sun_gcrf.csv` (DE421 via skyfield,
 //! astrometric: light time corrected, no aberration), 40 instants 2000-2035.
 
+mod common;
+
+use common::reference_rows;
 use nalgebra::Vector3;
 use pdcal_ephem::{LowPrecisionSun, SunEphemeris, time};
 use serde::Deserialize;
-
-const TABLE: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../fixtures/reference/sun_gcrf.csv"
-);
 
 #[derive(Deserialize)]
 struct Row {
@@ -23,11 +21,7 @@ struct Row {
 }
 
 fn rows() -> Vec<Row> {
-    let mut reader = csv::Reader::from_path(TABLE).expect("sun_gcrf.csv is in fixtures");
-    reader
-        .deserialize()
-        .map(|r| r.expect("a well-formed row"))
-        .collect()
+    reference_rows("sun_gcrf.csv")
 }
 
 #[test]

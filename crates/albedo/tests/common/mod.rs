@@ -1,4 +1,4 @@
-//! Shared helpers for the integration tests: the reference table reader.
+//! Shared helpers for the integration tests: the reference table reader, random normals.
 #![allow(dead_code, missing_docs)]
 
 use std::collections::HashMap;
@@ -70,4 +70,21 @@ pub fn reference_rows() -> Vec<RefRow> {
             )
         })
         .collect()
+}
+
+/// A uniformly random unit vector (rejection from the cube; norms below 0.1 are rejected
+/// too, so that the division stays well conditioned).
+pub fn random_unit(rng: &mut rand::rngs::StdRng) -> nalgebra::Vector3<f64> {
+    use rand::RngExt;
+    loop {
+        let v = nalgebra::Vector3::new(
+            rng.random::<f64>() * 2.0 - 1.0,
+            rng.random::<f64>() * 2.0 - 1.0,
+            rng.random::<f64>() * 2.0 - 1.0,
+        );
+        let n = v.norm();
+        if n > 0.1 && n <= 1.0 {
+            return v / n;
+        }
+    }
 }

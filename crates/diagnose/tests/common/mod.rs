@@ -53,15 +53,25 @@ pub fn run(scenario: &Scenario, seed: u64, base: BaseModel) -> (SimOutput, Diagn
     let sim = simulate(scenario, seed).expect("simulation");
     let refs = references(&sim);
     let albedo = albedo_model();
-    let inputs = DiagnoseInputs {
-        meta: &sim.meta,
-        telemetry: &sim.telemetry,
-        references: &refs,
-        albedo: &albedo,
-        truth: Some(&sim.constants.photodiodes),
-    };
+    let inputs = inputs(&sim, &refs, &albedo, true);
     let d = diagnose(&inputs, base, &DiagnoseConfig::default()).expect("diagnosis");
     (sim, d)
+}
+
+/// The diagnosis inputs of a simulation; its truth only when `with_truth`.
+pub fn inputs<'a>(
+    sim: &'a SimOutput,
+    references: &'a [StepReference],
+    albedo: &'a AlbedoModel,
+    with_truth: bool,
+) -> DiagnoseInputs<'a> {
+    DiagnoseInputs {
+        meta: &sim.meta,
+        telemetry: &sim.telemetry,
+        references,
+        albedo,
+        truth: with_truth.then_some(&sim.constants.photodiodes[..]),
+    }
 }
 
 /// One line per round and the final check, for the test log.
