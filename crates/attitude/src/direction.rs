@@ -99,9 +99,32 @@ pub fn tangent_basis_about(
     n: &Vector3<f64>,
     reference: &Vector3<f64>,
 ) -> (Vector3<f64>, Vector3<f64>) {
-    let r = reference.normalize();
-    let (u0, _) = tangent_basis(&r);
-    carried_basis(n, &r, &u0)
+    TangentFrame::about(reference).basis_at(n)
+}
+
+/// The reference frame of [`tangent_basis_about`], computed once for a reference that is
+/// used many times (a filter's initial normal): `basis_at(n)` gives the same bits as
+/// `tangent_basis_about(n, reference)` without redoing the reference's part.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TangentFrame {
+    /// The reference made unit.
+    reference: Vector3<f64>,
+    /// The first vector of [`tangent_basis`] at the reference.
+    u0: Vector3<f64>,
+}
+
+impl TangentFrame {
+    /// The frame about `reference` (any non-zero length).
+    pub fn about(reference: &Vector3<f64>) -> Self {
+        let reference = reference.normalize();
+        let (u0, _) = tangent_basis(&reference);
+        TangentFrame { reference, u0 }
+    }
+
+    /// The tangent basis `(e1, e2)` of the unit normal `n` (see [`tangent_basis_about`]).
+    pub fn basis_at(&self, n: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+        carried_basis(n, &self.reference, &self.u0)
+    }
 }
 
 /// Carries the frame `(u0, c x u0, c)` to `n` by the smallest rotation taking `c` to `n`

@@ -45,8 +45,9 @@ pub mod quat;
 pub mod vector_pairs;
 
 pub use direction::{
-    RAX2_TABLE1_AZ_EL_DEG, TANGENT_BASIS_SINGULAR_DIRECTION, az_el_from_normal, normal_from_az_el,
-    normal_partials, rotate_normal, rotate_normal_in, tangent_basis, tangent_basis_about,
+    RAX2_TABLE1_AZ_EL_DEG, TANGENT_BASIS_SINGULAR_DIRECTION, TangentFrame, az_el_from_normal,
+    normal_from_az_el, normal_partials, rotate_normal, rotate_normal_in, tangent_basis,
+    tangent_basis_about,
 };
 pub use error::AttitudeError;
 pub use mekf::GyroNoise;

@@ -3,7 +3,7 @@
 //! magnetometer) and the multiplicative reset.
 
 use nalgebra::{DMatrix, DVector, Dyn, Matrix2, Matrix3, Matrix6, OMatrix, U6, Vector3};
-use pdcal_attitude::mekf::{apply_error, process_noise, state_transition};
+use pdcal_attitude::mekf::{apply_small_error, process_noise, state_transition};
 use pdcal_attitude::{GyroNoise, Quat, rotate_normal_in, skew};
 use pdcal_photodiode::{AlbedoIrradiance, MeasurementModel, Partials, Scene};
 
@@ -330,12 +330,29 @@ impl Filter {
     }
 
     /// `P <- Phi P Phi^T + Q` using `Phi = diag(Phi6, I)`: only the first 6 rows and
-    /// columns change (`36 n` instead of `2 n^3` multiply-adds).
+    /// columns change (`18 n` instead of `2 n^3` multiply-adds: `Phi6`'s bias rows are
+    /// `[0 I]`).
     fn propagate_structured(&mut self, phi: &Matrix6<f64>, qd: &Matrix6<f64>) {
         let n = self.p.nrows();
         let rows = &mut self.scratch.rows6;
-        // rows = Phi6 * P[0..6, :]
-        phi.mul_to(&self.p.fixed_rows::<6>(0), rows);
+        // rows = Phi6 * P[0..6, :], one column at a time (a 6x6 times 6-vector product per
+        // column; nalgebra's general product would go through matrixmultiply's packing).
+        // Phi's bias rows are [0 I] (`state_transition`): only the attitude rows mix.
+        let top: [[f64; CORE]; 3] = std::array::from_fn(|r| std::array::from_fn(|c| phi[(r, c)]));
+        for (out, column) in rows
+            .as_mut_slice()
+            .chunks_exact_mut(CORE)
+            .zip(self.p.as_slice().chunks_exact(n))
+        {
+            let x: &[f64; CORE] = column[..CORE].try_into().expect("n >= 6");
+            for (o, row) in out.iter_mut().zip(&top) {
+                *o = row
+                    .iter()
+                    .zip(x)
+                    .fold(0.0, |acc, (a, b)| a.mul_add(*b, acc));
+            }
+            out[3..].copy_from_slice(&x[3..]);
+        }
         let corner = rows.fixed_columns::<6>(0) * phi.transpose() + qd;
         let corner = 0.5 * (corner + corner.transpose());
         self.p.fixed_view_mut::<6, 6>(0, 0).copy_from(&corner);
@@ -387,7 +404,9 @@ impl Filter {
     fn fold_attitude(&mut self) {
         let dx = &mut self.scratch.dx;
         let a = Vector3::new(dx[ATTITUDE], dx[ATTITUDE + 1], dx[ATTITUDE + 2]);
-        self.q = apply_error(&self.q, &a);
+        // One update's correction is small: the series form of the reset
+        // (`apply_small_error`, the exact `apply_error` above 0.1 rad).
+        self.q = apply_small_error(&self.q, &a);
         dx.fixed_rows_mut::<3>(ATTITUDE).fill(0.0);
     }
 
@@ -598,7 +617,7 @@ impl Filter {
         match self.algebra {
             Algebra::Structured => {
                 let gain = nu / spread;
-                for (x, u) in s.dx.iter_mut().zip(&s.u) {
+                for (x, u) in s.dx.as_mut_slice().iter_mut().zip(&s.u) {
                     *x += gain * u;
                 }
                 s.pending.push(&s.u, 1.0 / spread.sqrt());
@@ -616,8 +635,11 @@ impl Filter {
     /// error frames by the correction) is neglected, as usual for the MEKF.
     fn reset(&mut self) -> Result<(), FilterError> {
         let dx = &self.scratch.dx;
+        // The attitude part was folded into q after each accepted update: zero here.
         let a = Vector3::new(dx[ATTITUDE], dx[ATTITUDE + 1], dx[ATTITUDE + 2]);
-        self.q = apply_error(&self.q, &a);
+        if a != Vector3::zeros() {
+            self.q = apply_small_error(&self.q, &a);
+        }
         self.bias += Vector3::new(dx[BIAS], dx[BIAS + 1], dx[BIAS + 2]);
         for i in 0..self.scale.len() {
             self.scale[i] += dx[self.layout.scale(i)];

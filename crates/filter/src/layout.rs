@@ -15,6 +15,7 @@
 //! [`ParameterRole::Estimated`]: pdcal_photodiode::ParameterRole::Estimated
 
 use nalgebra::Vector3;
+use pdcal_attitude::TangentFrame;
 use pdcal_photodiode::{MeasurementModel, ParameterRole};
 
 /// State index of the attitude error `a` (3 states).
@@ -49,6 +50,9 @@ pub struct StateLayout {
     pd_extras: Vec<Vec<usize>>,
     /// Per photodiode, the normal the tangent bases are taken about (its initial value).
     reference_normals: Vec<Vector3<f64>>,
+    /// Per photodiode, the frame of its reference normal, computed once (the part of
+    /// [`pdcal_attitude::tangent_basis_about`] that does not depend on the current normal).
+    reference_frames: Vec<TangentFrame>,
 }
 
 impl StateLayout {
@@ -85,19 +89,23 @@ impl StateLayout {
                     .collect()
             })
             .collect();
+        let reference_normals: Vec<Vector3<f64>> =
+            model.photodiodes().iter().map(|p| p.n_body).collect();
         StateLayout {
             len: next,
             scale,
             normal,
             extras,
             pd_extras,
-            reference_normals: model.photodiodes().iter().map(|p| p.n_body).collect(),
+            reference_frames: reference_normals.iter().map(TangentFrame::about).collect(),
+            reference_normals,
         }
     }
 
     /// Sets the normals the tangent bases are taken about (the filter's initial normals).
     pub fn set_reference_normals(&mut self, normals: &[Vector3<f64>]) {
         self.reference_normals = normals.to_vec();
+        self.reference_frames = normals.iter().map(TangentFrame::about).collect();
     }
 
     /// The tangent basis in which photodiode `i`'s normal correction `(d1, d2)` and its
@@ -107,8 +115,8 @@ impl StateLayout {
     /// mounting direction (the attitude crate's sits on the cube corner -(1,1,1)/sqrt(3),
     /// where the sso-6u scenario mounts a photodiode), scrambling that sensor's covariance.
     pub fn tangent_basis(&self, i: usize, n: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
-        match self.reference_normals.get(i) {
-            Some(r) => pdcal_attitude::tangent_basis_about(n, r),
+        match self.reference_frames.get(i) {
+            Some(frame) => frame.basis_at(n),
             None => pdcal_attitude::tangent_basis(n),
         }
     }
@@ -151,5 +159,51 @@ impl StateLayout {
     /// Largest number of non-zeros in a photodiode's H row.
     pub fn max_row_len(&self) -> usize {
         CORE + self.pd_extras.iter().map(Vec::len).max().unwrap_or(0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Vector3;
+    use pdcal_photodiode::{MeasurementModel, Photodiode};
+
+    use super::*;
+
+    #[test]
+    fn cached_bases_equal_the_attitude_crate_s() {
+        // Reference normals over the sphere (including the cube corners where the global
+        // basis breaks) and current normals tilted from them by up to 60 deg, and the
+        // antipode (the half-turn branch): the same bits as `tangent_basis_about`.
+        let mut refs: Vec<Vector3<f64>> = (0..40)
+            .map(|i| {
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / 40.0;
+                let r = (1.0 - z * z).sqrt();
+                Vector3::new(r * (2.4 * i as f64).cos(), r * (2.4 * i as f64).sin(), z)
+            })
+            .collect();
+        refs.push(Vector3::new(1.0, 1.0, 1.0) * 3.0);
+        refs.push(-Vector3::new(1.0, 1.0, 1.0));
+        let pds = refs
+            .iter()
+            .map(|n| Photodiode::new(1.0, *n, 0.0).expect("valid"))
+            .collect();
+        let layout = StateLayout::new(&MeasurementModel::paper(pds), true);
+        for (i, r) in refs.iter().enumerate() {
+            let r = r.normalize();
+            let (t, _) = pdcal_attitude::tangent_basis(&r);
+            let mut normals = vec![-r];
+            for k in 0..12 {
+                let angle = 1.05 * k as f64 / 11.0;
+                let dir = t * (0.5 * k as f64).cos() + r.cross(&t) * (0.5 * k as f64).sin();
+                normals.push(r * angle.cos() + dir * angle.sin());
+            }
+            for n in &normals {
+                assert_eq!(
+                    layout.tangent_basis(i, n),
+                    pdcal_attitude::tangent_basis_about(n, &refs[i]),
+                    "photodiode {i}"
+                );
+            }
+        }
     }
 }

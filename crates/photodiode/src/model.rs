@@ -81,6 +81,30 @@ impl Partials {
     }
 }
 
+/// The concrete type of a part, where the model knows it (added through
+/// [`MeasurementModel::add_term`] or the named constructors): [`MeasurementModel::partials_into`]
+/// then calls the provided terms directly instead of through the generic loop (same
+/// operations in the same order, so the same numbers).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Known {
+    Sun(DirectSun),
+    Albedo(Albedo),
+    Other,
+}
+
+impl Known {
+    fn of<T: Term + 'static>(term: &T) -> Self {
+        let any: &dyn std::any::Any = term;
+        if let Some(sun) = any.downcast_ref::<DirectSun>() {
+            Known::Sun(*sun)
+        } else if let Some(albedo) = any.downcast_ref::<Albedo>() {
+            Known::Albedo(*albedo)
+        } else {
+            Known::Other
+        }
+    }
+}
+
 /// Photodiodes plus an ordered list of components; output of photodiode `i`:
 ///
 /// ```text
@@ -94,6 +118,8 @@ impl Partials {
 pub struct MeasurementModel {
     photodiodes: Vec<Photodiode>,
     parts: Vec<Part>,
+    /// One entry per part.
+    known: Vec<Known>,
 }
 
 impl MeasurementModel {
@@ -102,13 +128,15 @@ impl MeasurementModel {
         MeasurementModel {
             photodiodes,
             parts: Vec::new(),
+            known: Vec::new(),
         }
     }
 
     /// The cosine model: the direct Sun only, hard-edged shadow (`--base-model cosine`).
     pub fn cosine(photodiodes: Vec<Photodiode>) -> Self {
         let mut model = Self::new(photodiodes);
-        model.parts.push(Part::Term(Box::new(DirectSun::default())));
+        // A new model has no component: adding the first cannot fail.
+        let _ = model.add_term(DirectSun::default());
         model
     }
 
@@ -116,9 +144,10 @@ impl MeasurementModel {
     /// (`--base-model paper`).
     pub fn paper(photodiodes: Vec<Photodiode>) -> Self {
         let mut model = Self::cosine(photodiodes);
-        model.parts.push(Part::Term(Box::new(Albedo {
+        // Ids differ from the direct Sun's: cannot fail.
+        let _ = model.add_term(Albedo {
             partials: AlbedoPartials::Neglected,
-        })));
+        });
         model
     }
 
@@ -150,6 +179,10 @@ impl MeasurementModel {
     /// Appends a component; fails on a duplicate id or a parameter tagged with a photodiode
     /// the model does not have.
     pub fn add(&mut self, part: Part) -> Result<(), PhotodiodeError> {
+        self.add_known(part, Known::Other)
+    }
+
+    fn add_known(&mut self, part: Part, known: Known) -> Result<(), PhotodiodeError> {
         let component = part.component();
         if self.contains(component.id()) {
             return Err(PhotodiodeError::DuplicateComponent {
@@ -166,12 +199,14 @@ impl MeasurementModel {
             return Err(PhotodiodeError::PhotodiodeIndex { index, count });
         }
         self.parts.push(part);
+        self.known.push(known);
         Ok(())
     }
 
     /// Appends an additive term.
     pub fn add_term(&mut self, term: impl Term + 'static) -> Result<(), PhotodiodeError> {
-        self.add(Part::Term(Box::new(term)))
+        let known = Known::of(&term);
+        self.add_known(Part::Term(Box::new(term)), known)
     }
 
     /// Appends a scale gain.
@@ -191,6 +226,7 @@ impl MeasurementModel {
             .iter()
             .position(|p| p.component().id() == id)
             .ok_or_else(|| PhotodiodeError::UnknownComponent { id: id.to_owned() })?;
+        self.known.remove(at);
         Ok(self.parts.remove(at))
     }
 
@@ -340,6 +376,48 @@ impl MeasurementModel {
         scene: &Scene,
         out: &mut Partials,
     ) -> Result<(), PhotodiodeError> {
+        if self.known.iter().all(|k| *k != Known::Other) {
+            return self.known_partials_into(index, scene, out);
+        }
+        self.generic_partials_into(index, scene, out)
+    }
+
+    /// [`MeasurementModel::partials_into`] when every part is a provided term the model
+    /// knows ([`DirectSun`], [`Albedo`]: no gains, stages or parameters): the terms called
+    /// directly, summed in list order as the generic loop does (the gain is the empty
+    /// product 1, an exact factor), so the numbers are the same bits.
+    fn known_partials_into(
+        &self,
+        index: usize,
+        scene: &Scene,
+        out: &mut Partials,
+    ) -> Result<(), PhotodiodeError> {
+        let pd = self.photodiode(index)?;
+        let mut sum = Sensitivity::default();
+        for known in &self.known {
+            let term = match known {
+                Known::Sun(sun) => sun.partials(pd, index, scene, &mut []),
+                Known::Albedo(albedo) => albedo.partials(pd, index, scene, &mut []),
+                Known::Other => Sensitivity::default(),
+            };
+            sum.accumulate(&term);
+        }
+        out.value_v = sum.value_v;
+        out.d_attitude = sum.d_attitude;
+        out.d_scale = sum.d_scale;
+        out.d_normal = sum.d_normal;
+        out.d_parameters.clear();
+        Ok(())
+    }
+
+    /// The generic form of [`MeasurementModel::partials_into`]: every part through its
+    /// trait object.
+    fn generic_partials_into(
+        &self,
+        index: usize,
+        scene: &Scene,
+        out: &mut Partials,
+    ) -> Result<(), PhotodiodeError> {
         let (pd, gain) = self.effective(index, scene)?;
         let scale_v = self.photodiode(index)?.scale_v;
         out.reset(self.parameter_count());
@@ -386,6 +464,17 @@ impl MeasurementModel {
         out.d_normal = sum.d_normal;
         self.chain_stages(index, out);
         Ok(())
+    }
+
+    /// [`MeasurementModel::partials_into`] always through the generic loop over trait
+    /// objects: the reference the direct path of the provided terms is tested against.
+    pub fn partials_into_generic(
+        &self,
+        index: usize,
+        scene: &Scene,
+        out: &mut Partials,
+    ) -> Result<(), PhotodiodeError> {
+        self.generic_partials_into(index, scene, out)
     }
 
     /// Applies the output stages to `out` in order: each stage multiplies every partial so far
