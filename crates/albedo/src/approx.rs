@@ -15,8 +15,12 @@
 //! Measured errors are in the tests and the crate docs.
 
 use nalgebra::{Matrix3, Vector3};
+use wide::f64x4;
 
-use crate::view::{AlbedoIrradiance, AlbedoView, cone_range};
+use crate::lanes::{Lane, dot3, mat_vec};
+#[cfg(test)]
+use crate::view::cone_range;
+use crate::view::{AlbedoIrradiance, AlbedoView};
 
 /// Degree of the moment expansion (and of the kernel polynomial).
 pub const DEGREE: usize = 4;
@@ -193,46 +197,93 @@ impl AlbedoExpansion {
         self.moments[0]
     }
 
-    fn sum_cu(&self) -> Vector3<f64> {
-        Vector3::new(self.moments[1], self.moments[2], self.moments[3])
-    }
-
     /// t-moments S_k = sum c (n.u)^k, k = 0..=DEGREE, and (with `with_vector`) vector
     /// moments V_k = sum c (n.u)^k u, k = 0..DEGREE: the moment tensors contracted with the
     /// monomials of n, degree by degree.
-    fn t_moments(
+    fn t_moments<T: Lane>(
         &self,
-        n: &Vector3<f64>,
+        n: &[T; 3],
         with_vector: bool,
-    ) -> ([f64; DEGREE + 1], [Vector3<f64>; DEGREE]) {
-        let (px, py, pz) = (powers(n.x), powers(n.y), powers(n.z));
-        let mut mono = [0.0; N_MOMENTS];
-        for (m, &(a, b, c, _)) in mono.iter_mut().zip(TERMS.iter()) {
-            *m = px[a] * py[b] * pz[c];
-        }
-        let mut s = [0.0; DEGREE + 1];
-        for (k, sk) in s.iter_mut().enumerate() {
+    ) -> ([T; DEGREE + 1], [[T; 3]; DEGREE]) {
+        let (px, py, pz) = (powers(n[0]), powers(n[1]), powers(n[2]));
+        let mono: [T; N_MOMENTS] = std::array::from_fn(|t| {
+            let (a, b, c, _) = TERMS[t];
+            px[a] * py[b] * pz[c]
+        });
+        let zero = T::splat(0.0);
+        let s = std::array::from_fn(|k| {
             let range = DEGREE_START[k]..DEGREE_START[k + 1];
-            *sk = mono[range.clone()]
+            mono[range.clone()]
                 .iter()
                 .zip(&self.scaled[range])
-                .map(|(m, w)| m * w)
-                .sum();
-        }
-        let mut v = [Vector3::zeros(); DEGREE];
+                .fold(zero, |acc, (m, w)| acc + *m * T::splat(*w))
+        });
+        let mut v = [[zero; 3]; DEGREE];
         if with_vector {
             for (k, vk) in v.iter_mut().enumerate() {
                 let range = DEGREE_START[k]..DEGREE_START[k + 1];
-                let mut sum = [0.0; 3];
                 for (m, w) in mono[range.clone()].iter().zip(&self.scaled_raised[range]) {
-                    for (s, w) in sum.iter_mut().zip(w) {
-                        *s += m * w;
+                    for (s, w) in vk.iter_mut().zip(w) {
+                        *s = *s + *m * T::splat(*w);
                     }
                 }
-                *vk = Vector3::from(sum);
             }
         }
         (s, v)
+    }
+
+    /// Rows of the GCRF to ECEF rotation.
+    fn rotation_rows(&self) -> [[f64; 3]; 3] {
+        let m = &self.gcrf_to_ecef;
+        std::array::from_fn(|r| [m[(r, 0)], m[(r, 1)], m[(r, 2)]])
+    }
+
+    /// Rows of the ECEF to GCRF rotation (the transpose).
+    fn inverse_rows(&self) -> [[f64; 3]; 3] {
+        let m = &self.gcrf_to_ecef;
+        std::array::from_fn(|r| [m[(0, r)], m[(1, r)], m[(2, r)]])
+    }
+
+    /// [`cone_range`] with the norm of `n` and `cos_rho` already known (two square roots
+    /// fewer), per lane.
+    fn cone_range<T: Lane>(&self, n: &[T; 3], n_norm: T) -> (T, T) {
+        let (sin_rho, cos_r) = (T::splat(self.sin_rho), T::splat(self.cos_rho));
+        let nadir = [self.nadir_ecef.x, self.nadir_ecef.y, self.nadir_ecef.z].map(T::splat);
+        let cos_a = (dot3(n, &nadir) / n_norm).clamp_unit();
+        let sin_a = (T::splat(1.0) - cos_a * cos_a).sqrt();
+        let hi = T::ge_select(cos_a, cos_r, T::splat(1.0), cos_a * cos_r + sin_a * sin_rho);
+        let lo = T::ge_select(
+            -cos_r,
+            cos_a,
+            T::splat(-1.0),
+            cos_a * cos_r - sin_a * sin_rho,
+        );
+        (lo * n_norm, hi * n_norm)
+    }
+
+    /// Ratio and vector (ECEF) where the gate cuts the interval `[lo, hi]` of `t = n.u`:
+    /// the kernel's polynomial against the t-moments.
+    fn partial<T: Lane>(
+        &self,
+        n: &[T; 3],
+        lo: T,
+        hi: T,
+        gate: T,
+        with_vector: bool,
+    ) -> (T, [T; 3]) {
+        let (s, v) = self.t_moments(n, with_vector);
+        let (p, q) = fit_on_interval(lo, hi, gate);
+        let zero = T::splat(0.0);
+        let ratio = p.iter().zip(&s).fold(zero, |acc, (pk, sk)| acc + *pk * *sk);
+        let mut vector = [zero; 3];
+        if with_vector {
+            for (qk, vk) in q.iter().zip(&v) {
+                for (out, x) in vector.iter_mut().zip(vk) {
+                    *out = *out + *qk * *x;
+                }
+            }
+        }
+        (ratio, vector)
     }
 
     fn evaluate(
@@ -241,68 +292,58 @@ impl AlbedoExpansion {
         cos_fov: f64,
         with_vector: bool,
     ) -> (f64, Vector3<f64>) {
-        let (ratio, vector_ecef) =
-            self.evaluate_ecef(&(self.gcrf_to_ecef * n_gcrf), cos_fov, with_vector);
-        (
-            ratio,
-            self.gcrf_to_ecef.tr_mul(&vector_ecef).column(0).into(),
-        )
-    }
-
-    /// [`cone_range`] with the norm of `n` and `cos_rho` already known: the same
-    /// operations, two square roots fewer.
-    fn cone_range(&self, n: &Vector3<f64>, n_norm: f64) -> (f64, f64) {
-        let (sin_rho, cos_r) = (self.sin_rho, self.cos_rho);
-        let cos_a = (n.dot(&self.nadir_ecef) / n_norm).clamp(-1.0, 1.0);
-        let sin_a = (1.0 - cos_a * cos_a).sqrt();
-        let hi = if cos_a >= cos_r {
-            1.0
-        } else {
-            cos_a * cos_r + sin_a * sin_rho
-        };
-        let lo = if cos_a <= -cos_r {
-            -1.0
-        } else {
-            cos_a * cos_r - sin_a * sin_rho
-        };
-        let range = (lo * n_norm, hi * n_norm);
-        debug_assert_eq!(range, cone_range(n, &self.nadir_ecef, self.sin_rho));
-        range
-    }
-
-    fn evaluate_ecef(
-        &self,
-        n: &Vector3<f64>,
-        cos_fov: f64,
-        with_vector: bool,
-    ) -> (f64, Vector3<f64>) {
-        let n_norm = n.norm();
+        let n = mat_vec(&self.rotation_rows(), &[n_gcrf.x, n_gcrf.y, n_gcrf.z]);
+        let n_norm = dot3(&n, &n).sqrt();
         if self.moments[0] == 0.0 || n_norm == 0.0 {
             return (0.0, Vector3::zeros());
         }
         let gate = cos_fov.max(0.0);
-        let (lo, hi) = self.cone_range(n, n_norm);
-        if hi <= gate {
+        let (lo, hi) = self.cone_range(&n, n_norm);
+        let (ratio, vector_ecef) = if hi <= gate {
             return (0.0, Vector3::zeros());
-        }
-        if lo >= gate {
-            return (n.dot(&self.sum_cu()), self.sum_cu());
-        }
-        let (s, v) = self.t_moments(n, with_vector);
-        let (p, q) = fit_on_interval(lo, hi, gate);
-        let ratio = p.iter().zip(&s).map(|(pk, sk)| pk * sk).sum();
-        let vector = if with_vector {
-            q.iter().zip(&v).map(|(qk, vk)| *qk * vk).sum()
+        } else if lo >= gate {
+            (dot3(&n, &self.sum_cu()), self.sum_cu())
         } else {
-            Vector3::zeros()
+            self.partial(&n, lo, hi, gate, with_vector)
         };
-        (ratio, vector)
+        (
+            ratio,
+            Vector3::from(mat_vec(&self.inverse_rows(), &vector_ecef)),
+        )
+    }
+
+    /// [`AlbedoIrradiance::ratios_and_vectors`] for four normals at once (one lane each):
+    /// every lane takes the partial-cone path, then each keeps the branch
+    /// [`AlbedoExpansion::evaluate`] would have taken.
+    fn evaluate4(&self, n_gcrf: &[[f64; 4]; 3], cos_fov: f64x4) -> (f64x4, [f64x4; 3]) {
+        let zero = f64x4::splat(0.0);
+        let n = mat_vec(&self.rotation_rows(), &n_gcrf.map(f64x4::new));
+        let n_norm = dot3(&n, &n).sqrt();
+        let gate = cos_fov.max(zero);
+        let (lo, hi) = self.cone_range(&n, n_norm);
+        let (ratio, vector) = self.partial(&n, lo, hi, gate, true);
+        let full = self.sum_cu();
+        let full_ratio = dot3(&n, &full);
+        // lo >= gate: the whole cone in view; hi <= gate (or a zero normal): nothing.
+        let inside = |full: f64x4, part: f64x4| {
+            let value = f64x4::ge_select(lo, gate, full, part);
+            let seen = n_norm.simd_gt(zero) & hi.simd_gt(gate);
+            seen.bitselect(value, zero)
+        };
+        let ratio = inside(full_ratio, ratio);
+        let vector_ecef: [f64x4; 3] = std::array::from_fn(|a| inside(full[a], vector[a]));
+        (ratio, mat_vec(&self.inverse_rows(), &vector_ecef))
+    }
+
+    /// `[S_1, S_2, S_3]` at degree one: the sum of c u (ECEF), per lane.
+    fn sum_cu<T: Lane>(&self) -> [T; 3] {
+        [self.moments[1], self.moments[2], self.moments[3]].map(T::splat)
     }
 }
 
 /// [1, x, x^2, ..., x^DEGREE].
-fn powers(x: f64) -> [f64; DEGREE + 1] {
-    let mut p = [1.0; DEGREE + 1];
+fn powers<T: Lane>(x: T) -> [T; DEGREE + 1] {
+    let mut p = [T::splat(1.0); DEGREE + 1];
     for k in 1..=DEGREE {
         p[k] = p[k - 1] * x;
     }
@@ -312,12 +353,13 @@ fn powers(x: f64) -> [f64; DEGREE + 1] {
 /// Legendre polynomials P_0..P_DEGREE at s, by Bonnet's recursion with the divisions by
 /// `j + 1` done as products with [`RECIPROCALS`] (a division's latency is several
 /// multiplications': the recursion is on the evaluation's critical path).
-fn legendre(s: f64) -> [f64; DEGREE + 1] {
-    let mut p = [0.0; DEGREE + 1];
-    p[0] = 1.0;
+fn legendre<T: Lane>(s: T) -> [T; DEGREE + 1] {
+    let mut p = [T::splat(0.0); DEGREE + 1];
+    p[0] = T::splat(1.0);
     p[1] = s;
     for j in 1..DEGREE {
-        p[j + 1] = ((2 * j + 1) as f64 * s * p[j] - j as f64 * p[j - 1]) * RECIPROCALS[j + 1];
+        p[j + 1] = (T::splat((2 * j + 1) as f64) * s * p[j] - T::splat(j as f64) * p[j - 1])
+            * T::splat(RECIPROCALS[j + 1]);
     }
     p
 }
@@ -350,47 +392,48 @@ const LEGENDRE_MONO: [[f64; DEGREE + 1]; DEGREE + 1] = [
 /// degree [`DEGREE`] for the gated kernel t [t >= gate], and of degree `DEGREE - 1` for the
 /// gate [t >= gate] alone (the vector sums). The integrands are polynomials of degree
 /// <= 2 DEGREE - 1 on [gate, hi], so the 4-point Gauss rule is exact.
-fn fit_on_interval(lo: f64, hi: f64, gate: f64) -> ([f64; DEGREE + 1], [f64; DEGREE]) {
+fn fit_on_interval<T: Lane>(lo: T, hi: T, gate: T) -> ([T; DEGREE + 1], [T; DEGREE]) {
+    let (zero, one, half_c) = (T::splat(0.0), T::splat(1.0), T::splat(0.5));
     // s = alpha + beta t maps [lo, hi] to [-1, 1]; t = (s - alpha) half_width.
-    let inv_width = 1.0 / (hi - lo);
-    let beta = 2.0 * inv_width;
+    let inv_width = one / (hi - lo);
+    let beta = T::splat(2.0) * inv_width;
     let alpha = -(hi + lo) * inv_width;
-    let half_width = 0.5 * (hi - lo);
+    let half_width = half_c * (hi - lo);
     let s_gate = alpha + beta * gate;
     // Legendre coefficients: (2j+1)/2 * integral over [s_gate, 1] of f P_j ds.
-    let half = 0.5 * (1.0 - s_gate);
-    let mut coef_t = [0.0; DEGREE + 1];
-    let mut coef_1 = [0.0; DEGREE + 1];
+    let half = half_c * (one - s_gate);
+    let mut coef_t = [zero; DEGREE + 1];
+    let mut coef_1 = [zero; DEGREE + 1];
     for (x, w) in GAUSS_X.iter().zip(GAUSS_W) {
-        let s = s_gate + half * (x + 1.0);
+        let s = s_gate + half * (T::splat(*x) + one);
         let t = (s - alpha) * half_width;
         let pj = legendre(s);
-        let wh = w * half;
+        let wh = T::splat(w) * half;
         for j in 0..=DEGREE {
-            coef_1[j] += wh * pj[j];
-            coef_t[j] += wh * t * pj[j];
+            coef_1[j] = coef_1[j] + wh * pj[j];
+            coef_t[j] = coef_t[j] + wh * t * pj[j];
         }
     }
     for j in 0..=DEGREE {
-        let norm = (2 * j + 1) as f64 / 2.0;
-        coef_t[j] *= norm;
-        coef_1[j] *= norm;
+        let norm = T::splat((2 * j + 1) as f64 / 2.0);
+        coef_t[j] = coef_t[j] * norm;
+        coef_1[j] = coef_1[j] * norm;
     }
     // alpha^m and beta^m, m = 0..=DEGREE.
     let (pa, pb) = (powers(alpha), powers(beta));
-    let to_t = |coef: &[f64], deg: usize| {
+    let to_t = |coef: &[T], deg: usize| {
         // Series in s -> monomials in s -> monomials in t via
         // s^m = sum C(m,k) alpha^(m-k) beta^k t^k.
-        let mut in_s = [0.0; DEGREE + 1];
+        let mut in_s = [zero; DEGREE + 1];
         for j in 0..=deg {
             for m in 0..=j {
-                in_s[m] += coef[j] * LEGENDRE_MONO[j][m];
+                in_s[m] = in_s[m] + coef[j] * T::splat(LEGENDRE_MONO[j][m]);
             }
         }
-        let mut in_t = [0.0; DEGREE + 1];
+        let mut in_t = [zero; DEGREE + 1];
         for (m, &sm) in in_s.iter().enumerate().take(deg + 1) {
             for (k, tk) in in_t.iter_mut().enumerate().take(m + 1) {
-                *tk += sm * BINOMIAL[m][k] * pa[m - k] * pb[k];
+                *tk = *tk + sm * T::splat(BINOMIAL[m][k]) * pa[m - k] * pb[k];
             }
         }
         in_t
@@ -416,6 +459,35 @@ impl AlbedoIrradiance for AlbedoExpansion {
 
     fn ratio_and_vector(&self, n_gcrf: &Vector3<f64>, cos_fov: f64) -> (f64, Vector3<f64>) {
         self.evaluate(n_gcrf, cos_fov, true)
+    }
+
+    /// Four normals per pass ([`AlbedoExpansion::evaluate4`]); the last pass repeats its
+    /// final normal in the unused lanes.
+    fn ratios_and_vectors(
+        &self,
+        normals_gcrf: &[Vector3<f64>],
+        cos_fov: &[f64],
+        out: &mut [(f64, Vector3<f64>)],
+    ) {
+        let count = normals_gcrf.len().min(cos_fov.len()).min(out.len());
+        if self.moments[0] == 0.0 {
+            out[..count].fill((0.0, Vector3::zeros()));
+            return;
+        }
+        for start in (0..count).step_by(4) {
+            let lane = |l: usize| (start + l).min(count - 1);
+            let n: [[f64; 4]; 3] =
+                std::array::from_fn(|a| std::array::from_fn(|l| normals_gcrf[lane(l)][a]));
+            let gate = f64x4::new(std::array::from_fn(|l| cos_fov[lane(l)]));
+            let (ratio, vector) = self.evaluate4(&n, gate);
+            let (ratio, vector) = (ratio.to_array(), vector.map(|v| v.to_array()));
+            for (l, slot) in out[start..count.min(start + 4)].iter_mut().enumerate() {
+                *slot = (
+                    ratio[l],
+                    Vector3::new(vector[0][l], vector[1][l], vector[2][l]),
+                );
+            }
+        }
     }
 }
 
@@ -554,20 +626,22 @@ mod tests {
             let r = (1.0 - z * z).sqrt();
             let n = Vector3::new(r * (2.4 * i as f64).cos(), r * (2.4 * i as f64).sin(), z);
             let (lo, hi) = cone_range(&n, &e.nadir_ecef, e.sin_rho);
-            // The cached form is the same operations: the same bits.
-            assert_eq!(e.cone_range(&n, n.norm()), (lo, hi));
+            // The cached form is the same operations up to the dot product's grouping.
+            let fast = e.cone_range(&[n.x, n.y, n.z], n.norm());
+            assert!((fast.0 - lo).abs() < 1e-15 && (fast.1 - hi).abs() < 1e-15);
             for gate in [0.0, 0.5] {
                 if lo >= gate || hi <= gate {
                     continue;
                 }
-                let (s, v) = e.t_moments(&n, true);
+                let (s, v) = e.t_moments(&[n.x, n.y, n.z], true);
+                let v = v.map(Vector3::from);
                 let (s0, v0) = reference::t_moments(&e, &n);
                 let (p, q) = fit_on_interval(lo, hi, gate);
                 let p0 = reference::fit(lo, hi, gate, |t| t, DEGREE);
                 let q0 = reference::fit(lo, hi, gate, |_| 1.0, DEGREE - 1);
                 let ratio: f64 = p.iter().zip(&s).map(|(a, b)| a * b).sum();
                 let ratio0: f64 = p0.iter().zip(&s0).map(|(a, b)| a * b).sum();
-                let vector: Vector3<f64> = q.iter().zip(&v).map(|(a, b)| *a * b).sum();
+                let vector: Vector3<f64> = q.iter().zip(&v).map(|(a, b)| b * *a).sum();
                 let vector0: Vector3<f64> = q0.iter().zip(&v0).map(|(a, b)| *a * b).sum();
                 // Relative to the full-disc sums (the scale of every result).
                 worst = worst.max((ratio - ratio0).abs() / e.moments[0]);

@@ -76,6 +76,7 @@
 //! (runs of at most one tile width, and the compaction of lit cells, defeated it).
 
 mod approx;
+mod lanes;
 mod map;
 mod model;
 mod view;
@@ -86,4 +87,4 @@ pub use model::{
     AU_KM, AlbedoError, AlbedoModel, CellAreas, REQ_EARTH_KM, RP_EARTH_KM, TILE_COLS, TILE_ROWS,
     authalic_latitude, authalic_radius_km,
 };
-pub use view::{AlbedoIrradiance, AlbedoView};
+pub use view::{AlbedoIrradiance, AlbedoView, LinearAlbedo};

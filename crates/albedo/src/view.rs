@@ -27,6 +27,50 @@ pub trait AlbedoIrradiance {
             *slot = self.ratio(n, cf);
         }
     }
+
+    /// [`AlbedoIrradiance::ratio_and_vector`] for many sensors, the same way as
+    /// [`AlbedoIrradiance::ratios`]. Independent evaluations in one call: an implementation
+    /// (or the CPU, overlapping them) need not wait for one to finish before the next.
+    fn ratios_and_vectors(
+        &self,
+        normals_gcrf: &[Vector3<f64>],
+        cos_fov: &[f64],
+        out: &mut [(f64, Vector3<f64>)],
+    ) {
+        for ((n, &cf), slot) in normals_gcrf.iter().zip(cos_fov).zip(out.iter_mut()) {
+            *slot = self.ratio_and_vector(n, cf);
+        }
+    }
+}
+
+/// One sensor's albedo linearised about a normal `n0_gcrf`: `ratio(n) = ratio0 + v . (n -
+/// n0)` with `v` the gradient there ([`AlbedoIrradiance::ratio_and_vector`]), the gate held
+/// as it was at `n0` (its `cos_fov` argument is ignored).
+///
+/// A filter evaluates the albedo once per step at the prior attitude and normals, in one
+/// batch, and uses this inside the step's sequential updates, where the attitude moves by
+/// the updates' small corrections only. For the Lambertian sum the ratio is linear in `n`
+/// while no cell crosses the sensor's gate; cells crossing it change the sum by at most
+/// `c |n.u|` each: measured, 5.7e-6 of the full-disc sum for a 1e-3 rad turn and 3.8e-7 for
+/// 1e-4 rad (test `linearised_albedo_follows_the_full_model`).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LinearAlbedo {
+    /// Normal of the linearisation, GCRF.
+    pub n0_gcrf: Vector3<f64>,
+    /// Ratio at `n0_gcrf`.
+    pub ratio0: f64,
+    /// Gradient of the ratio with respect to the normal at `n0_gcrf`, GCRF.
+    pub vector_gcrf: Vector3<f64>,
+}
+
+impl AlbedoIrradiance for LinearAlbedo {
+    fn ratio(&self, n_gcrf: &Vector3<f64>, _cos_fov: f64) -> f64 {
+        self.ratio0 + self.vector_gcrf.dot(&(n_gcrf - self.n0_gcrf))
+    }
+
+    fn ratio_and_vector(&self, n_gcrf: &Vector3<f64>, cos_fov: f64) -> (f64, Vector3<f64>) {
+        (self.ratio(n_gcrf, cos_fov), self.vector_gcrf)
+    }
 }
 
 /// The lit cells seen by the satellite at one step: unit directions u from the satellite to
@@ -196,7 +240,8 @@ impl Gate {
 }
 
 /// Smallest and largest n.u over the unit vectors u within angle rho (sin rho = `sin_rho`) of
-/// `nadir`, times |n|.
+/// `nadir`, times |n| (the reference of the expansion's own, faster form).
+#[cfg(test)]
 pub(crate) fn cone_range(n: &Vector3<f64>, nadir: &Vector3<f64>, sin_rho: f64) -> (f64, f64) {
     let n_norm = n.norm();
     let cos_a = (n.dot(nadir) / n_norm).clamp(-1.0, 1.0);

@@ -128,3 +128,46 @@ fn expansion_is_exact_when_the_gate_holds_for_the_whole_disc() {
     assert!((expansion.ratio(&nadir, 0.0) / view.ratio(&nadir, 0.0) - 1.0).abs() < 1e-13);
     assert_eq!(expansion.ratio(&-nadir, 0.0), 0.0);
 }
+
+/// The batch evaluation (four normals per pass) gives every normal the single evaluation's
+/// bits: the same operations on each lane, and the branch the single evaluation takes
+/// (whole disc in view, none, cut by the gate, zero normal), with mixed fields of view in
+/// one batch and batch lengths that leave lanes unused.
+#[test]
+fn batch_evaluation_equals_single_evaluations() {
+    let model = AlbedoModel::from_choice(&MapChoice::TomsMean1p25x1).unwrap();
+    let mut rng = StdRng::seed_from_u64(17);
+    let mut view = AlbedoView::new();
+    let mut branches = [0usize; 3];
+    for _ in 0..20 {
+        let rot: Matrix3<f64> =
+            Rotation3::new(random_unit(&mut rng) * rng.random::<f64>() * PI).into_inner();
+        let sun = random_unit(&mut rng);
+        let sat = (sun + 0.9 * random_unit(&mut rng)).normalize();
+        let r_sat = sat * (authalic_radius_km() + 400.0 + 450.0 * rng.random::<f64>());
+        model
+            .compute_into(&mut view, &r_sat, &(sun * AU_KM), &rot)
+            .unwrap();
+        let expansion = AlbedoExpansion::from_view(&view);
+        let count = 1 + (rng.random::<f64>() * 17.0) as usize;
+        let mut normals: Vec<Vector3<f64>> = (0..count).map(|_| random_unit(&mut rng)).collect();
+        normals[0] = Vector3::zeros();
+        let cos_fov: Vec<f64> = (0..count).map(|k| [0.0, 0.5, -1.0][k % 3]).collect();
+        let mut batch = vec![(f64::NAN, Vector3::zeros()); count];
+        expansion.ratios_and_vectors(&normals, &cos_fov, &mut batch);
+        for ((n, &cf), got) in normals.iter().zip(&cos_fov).zip(&batch) {
+            let want = expansion.ratio_and_vector(n, cf);
+            assert_eq!(*got, want, "normal {n:?}, cos_fov {cf}");
+            let k = if want.0 == 0.0 {
+                0
+            } else if (want.0 - n.dot(&want.1)).abs() < 1e-15 {
+                1
+            } else {
+                2
+            };
+            branches[k] += 1;
+        }
+    }
+    // Every branch was exercised (none, whole disc, cut by the gate).
+    assert!(branches.iter().all(|&b| b > 0), "{branches:?}");
+}

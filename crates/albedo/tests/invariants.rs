@@ -9,8 +9,8 @@ use common::random_unit;
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use pdcal_albedo::{
-    AU_KM, AlbedoError, AlbedoIrradiance, AlbedoModel, AlbedoView, MapChoice, TILE_COLS,
-    authalic_radius_km,
+    AU_KM, AlbedoError, AlbedoIrradiance, AlbedoModel, AlbedoView, LinearAlbedo, MapChoice,
+    TILE_COLS, authalic_radius_km,
 };
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
@@ -259,4 +259,50 @@ fn bad_inputs_are_typed_errors() {
         .compute_into(&mut view, &(r_sat * 0.5), &r_sun, &id)
         .unwrap();
     assert!(view.is_empty());
+}
+
+/// A [`LinearAlbedo`] about `n0` reproduces the full model there, and follows it closely
+/// while the normal turns by the small corrections of a filter step. Measured (seed 5,
+/// 400 normals, gate at 90 deg): worst 5.7e-6 of the full-disc sum at 1e-3 rad and 3.8e-7
+/// at 1e-4 rad. Between first and second order: cells crossing the gate each change the sum
+/// by at most `c |n.u|` (first order, small weights), the curvature where the gate cuts the
+/// disc adds the second-order part. In volts, 5.7e-6 of a 0.3 disc sum times C = 3.7 V is
+/// 6e-6 V, 4e-4 of the photodiode noise. Bounds: 3x the measured values.
+#[test]
+fn linearised_albedo_follows_the_full_model() {
+    let model = toms();
+    let mut rng = StdRng::seed_from_u64(5);
+    let mut view = AlbedoView::new();
+    let (mut worst_3, mut worst_4) = (0.0f64, 0.0f64);
+    for _ in 0..20 {
+        let sun = random_unit(&mut rng);
+        let sat = (sun + 0.9 * random_unit(&mut rng)).normalize();
+        let r_sat = sat * (authalic_radius_km() + 600.0);
+        model
+            .compute_into(&mut view, &r_sat, &(sun * AU_KM), &Matrix3::identity())
+            .unwrap();
+        let scale = view.max_ratio();
+        if scale < 0.02 {
+            continue;
+        }
+        for _ in 0..20 {
+            let n0 = random_unit(&mut rng);
+            let (ratio0, vector_gcrf) = view.ratio_and_vector(&n0, 0.0);
+            let linear = LinearAlbedo {
+                n0_gcrf: n0,
+                ratio0,
+                vector_gcrf,
+            };
+            assert_eq!(linear.ratio_and_vector(&n0, 0.0), (ratio0, vector_gcrf));
+            let axis = random_unit(&mut rng);
+            for (angle, worst) in [(1e-3, &mut worst_3), (1e-4, &mut worst_4)] {
+                let n = Rotation3::new(axis * angle) * n0;
+                let error = (linear.ratio(&n, 0.0) - view.ratio(&n, 0.0)).abs() / scale;
+                *worst = worst.max(error);
+            }
+        }
+    }
+    eprintln!("linearised albedo: worst {worst_3:e} at 1e-3 rad, {worst_4:e} at 1e-4 rad");
+    assert!(worst_3 < 2e-5, "1e-3 rad: {worst_3:e}");
+    assert!(worst_4 < 1.2e-6, "1e-4 rad: {worst_4:e}");
 }

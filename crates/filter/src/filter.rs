@@ -3,6 +3,7 @@
 //! magnetometer) and the multiplicative reset.
 
 use nalgebra::{DMatrix, DVector, Dyn, Matrix2, Matrix3, Matrix6, OMatrix, U6, Vector3};
+use pdcal_albedo::LinearAlbedo;
 use pdcal_attitude::mekf::{apply_small_error, process_noise, state_transition};
 use pdcal_attitude::{GyroNoise, Quat, rotate_normal_in, skew};
 use pdcal_photodiode::{AlbedoIrradiance, MeasurementModel, Partials, Scene};
@@ -188,6 +189,20 @@ struct Scratch {
     pending: Pending,
     /// `-W[idx, :]^T h` of the current update.
     w_dot_h: Vec<f64>,
+    /// This step's albedo per photodiode, linearised at the prior ([`Filter::linearise_albedo`]).
+    albedo: AlbedoScratch,
+}
+
+/// The step's albedo evaluations: the photodiodes that may be updated, their normals in
+/// GCRF at the attitude before the photodiode updates, and the results.
+#[derive(Default)]
+struct AlbedoScratch {
+    index: Vec<usize>,
+    normals_gcrf: Vec<Vector3<f64>>,
+    cos_fov: Vec<f64>,
+    results: Vec<(f64, Vector3<f64>)>,
+    /// Per photodiode; `None` where not evaluated this step.
+    linear: Vec<Option<LinearAlbedo>>,
 }
 
 impl Filter {
@@ -268,6 +283,13 @@ impl Filter {
                 cal_noise: DVector::zeros(n),
                 pending: Pending::new(n, 3 + m),
                 w_dot_h: Vec::with_capacity(3 + m),
+                albedo: AlbedoScratch {
+                    index: Vec::with_capacity(m),
+                    normals_gcrf: Vec::with_capacity(m),
+                    cos_fov: Vec::with_capacity(m),
+                    results: Vec::with_capacity(m),
+                    linear: vec![None; m],
+                },
             },
             layout,
             model,
@@ -494,6 +516,9 @@ impl Filter {
         albedo: Option<&dyn AlbedoIrradiance>,
     ) -> Result<bool, FilterError> {
         let lit = reference.sun_fraction >= self.noise.min_sun_fraction;
+        if lit && let Some(albedo) = albedo {
+            self.linearise_albedo(pd_v, reference, albedo);
+        }
         let mut any = false;
         for (i, sample) in pd_v.iter().enumerate() {
             let counts = &mut self.counts.photodiode;
@@ -516,13 +541,19 @@ impl Filter {
                 counts.outside_fov += 1;
                 continue;
             }
+            // The step's linearised albedo; a photodiode that entered the field of view
+            // through this step's attitude corrections evaluates the provider itself.
+            let linear = self.scratch.albedo.linear[i];
             let scene = Scene {
                 attitude,
                 sun_body,
                 sun_fraction: reference.sun_fraction,
                 rate_body_rad_s: self.rate_est,
                 t_s,
-                albedo,
+                albedo: match &linear {
+                    Some(l) => Some(l as &dyn AlbedoIrradiance),
+                    None => albedo,
+                },
             };
             self.model
                 .partials_into(i, &scene, &mut self.scratch.partials)?;
@@ -543,6 +574,48 @@ impl Filter {
             any |= accepted;
         }
         Ok(any)
+    }
+
+    /// Evaluates the albedo of every photodiode this step may update (sampled, in use,
+    /// inside the field of view at the attitude before the photodiode updates) in one batch
+    /// call, and keeps each as a [`LinearAlbedo`] about that attitude: the sequential updates
+    /// move the attitude by their small corrections only, which the linearisation follows to
+    /// first order. One call lets the provider (or the CPU) work on the photodiodes
+    /// together instead of one per update, in the updates' serial chain.
+    fn linearise_albedo(
+        &mut self,
+        pd_v: &[Option<f64>],
+        reference: &StepReference,
+        albedo: &dyn AlbedoIrradiance,
+    ) {
+        let attitude = self.q.attitude_matrix();
+        let sun_body = attitude * reference.sun_gcrf_unit;
+        let a = &mut self.scratch.albedo;
+        a.index.clear();
+        a.normals_gcrf.clear();
+        a.cos_fov.clear();
+        a.linear.fill(None);
+        for (i, sample) in pd_v.iter().enumerate() {
+            let wanted = sample.is_some()
+                && self.used[i]
+                && self.scale[i] > 0.0
+                && self.normal[i].dot(&sun_body) >= self.noise.cos_fov;
+            if wanted {
+                a.index.push(i);
+                a.normals_gcrf.push(attitude.tr_mul(&self.normal[i]));
+                a.cos_fov.push(self.model.photodiodes()[i].cos_fov());
+            }
+        }
+        a.results.clear();
+        a.results.resize(a.index.len(), (0.0, Vector3::zeros()));
+        albedo.ratios_and_vectors(&a.normals_gcrf, &a.cos_fov, &mut a.results);
+        for ((&i, n0), &(ratio0, vector)) in a.index.iter().zip(&a.normals_gcrf).zip(&a.results) {
+            a.linear[i] = Some(LinearAlbedo {
+                n0_gcrf: *n0,
+                ratio0,
+                vector_gcrf: vector,
+            });
+        }
     }
 
     /// The sparse H row of photodiode `i` from the model's partials: Eq. (20) for `a`,
