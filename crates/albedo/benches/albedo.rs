@@ -112,6 +112,22 @@ fn benches(c: &mut Criterion) {
             black_box(out[0])
         })
     });
+    // What the filter calls once per step: ratio and gradient for all 17, four per pass.
+    let mut with_vectors = vec![(0.0, Vector3::zeros()); s.normals.len()];
+    c.bench_function("albedo_approx_batch_vectors_17pd", |b| {
+        b.iter(|| {
+            expansion.ratios_and_vectors(black_box(&s.normals), &s.cos_fov, &mut with_vectors);
+            black_box(with_vectors[0].0)
+        })
+    });
+    c.bench_function("albedo_approx_single_vectors_17pd", |b| {
+        b.iter(|| {
+            for ((n, &cf), slot) in s.normals.iter().zip(&s.cos_fov).zip(&mut with_vectors) {
+                *slot = expansion.ratio_and_vector(black_box(n), cf);
+            }
+            black_box(with_vectors[0].0)
+        })
+    });
     let mut coarse_view = AlbedoView::with_capacity(512);
     c.bench_function("albedo_approx_coarse_17pd", |b| {
         b.iter(|| {
