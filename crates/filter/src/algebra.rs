@@ -8,19 +8,23 @@
 //! general kernels pay per-call overhead at this size) and nalgebra's `gemm`
 //! (matrixmultiply) allocates its packing buffers per call.
 //!
-//! `W` is stored with a leading dimension of at least `n + ROW_BLOCK` (the pad rows are
-//! zero), so that a register tile of rows starting anywhere below `n` loads whole vectors
-//! of `W` without masks.
+//! `W` is stored with a leading dimension of at least `n + ROW_BLOCK`, a multiple of the
+//! cache line, each column starting on a line (whole-vector loads from row 0 do not
+//! straddle two lines), so that a register tile of rows starting anywhere below `n` loads
+//! whole vectors of `W` without masks.
 //!
 //! The kernels are written so that LLVM sees fixed trip counts and whole-vector loads in
 //! every inner loop: a `P` column is not padded (it belongs to the public `DMatrix`), so
 //! [`sparse_times`] covers its last rows with one vector ending at row `n` (overlapping the
 //! one before it, whose rows it recomputes with the same operations, hence the same bits)
-//! instead of a masked load.
+//! instead of a masked load; the downdate loads and stores the last vector of a column
+//! with a mask once per tile, outside its inner loop (a bounce buffer there cost a
+//! store-forwarding stall per vector). The mirror transposes 4 x 4 blocks in AVX2
+//! registers.
 
 use pulp::{Simd, WithSimd};
 
-/// Rows per register tile at most (two AVX-512 vectors): `W`'s pad is at least this.
+/// Rows of `W` past `n` at least (and the multiple [`padded`] rounds to).
 pub(crate) const ROW_BLOCK: usize = 16;
 
 /// Columns of `P` per register tile.
@@ -31,13 +35,17 @@ pub(crate) fn padded(n: usize) -> usize {
     n.div_ceil(ROW_BLOCK) * ROW_BLOCK
 }
 
+/// Doubles per 64-byte cache line.
+const LINE: usize = 8;
+
 /// The pending rank-1 downdates `w_l` (columns of `W`, padded leading dimension).
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub(crate) struct Pending {
     n: usize,
     ld: usize,
-    /// Columns of `W` at `l * ld`, plus one zero column past the last (so that every
-    /// column can be read from any row offset below `ld`, see [`apply_pending`]).
+    /// Columns of `W` at `l * ld` from the first cache-line boundary in the buffer (see
+    /// [`Pending::w`]), plus one zero column past the last (so that every column can be
+    /// read from any row offset below `ld`, see [`apply_pending`]).
     data: Vec<f64>,
     capacity: usize,
     count: usize,
@@ -54,11 +62,23 @@ impl Pending {
         Pending {
             n,
             ld,
-            data: vec![0.0; ld * (capacity + 1)],
+            data: vec![0.0; ld * (capacity + 1) + LINE],
             capacity,
             count: 0,
             diag: vec![0.0; n],
         }
+    }
+
+    /// The columns of `W` (`ld` a multiple of [`LINE`]: each starts on a cache line, so
+    /// that whole-vector loads from row 0 do not straddle two).
+    fn w(&self) -> &[f64] {
+        &self.data[line_offset(&self.data)..]
+    }
+
+    /// [`Pending::w`], mutable.
+    fn w_mut(&mut self) -> &mut [f64] {
+        let offset = line_offset(&self.data);
+        &mut self.data[offset..]
     }
 
     /// Number of pending columns.
@@ -79,7 +99,8 @@ impl Pending {
             self.grow();
         }
         let (n, l) = (self.n, self.count);
-        let column = &mut self.data[l * self.ld..][..n];
+        let offset = line_offset(&self.data) + l * self.ld;
+        let column = &mut self.data[offset..][..n];
         for ((w, x), d) in column.iter_mut().zip(&u[..n]).zip(&mut self.diag) {
             *w = scale * x;
             *d += *w * *w;
@@ -90,19 +111,23 @@ impl Pending {
     /// Doubles the capacity, keeping the pending columns.
     fn grow(&mut self) {
         self.capacity *= 2;
-        self.data.resize(self.ld * (self.capacity + 1), 0.0);
-    }
-
-    /// Row `i` of `W` over the pending columns, one column per item (a strided walk).
-    fn row(&self, i: usize) -> impl Iterator<Item = f64> + '_ {
-        self.data[i..i + self.count * self.ld]
-            .chunks_exact(self.ld)
-            .map(|column| column[0])
+        // A new buffer: its offset to a cache line may differ from the old one's.
+        let mut data = vec![0.0; self.ld * (self.capacity + 1) + LINE];
+        let (offset, used) = (line_offset(&data), self.count * self.ld);
+        data[offset..][..used].copy_from_slice(&self.w()[..used]);
+        self.data = data;
     }
 
     /// `sum_l W[i, l]^2`: the pending share of `P[i, i]`.
     pub(crate) fn diagonal(&self, i: usize) -> f64 {
         self.diag[i]
+    }
+
+    /// Row `i` of `W` over the pending columns, one column per item (a strided walk).
+    fn row(&self, i: usize) -> impl Iterator<Item = f64> + '_ {
+        self.w()[i..i + self.count * self.ld]
+            .chunks_exact(self.ld)
+            .map(|column| column[0])
     }
 
     /// `c = -W[idx, :]^T val` (one entry per pending column), summed in `idx` order.
@@ -115,6 +140,26 @@ impl Pending {
                 *cl -= v * w;
             }
         }
+    }
+}
+
+/// The first index of `data` on a cache-line boundary (0 if the platform says none).
+fn line_offset(data: &[f64]) -> usize {
+    let offset = data.as_ptr().align_offset(LINE * size_of::<f64>());
+    if offset < LINE { offset } else { 0 }
+}
+
+impl Clone for Pending {
+    /// A copy with its own offset to a cache line.
+    fn clone(&self) -> Self {
+        let mut copy = Pending {
+            data: vec![0.0; self.data.len()],
+            diag: self.diag.clone(),
+            ..*self
+        };
+        let used = self.count * self.ld;
+        copy.w_mut()[..used].copy_from_slice(&self.w()[..used]);
+        copy
     }
 }
 
@@ -135,7 +180,7 @@ pub(crate) fn sparse_times(
         columns: Columns {
             p,
             n,
-            w: &pending.data[..c.len() * pending.ld],
+            w: &pending.w()[..c.len() * pending.ld],
             ld: pending.ld,
             idx,
             val,
@@ -299,160 +344,185 @@ struct LowerDowndate<'a> {
 impl WithSimd for LowerDowndate<'_> {
     type Output = ();
 
-    /// Column blocks of [`COL_BLOCK`]; in each, tiles of two vectors of rows from the
-    /// diagonal down. Whole tiles load and store `P` directly; the tiles at the bottom edge
-    /// or the last column block go through a buffer.
+    /// Column blocks of [`COL_BLOCK`]; in each, the vectors of rows from the diagonal down
+    /// split evenly into tiles of at most [`TILE_VECTORS`] (so that only the last vector of
+    /// a block reaches past row `n`, and no tile is mostly past it).
     #[inline(always)]
     fn with_simd<S: Simd>(self, simd: S) {
         let LowerDowndate { p, pending } = self;
-        let (n, ld, k) = (pending.n, pending.ld, pending.count);
-        let tile_rows = 2 * S::F64_LANES;
+        let (n, lanes) = (pending.n, S::F64_LANES);
         let mut j0 = 0;
         while j0 < n {
             let jb = (n - j0).min(COL_BLOCK);
-            // The 4 entries of W's rows j0.. in each pending column.
-            let cols = pending.data[j0..j0 + k * ld].chunks_exact(ld);
-            let mut i = j0;
-            while i < n {
-                // The two vectors of W's rows i.. in each pending column (the extra zero
-                // column of `data` keeps the last one whole).
-                let rows = pending.data[i..i + k * ld].chunks_exact(ld);
+            let vectors = (n - j0).div_ceil(lanes);
+            let tiles = vectors.div_ceil(TILE_VECTORS);
+            let mut done = 0;
+            for t in 0..tiles {
+                let size = (vectors - done).div_ceil(tiles - t);
                 let tile = Tile {
                     p: &mut *p,
-                    n,
-                    i,
+                    pending,
+                    i: j0 + done * lanes,
                     j0,
+                    jb,
                 };
-                if jb == COL_BLOCK && i + tile_rows <= n {
-                    tile.whole(simd, rows, cols.clone());
-                } else {
-                    tile.edge(simd, rows, cols.clone(), jb);
+                match size {
+                    1 => tile.downdate::<S, 1>(simd),
+                    2 => tile.downdate::<S, 2>(simd),
+                    3 => tile.downdate::<S, 3>(simd),
+                    _ => unreachable!("tiles are 1 to TILE_VECTORS vectors"),
                 }
-                i += tile_rows;
+                done += size;
             }
             j0 += jb;
         }
     }
 }
 
-/// A register tile of `P`: rows `i..i + 2 lanes`, columns `j0..j0 + 4` (clipped to `n`
-/// at the edges).
+/// Vectors of rows per downdate tile at most: 3 x [`COL_BLOCK`] accumulators, 3 loads and
+/// 4 broadcasts per 12 FMAs (AVX2 has the 16 registers that takes). The tile shape hardly
+/// matters at AVX-512 (the FMA count does: 2 x 8, 4 x 4 and 3 x 8 tiles measured the same
+/// within noise).
+const TILE_VECTORS: usize = 3;
+
+/// A register tile of `P`: `B` vectors of rows from `i` (clipped to `n`), columns
+/// `j0..j0 + jb`.
 struct Tile<'a> {
     p: &'a mut [f64],
-    n: usize,
+    pending: &'a Pending,
     i: usize,
     j0: usize,
+    jb: usize,
 }
 
 impl Tile<'_> {
-    /// A tile wholly inside `P`.
+    /// `P[i.., j0..] -= W[i.., :] W[j0.., :]^T`: loads, `k` rank-1 steps in registers,
+    /// stores. Vectors reaching past row `n` are loaded and stored partially (masked).
     #[inline(always)]
-    fn whole<'w, S: Simd>(
-        self,
-        simd: S,
-        rows: impl Iterator<Item = &'w [f64]>,
-        cols: impl Iterator<Item = &'w [f64]>,
-    ) {
-        let Tile { p, n, i, j0 } = self;
-        let lanes = S::F64_LANES;
+    fn downdate<S: Simd, const B: usize>(self, simd: S) {
+        let Tile {
+            p,
+            pending,
+            i,
+            j0,
+            jb,
+        } = self;
+        let (n, ld, k, lanes) = (pending.n, pending.ld, pending.count, S::F64_LANES);
         let zero = simd.splat_f64s(0.0);
-        let (mut a, mut b) = ([zero; COL_BLOCK], [zero; COL_BLOCK]);
-        for c in 0..COL_BLOCK {
-            let column = S::as_simd_f64s(&p[(j0 + c) * n + i..][..2 * lanes]).0;
-            (a[c], b[c]) = (column[0], column[1]);
-        }
-        downdate_tile(simd, rows, cols, &mut a, &mut b);
-        for c in 0..COL_BLOCK {
-            let column = S::as_mut_simd_f64s(&mut p[(j0 + c) * n + i..][..2 * lanes]).0;
-            (column[0], column[1]) = (a[c], b[c]);
-        }
-    }
-
-    /// A tile at the bottom edge or in the last column block (`jb` columns), through a
-    /// buffer.
-    #[inline(always)]
-    fn edge<'w, S: Simd>(
-        self,
-        simd: S,
-        rows: impl Iterator<Item = &'w [f64]>,
-        cols: impl Iterator<Item = &'w [f64]>,
-        jb: usize,
-    ) {
-        let Tile { p, n, i, j0 } = self;
-        let lanes = S::F64_LANES;
-        let end = (i + 2 * lanes).min(n);
-        let zero = simd.splat_f64s(0.0);
-        let (mut a, mut b) = ([zero; COL_BLOCK], [zero; COL_BLOCK]);
-        let mut buffer = [0.0; 2 * ROW_BLOCK];
-        for c in 0..jb {
-            buffer[..end - i].copy_from_slice(&p[(j0 + c) * n + i..(j0 + c) * n + end]);
-            let v = S::as_simd_f64s(&buffer[..2 * lanes]).0;
-            (a[c], b[c]) = (v[0], v[1]);
-        }
-        downdate_tile(simd, rows, cols, &mut a, &mut b);
-        for c in 0..jb {
-            let v = S::as_mut_simd_f64s(&mut buffer[..2 * lanes]).0;
-            (v[0], v[1]) = (a[c], b[c]);
-            p[(j0 + c) * n + i..(j0 + c) * n + end].copy_from_slice(&buffer[..end - i]);
-        }
-    }
-}
-
-/// `[a b] -= w[i..i + 2 lanes] w[j0..j0 + 4]^T` summed over the pending columns, with
-/// `rows` yielding each column from row `i` and `cols` from row `j0`.
-#[inline(always)]
-fn downdate_tile<'w, S: Simd>(
-    simd: S,
-    rows: impl Iterator<Item = &'w [f64]>,
-    cols: impl Iterator<Item = &'w [f64]>,
-    a: &mut [S::f64s; COL_BLOCK],
-    b: &mut [S::f64s; COL_BLOCK],
-) {
-    let lanes = S::F64_LANES;
-    for (w_rows, w_cols) in rows.zip(cols) {
-        let v = S::as_simd_f64s(&w_rows[..2 * lanes]).0;
-        let (wa, wb) = (v[0], v[1]);
-        // Columns past n read the zero pad: harmless, never stored.
-        let w_cols = &w_cols[..COL_BLOCK];
-        for c in 0..COL_BLOCK {
-            let s = simd.splat_f64s(w_cols[c]);
-            a[c] = simd.negate_mul_add_f64s(wa, s, a[c]);
-            b[c] = simd.negate_mul_add_f64s(wb, s, b[c]);
-        }
-    }
-}
-
-/// Copies the strict lower triangle of the `n x n` column-major `p` onto the upper, four
-/// columns at a time: rows `j..j + 4` of each earlier column (contiguous) go to row `i` of
-/// columns `j..j + 4`.
-fn mirror_lower(p: &mut [f64], n: usize) {
-    let mut j = 0;
-    while j + 4 <= n {
-        let (left, right) = p.split_at_mut(j * n);
-        let (c0, right) = right.split_at_mut(n);
-        let (c1, right) = right.split_at_mut(n);
-        let (c2, c3) = right.split_at_mut(n);
-        let targets = c0[..j]
-            .iter_mut()
-            .zip(&mut c1[..j])
-            .zip(&mut c2[..j])
-            .zip(&mut c3[..j]);
-        for (source, (((d0, d1), d2), d3)) in left.chunks_exact(n).zip(targets) {
-            let s = &source[j..j + 4];
-            (*d0, *d1, *d2, *d3) = (s[0], s[1], s[2], s[3]);
-        }
-        // The strict upper part of the 4 x 4 diagonal block.
-        for c in 1..4 {
-            for r in 0..c {
-                p[(j + c) * n + j + r] = p[(j + r) * n + j + c];
+        let mut acc = [[zero; B]; COL_BLOCK];
+        // Whole vectors only (all tiles but the last of a column block): one slice each.
+        let inside = i + B * lanes <= n;
+        for (c, a) in acc.iter_mut().enumerate().take(jb) {
+            let column = &p[(j0 + c) * n..][..n];
+            if inside {
+                a.copy_from_slice(S::as_simd_f64s(&column[i..i + B * lanes]).0);
+                continue;
+            }
+            for (b, x) in a.iter_mut().enumerate() {
+                let r = i + b * lanes;
+                if r + lanes <= n {
+                    *x = S::as_simd_f64s(&column[r..r + lanes]).0[0];
+                } else if r < n {
+                    *x = simd.partial_load_f64s(&column[r..]);
+                }
             }
         }
-        j += 4;
+        // Each column of W from row i (B vectors; rows past n, from the pad or the next
+        // column, only reach accumulator rows that are never stored) and from row j0
+        // (COL_BLOCK entries; past n only accumulator columns that are never stored).
+        let w = pending.w();
+        let rows = w[i..i + k * ld].chunks_exact(ld);
+        let cols = w[j0..j0 + k * ld].chunks_exact(ld);
+        for (w_rows, w_cols) in rows.zip(cols) {
+            let w = S::as_simd_f64s(&w_rows[..B * lanes]).0;
+            let w_cols = &w_cols[..COL_BLOCK];
+            for (a, &s) in acc.iter_mut().zip(w_cols) {
+                let s = simd.splat_f64s(s);
+                for (x, &v) in a.iter_mut().zip(w) {
+                    *x = simd.negate_mul_add_f64s(v, s, *x);
+                }
+            }
+        }
+        for (c, a) in acc.iter().enumerate().take(jb) {
+            let column = &mut p[(j0 + c) * n..][..n];
+            if inside {
+                S::as_mut_simd_f64s(&mut column[i..i + B * lanes])
+                    .0
+                    .copy_from_slice(a);
+                continue;
+            }
+            for (b, &x) in a.iter().enumerate() {
+                let r = i + b * lanes;
+                if r + lanes <= n {
+                    S::as_mut_simd_f64s(&mut column[r..r + lanes]).0[0] = x;
+                } else if r < n {
+                    simd.partial_store_f64s(&mut column[r..], x);
+                }
+            }
+        }
     }
-    for c in j..n {
+}
+
+/// Copies the strict lower triangle of the `n x n` column-major `p` onto the upper: in
+/// 4 x 4 blocks transposed in AVX2 registers where the CPU has them, else one entry at a
+/// time.
+fn mirror_lower(p: &mut [f64], n: usize) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(simd) = pulp::x86::V3::try_new() {
+        pulp::Simd::vectorize(simd, Mirror { p, n });
+        return;
+    }
+    mirror_from(p, n, 0);
+}
+
+/// The strict upper triangle of columns `from..n` copied from the lower.
+fn mirror_from(p: &mut [f64], n: usize, from: usize) {
+    for c in from..n {
         for r in 0..c {
             p[c * n + r] = p[r * n + c];
         }
+    }
+}
+
+struct Mirror<'a> {
+    p: &'a mut [f64],
+    n: usize,
+}
+
+impl WithSimd for Mirror<'_> {
+    type Output = ();
+
+    /// For 4 lanes (AVX2): the strictly lower 4 x 4 blocks loaded as 4 column vectors,
+    /// transposed by the 4-field deinterleave and stored as 4 column vectors of the block
+    /// above the diagonal; the diagonal blocks and the last `n % 4` columns entry by entry.
+    #[inline(always)]
+    fn with_simd<S: Simd>(self, simd: S) {
+        let Mirror { p, n } = self;
+        if S::F64_LANES != 4 {
+            mirror_from(p, n, 0);
+            return;
+        }
+        let whole = n / 4 * 4;
+        for i in (0..whole).step_by(4) {
+            // Columns i..i + 4 of the upper part from rows i..i + 4 of the earlier columns.
+            let (left, right) = p.split_at_mut(i * n);
+            let targets = &mut right[..4 * n];
+            for (j, sources) in (0..i).step_by(4).zip(left.chunks_exact(4 * n)) {
+                let x: [S::f64s; 4] =
+                    core::array::from_fn(|c| S::as_simd_f64s(&sources[c * n + i..][..4]).0[0]);
+                let t = simd.deinterleave_shfl_f64s(x);
+                for (r, t) in t.into_iter().enumerate() {
+                    S::as_mut_simd_f64s(&mut targets[r * n + j..][..4]).0[0] = t;
+                }
+            }
+            // The strict upper part of the 4 x 4 diagonal block.
+            for c in 1..4 {
+                for r in 0..c {
+                    p[(i + c) * n + i + r] = p[(i + r) * n + i + c];
+                }
+            }
+        }
+        mirror_from(p, n, whole);
     }
 }
 
@@ -489,9 +559,100 @@ mod tests {
         }
     }
 
+    /// `P0` (diagonally dominant, not symmetric above the diagonal: the kernels read only
+    /// the lower triangle) and `W` (`n x k`) with entries of order 1.
+    fn operands(n: usize, k: usize) -> (DMatrix<f64>, DMatrix<f64>) {
+        let p0 = DMatrix::from_fn(n, n, |i, j| {
+            ((i * 7 + j * 3) % 11) as f64 + 30.0 * f64::from(u8::from(i == j))
+        });
+        let w = DMatrix::from_fn(n, k, |i, j| ((i * 5 + j * 3) % 13) as f64 * 0.1 - 0.6);
+        (p0, w)
+    }
+
+    #[test]
+    fn downdate_matches_the_textbook_product_at_every_size() {
+        // Every n to 70 covers each tile size (1 to 3 vectors), the masked last vectors at
+        // every n mod 8 (AVX-512) and 4 (AVX2), and the mirror's whole and partial blocks.
+        for n in 1..=70 {
+            for k in [1, 2, 20] {
+                let (p0, w) = operands(n, k);
+                let mut p = p0.clone();
+                let mut pending = pending_from(&w);
+                apply_pending(p.as_mut_slice(), &mut pending);
+                let lower = (&p0 - &w * w.transpose()).lower_triangle();
+                let expected =
+                    &lower + lower.transpose() - DMatrix::from_diagonal(&lower.diagonal());
+                // Same products, summation order up to the kernel: rounding only (entries
+                // ~30, k up to 20 products of order 1).
+                assert!((&p - expected).abs().max() < 1e-12, "n {n} k {k}");
+                assert_eq!(p, p.transpose(), "n {n} k {k}: exactly symmetric");
+            }
+        }
+    }
+
+    /// The lower triangle of `P0 - W W^T` with each entry `P0 - w_0 w_0 - w_1 w_1 - ...`
+    /// rounded once per pending column (fused multiply-add, in push order).
+    fn fused_lower(p0: &DMatrix<f64>, w: &DMatrix<f64>) -> DMatrix<f64> {
+        DMatrix::from_fn(p0.nrows(), p0.ncols(), |i, j| {
+            let fused = |acc: f64, l: usize| (-w[(i, l)]).mul_add(w[(j, l)], acc);
+            if i >= j {
+                (0..w.ncols()).fold(p0[(i, j)], fused)
+            } else {
+                0.0
+            }
+        })
+    }
+
+    #[test]
+    fn downdate_keeps_the_fma_order_of_each_entry() {
+        // Whatever the tile an entry falls in, on the dispatched SIMD and on AVX2 (the path
+        // callgrind runs): the same bits as the scalar fold.
+        for n in 1..=70 {
+            let (p0, w) = operands(n, 20);
+            let expected = fused_lower(&p0, &w);
+            let mut p = p0.clone();
+            pulp::Arch::new().dispatch(LowerDowndate {
+                p: p.as_mut_slice(),
+                pending: &pending_from(&w),
+            });
+            assert_eq!(p.lower_triangle(), expected, "n {n}, dispatched");
+            #[cfg(target_arch = "x86_64")]
+            if let Some(simd) = pulp::x86::V3::try_new() {
+                let mut p = p0.clone();
+                let op = LowerDowndate {
+                    p: p.as_mut_slice(),
+                    pending: &pending_from(&w),
+                };
+                pulp::Simd::vectorize(simd, op);
+                assert_eq!(p.lower_triangle(), expected, "n {n}, AVX2");
+            }
+        }
+    }
+
+    #[test]
+    fn clone_and_growth_keep_the_columns() {
+        // The clone's buffer may start at another offset from a cache line, and growth
+        // reallocates: both must carry the columns over.
+        let (n, k) = (19, 5);
+        let (p0, w) = operands(n, k);
+        let mut grown = Pending::new(n, 1);
+        for l in 0..k {
+            grown.push(w.column(l).as_slice(), 1.0);
+        }
+        let copy = grown.clone();
+        let mut expected = p0.clone();
+        apply_pending(expected.as_mut_slice(), &mut pending_from(&w));
+        for mut pending in [grown, copy] {
+            assert_eq!(pending.len(), k);
+            let mut p = p0.clone();
+            apply_pending(p.as_mut_slice(), &mut pending);
+            assert_eq!(p, expected);
+        }
+    }
+
     #[test]
     fn sparse_times_matches_the_textbook_product() {
-        for n in [3, 17, 57] {
+        for n in 3..=70 {
             let p = DMatrix::from_fn(n, n, |i, j| ((i * 7 + j * 7) % 11) as f64);
             let w = DMatrix::from_fn(n, 5, |i, j| ((i * 5 + j * 3) % 13) as f64 * 0.1);
             let (idx, val) = ([0usize, 2, n - 1], [0.5, -1.0, 2.0]);
