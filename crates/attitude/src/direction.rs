@@ -166,11 +166,11 @@ pub fn rotate_normal_in(
     d2: f64,
 ) -> Vector3<f64> {
     let t = e1 * d1 + e2 * d2;
-    let theta = t.norm();
-    let sinc = if theta > 0.0 {
-        theta.sin() / theta
-    } else {
-        1.0
-    };
-    (n * theta.cos() + t * sinc).normalize()
+    let theta2 = t.norm_squared();
+    // A filter's per-step corrections are small: the series, no libm call.
+    let (sinc, cos) = crate::series::sinc_and_cos(theta2).unwrap_or_else(|| {
+        let theta = theta2.sqrt();
+        (theta.sin() / theta, theta.cos())
+    });
+    (n * cos + t * sinc).normalize()
 }

@@ -42,6 +42,7 @@ pub mod direction;
 mod error;
 pub mod mekf;
 pub mod quat;
+mod series;
 pub mod vector_pairs;
 
 pub use direction::{

@@ -95,12 +95,10 @@ pub fn apply_small_error(q_est: &Quat, a: &Vector3<f64>) -> Quat {
     let h2 = 0.25 * a.norm_squared();
     // NaN fails the comparison and goes to the exact form too.
     let small = h2 < 0.25 * SMALL_ERROR_RAD * SMALL_ERROR_RAD;
-    if !small {
+    // sin(h)/h and cos(h) of the half angle.
+    let Some((sinc, cos)) = crate::series::sinc_and_cos(h2).filter(|_| small) else {
         return apply_error(q_est, a);
-    }
-    // sin(h)/h and cos(h), nested (Horner) in h^2.
-    let sinc = 1.0 - h2 / 6.0 * (1.0 - h2 / 20.0 * (1.0 - h2 / 42.0 * (1.0 - h2 / 72.0)));
-    let cos = 1.0 - h2 / 2.0 * (1.0 - h2 / 12.0 * (1.0 - h2 / 30.0 * (1.0 - h2 / 56.0)));
+    };
     let s = 0.5 * sinc;
     let (dx, dy, dz, dw) = (s * a.x, s * a.y, s * a.z, cos);
     let q = q_est;
