@@ -34,6 +34,17 @@ impl Stats {
 
 /// Errors of the expansion built from `approx_model`'s view against the full TOMS model, in
 /// units of the view's max ratio (sum of c, ~0.25-0.35 near the sub-solar point).
+/// A random Earth rotation, Sun direction and LEO position (400-850 km) with the Earth in
+/// view mostly lit.
+fn random_geometry(rng: &mut StdRng) -> (Matrix3<f64>, Vector3<f64>, Vector3<f64>) {
+    let rot: Matrix3<f64> =
+        Rotation3::new(random_unit(rng) * rng.random::<f64>() * PI).into_inner();
+    let sun = random_unit(rng);
+    let sat = (sun + 0.9 * random_unit(rng)).normalize();
+    let r_sat = sat * (authalic_radius_km() + 400.0 + 450.0 * rng.random::<f64>());
+    (rot, sun, r_sat)
+}
+
 fn errors(approx_model: &AlbedoModel, fov_deg: f64, seed: u64) -> (Stats, Stats) {
     let full = AlbedoModel::from_choice(&MapChoice::TomsMean1p25x1).unwrap();
     let mut rng = StdRng::seed_from_u64(seed);
@@ -51,11 +62,7 @@ fn errors(approx_model: &AlbedoModel, fov_deg: f64, seed: u64) -> (Stats, Stats)
     };
     let cos_fov = fov_deg.to_radians().cos();
     for _ in 0..40 {
-        let rot: Matrix3<f64> =
-            Rotation3::new(random_unit(&mut rng) * rng.random::<f64>() * PI).into_inner();
-        let sun = random_unit(&mut rng);
-        let sat = (sun + 0.9 * random_unit(&mut rng)).normalize();
-        let r_sat = sat * (authalic_radius_km() + 400.0 + 450.0 * rng.random::<f64>());
+        let (rot, sun, r_sat) = random_geometry(&mut rng);
         full.compute_into(&mut view, &r_sat, &(sun * AU_KM), &rot)
             .unwrap();
         approx_model
@@ -140,11 +147,7 @@ fn batch_evaluation_equals_single_evaluations() {
     let mut view = AlbedoView::new();
     let mut branches = [0usize; 3];
     for _ in 0..20 {
-        let rot: Matrix3<f64> =
-            Rotation3::new(random_unit(&mut rng) * rng.random::<f64>() * PI).into_inner();
-        let sun = random_unit(&mut rng);
-        let sat = (sun + 0.9 * random_unit(&mut rng)).normalize();
-        let r_sat = sat * (authalic_radius_km() + 400.0 + 450.0 * rng.random::<f64>());
+        let (rot, sun, r_sat) = random_geometry(&mut rng);
         model
             .compute_into(&mut view, &r_sat, &(sun * AU_KM), &rot)
             .unwrap();
