@@ -44,6 +44,14 @@ fn push(out: &mut Vec<FigureEntry>, caption: &str, stem: &str) {
 }
 
 fn raw_outputs(dir: &Path, telemetry: &Telemetry, out: &mut Vec<FigureEntry>) -> Result<()> {
+    raw_outputs_figure(dir, telemetry, "Raw photodiode outputs")?;
+    push(out, "Fig. 2: raw photodiode outputs", "fig02_raw_outputs");
+    Ok(())
+}
+
+/// Fig. 2: every photodiode's raw output over time (`fig02_raw_outputs` in `dir`); empty
+/// cells are gaps.
+pub fn raw_outputs_figure(dir: &Path, telemetry: &Telemetry, title: &str) -> Result<()> {
     let t = minutes(&telemetry.t_s);
     let columns: Vec<Vec<f64>> = telemetry
         .pd_v
@@ -56,7 +64,7 @@ fn raw_outputs(dir: &Path, telemetry: &Telemetry, out: &mut Vec<FigureEntry>) ->
         .zip(&names)
         .map(|(c, n)| Series::new(n, c, Mark::Line))
         .collect();
-    let figure = Figure::new("fig02_raw_outputs", "Raw photodiode outputs");
+    let figure = Figure::new("fig02_raw_outputs", title);
     lines(
         dir,
         &figure,
@@ -64,7 +72,6 @@ fn raw_outputs(dir: &Path, telemetry: &Telemetry, out: &mut Vec<FigureEntry>) ->
         &t,
         &series,
     )?;
-    push(out, "Fig. 2: raw photodiode outputs", "fig02_raw_outputs");
     Ok(())
 }
 

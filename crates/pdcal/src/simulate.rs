@@ -35,30 +35,11 @@ pub fn run_to_dir(scenario: &Scenario, seed: u64, out: &Path) -> Result<SimOutpu
 pub fn write_plots(output: &SimOutput, dir: &Path) -> Result<()> {
     let staging = crate::output::OutputDir::create(dir)?;
     let telemetry = &output.telemetry;
-    let t_min: Vec<f64> = telemetry.t_s.iter().map(|t| t / 60.0).collect();
-    let columns: Vec<Vec<f64>> = telemetry
-        .pd_v
-        .iter()
-        .map(|c| c.iter().map(|v| v.unwrap_or(f64::NAN)).collect())
-        .collect();
-    let names: Vec<String> = (1..=columns.len()).map(|i| format!("pd{i:02}")).collect();
-    let series: Vec<pdcal_report::Series> = columns
-        .iter()
-        .zip(&names)
-        .map(|(c, n)| pdcal_report::Series::new(n, c, pdcal_report::Mark::Line))
-        .collect();
     let title = format!(
         "Raw photodiode outputs, {} (seed {})",
         output.meta.name, output.seed
     );
-    let figure = pdcal_report::Figure::new("fig02_raw_outputs", &title);
-    pdcal_report::lines(
-        staging.path(),
-        &figure,
-        &pdcal_report::LineAxes::new("time (min)", "output (V)"),
-        &t_min,
-        &series,
-    )?;
+    crate::figures::raw_outputs_figure(staging.path(), telemetry, &title)?;
     let sunlit: Vec<[f64; 3]> = output
         .truth
         .sun_body
