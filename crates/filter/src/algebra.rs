@@ -15,7 +15,7 @@
 //!
 //! The kernels are written so that LLVM sees fixed trip counts and whole-vector loads in
 //! every inner loop: a `P` column is not padded (it belongs to the public `DMatrix`), so
-//! [`sparse_times`] covers its last rows with one vector ending at row `n` (overlapping the
+//! [`weighted_sum`] covers its last rows with one vector ending at row `n` (overlapping the
 //! one before it, whose rows it recomputes with the same operations, hence the same bits)
 //! instead of a masked load; the downdate loads and stores the last vector of a column
 //! with a mask once per tile, outside its inner loop (a bounce buffer there cost a
@@ -44,14 +44,11 @@ pub(crate) struct Pending {
     n: usize,
     ld: usize,
     /// Columns of `W` at `l * ld` from the first cache-line boundary in the buffer (see
-    /// [`Pending::w`]), plus one zero column past the last (so that every column can be
-    /// read from any row offset below `ld`, see [`apply_pending`]).
+    /// [`Pending::w`]), plus one column past the last (so that every column can be read
+    /// from any row offset below `ld`, see [`apply_pending`]).
     data: Vec<f64>,
     capacity: usize,
     count: usize,
-    /// `sum_l W[i, l]^2`, kept as the columns arrive (the filter reads diagonal entries of
-    /// the current `P` for the second-order noise terms).
-    diag: Vec<f64>,
 }
 
 impl Pending {
@@ -62,11 +59,14 @@ impl Pending {
         Pending {
             n,
             ld,
-            data: vec![0.0; ld * (capacity + 1) + LINE],
+            data: vec![0.0; Self::buffer_len(ld, capacity)],
             capacity,
             count: 0,
-            diag: vec![0.0; n],
         }
+    }
+
+    fn buffer_len(ld: usize, capacity: usize) -> usize {
+        ld * (capacity + 1) + LINE
     }
 
     /// The columns of `W` (`ld` a multiple of [`LINE`]: each starts on a cache line, so
@@ -75,10 +75,14 @@ impl Pending {
         &self.data[line_offset(&self.data)..]
     }
 
-    /// [`Pending::w`], mutable.
-    fn w_mut(&mut self) -> &mut [f64] {
-        let offset = line_offset(&self.data);
-        &mut self.data[offset..]
+    /// Length `n` of the columns.
+    pub(crate) fn n(&self) -> usize {
+        self.n
+    }
+
+    /// Leading dimension of the columns.
+    pub(crate) fn ld(&self) -> usize {
+        self.ld
     }
 
     /// Number of pending columns.
@@ -89,57 +93,19 @@ impl Pending {
     /// Drops the pending columns (after they were applied).
     pub(crate) fn clear(&mut self) {
         self.count = 0;
-        self.diag.fill(0.0);
     }
 
-    /// Appends `scale * u` (`u` of length at least `n`).
-    pub(crate) fn push(&mut self, u: &[f64], scale: f64) {
-        if self.count == self.capacity {
-            // More updates in a step than planned: grow (never in the filter's own use).
-            self.grow();
+    /// Makes `count` the pending columns and returns them for the caller to fill: column
+    /// `l` at `l * ld`, rows `0..n` (the rows past `n` are padding and may hold anything
+    /// finite). Grows the buffer when `count` exceeds the capacity.
+    pub(crate) fn columns_mut(&mut self, count: usize) -> &mut [f64] {
+        if count > self.capacity {
+            self.capacity = count;
+            self.data = vec![0.0; Self::buffer_len(self.ld, count)];
         }
-        let (n, l) = (self.n, self.count);
-        let offset = line_offset(&self.data) + l * self.ld;
-        let column = &mut self.data[offset..][..n];
-        for ((w, x), d) in column.iter_mut().zip(&u[..n]).zip(&mut self.diag) {
-            *w = scale * x;
-            *d += *w * *w;
-        }
-        self.count += 1;
-    }
-
-    /// Doubles the capacity, keeping the pending columns.
-    fn grow(&mut self) {
-        self.capacity *= 2;
-        // A new buffer: its offset to a cache line may differ from the old one's.
-        let mut data = vec![0.0; self.ld * (self.capacity + 1) + LINE];
-        let (offset, used) = (line_offset(&data), self.count * self.ld);
-        data[offset..][..used].copy_from_slice(&self.w()[..used]);
-        self.data = data;
-    }
-
-    /// `sum_l W[i, l]^2`: the pending share of `P[i, i]`.
-    pub(crate) fn diagonal(&self, i: usize) -> f64 {
-        self.diag[i]
-    }
-
-    /// Row `i` of `W` over the pending columns, one column per item (a strided walk).
-    fn row(&self, i: usize) -> impl Iterator<Item = f64> + '_ {
-        self.w()[i..i + self.count * self.ld]
-            .chunks_exact(self.ld)
-            .map(|column| column[0])
-    }
-
-    /// `c = -W[idx, :]^T val` (one entry per pending column), summed in `idx` order.
-    fn minus_w_times(&self, idx: &[usize], val: &[f64], c: &mut Vec<f64>) {
-        c.clear();
-        c.resize(self.count, 0.0);
-        for (&i, &v) in idx.iter().zip(val) {
-            for (cl, w) in c.iter_mut().zip(self.row(i)) {
-                // (-a) - b = -(a + b) exactly: the same bits as negating the sum.
-                *cl -= v * w;
-            }
-        }
+        self.count = count;
+        let offset = line_offset(&self.data);
+        &mut self.data[offset..][..count * self.ld]
     }
 }
 
@@ -154,59 +120,61 @@ impl Clone for Pending {
     fn clone(&self) -> Self {
         let mut copy = Pending {
             data: vec![0.0; self.data.len()],
-            diag: self.diag.clone(),
             ..*self
         };
-        let used = self.count * self.ld;
-        copy.w_mut()[..used].copy_from_slice(&self.w()[..used]);
+        let count = self.count;
+        copy.columns_mut(count)
+            .copy_from_slice(&self.w()[..count * self.ld]);
         copy
     }
 }
 
-/// `u = P[:, idx] val - W (W[idx, :]^T val)`: `P H^T` for a sparse row `H` under the
-/// pending downdates. `p` is `n x n` column-major; `u` has length at least `n` (entries
-/// past `n` come out zero). `c` is scratch (it ends holding `-W[idx, :]^T val`).
-pub(crate) fn sparse_times(
-    p: &[f64],
-    pending: &Pending,
-    idx: &[usize],
-    val: &[f64],
-    c: &mut Vec<f64>,
-    u: &mut [f64],
-) {
-    pending.minus_w_times(idx, val, c);
-    let n = pending.n;
-    pulp::Arch::new().dispatch(SparseTimes {
-        columns: Columns {
-            p,
-            n,
-            w: &pending.w()[..c.len() * pending.ld],
-            ld: pending.ld,
-            idx,
-            val,
-            c,
-        },
-        u: &mut u[..n],
-    });
-    u[n..].fill(0.0);
+/// Columns `idx` of a column-major matrix (leading dimension `ld`), one weight each: the
+/// sparse part of a [`weighted_sum`] (`P H^T` for a sparse row `H`).
+#[derive(Clone, Copy)]
+pub(crate) struct Picked<'a> {
+    pub data: &'a [f64],
+    pub ld: usize,
+    pub idx: &'a [usize],
+    pub weight: &'a [f64],
 }
 
-struct SparseTimes<'a> {
+/// The first `weight.len()` consecutive columns of a column-major matrix (leading dimension
+/// `ld`), one weight each: the dense part of a [`weighted_sum`].
+#[derive(Clone, Copy)]
+pub(crate) struct Run<'a> {
+    pub data: &'a [f64],
+    pub ld: usize,
+    pub weight: &'a [f64],
+}
+
+/// `out[..n] = sum_k picked.weight[k] picked[:, idx[k]] + sum_l run.weight[l] run[:, l]`,
+/// each row a chain of fused multiply-adds in that order (the picked columns first);
+/// `out[n..]` comes out zero.
+pub(crate) fn weighted_sum(n: usize, picked: Picked<'_>, run: Run<'_>, out: &mut [f64]) {
+    let (head, pad) = out.split_at_mut(n);
+    pulp::Arch::new().dispatch(WeightedSum {
+        columns: Columns { n, picked, run },
+        u: head,
+    });
+    pad.fill(0.0);
+}
+
+struct WeightedSum<'a> {
     columns: Columns<'a>,
     u: &'a mut [f64],
 }
 
-impl WithSimd for SparseTimes<'_> {
+impl WithSimd for WeightedSum<'_> {
     type Output = ();
 
-    /// Blocks of up to [`VECTORS`] vectors of rows held in registers while the `6 + k`
-    /// columns stream through: independent FMA chains and fixed trip counts. The whole
-    /// vectors of a column are split evenly over the blocks; the rows past them are covered
-    /// by one more vector ending at row `n` (see the module docs), in the last block when
-    /// it has room.
+    /// Blocks of up to [`VECTORS`] vectors of rows held in registers while the columns
+    /// stream through: independent FMA chains and fixed trip counts. The whole vectors of a
+    /// column are split evenly over the blocks; the rows past them are covered by one more
+    /// vector ending at row `n` (see the module docs), in the last block when it has room.
     #[inline(always)]
     fn with_simd<S: Simd>(self, simd: S) {
-        let SparseTimes { columns, u } = self;
+        let WeightedSum { columns, u } = self;
         let (n, lanes) = (columns.n, S::F64_LANES);
         if n < lanes {
             columns.scalar(u);
@@ -228,16 +196,11 @@ impl WithSimd for SparseTimes<'_> {
     }
 }
 
-/// The operands of [`sparse_times`]: `w` holds the pending columns of `W` (column `l` at
-/// `l * ld`), `c` their coefficients.
+/// The operands of [`weighted_sum`].
 struct Columns<'a> {
-    p: &'a [f64],
     n: usize,
-    w: &'a [f64],
-    ld: usize,
-    idx: &'a [usize],
-    val: &'a [f64],
-    c: &'a [f64],
+    picked: Picked<'a>,
+    run: Run<'a>,
 }
 
 impl Columns<'_> {
@@ -256,6 +219,28 @@ impl Columns<'_> {
         sizes!(1 2 3 4 5 6 7 8)
     }
 
+    /// The picked columns, then the run's, each with its weight.
+    fn each(&self) -> impl Iterator<Item = (&[f64], f64)> {
+        let Picked {
+            data,
+            ld,
+            idx,
+            weight,
+        } = self.picked;
+        let n = self.n;
+        let picked = idx
+            .iter()
+            .zip(weight)
+            .map(move |(&k, &v)| (&data[k * ld..][..n], v));
+        let run = self
+            .run
+            .data
+            .chunks(self.run.ld)
+            .zip(self.run.weight)
+            .map(move |(column, &v)| (&column[..n], v));
+        picked.chain(run)
+    }
+
     /// `u` over the `B` whole vectors of rows from row `r0` and, with `TAIL`, the vector
     /// ending at row `n`.
     #[inline(always)]
@@ -263,11 +248,17 @@ impl Columns<'_> {
         let (n, lanes) = (self.n, S::F64_LANES);
         let zero = simd.splat_f64s(0.0);
         let (mut acc, mut last) = ([zero; B], zero);
-        for (&k, &v) in self.idx.iter().zip(self.val) {
-            axpy_rows::<S, B, TAIL>(simd, &mut acc, &mut last, &self.p[k * n..][..n], r0, v);
+        let Picked {
+            data,
+            ld,
+            idx,
+            weight,
+        } = self.picked;
+        for (&k, &v) in idx.iter().zip(weight) {
+            axpy_rows::<S, B, TAIL>(simd, &mut acc, &mut last, &data[k * ld..][..n], r0, v);
         }
-        for (column, &cl) in self.w.chunks_exact(self.ld).zip(self.c) {
-            axpy_rows::<S, B, TAIL>(simd, &mut acc, &mut last, &column[..n], r0, cl);
+        for (column, &v) in self.run.data.chunks(self.run.ld).zip(self.run.weight) {
+            axpy_rows::<S, B, TAIL>(simd, &mut acc, &mut last, &column[..n], r0, v);
         }
         let out = S::as_mut_simd_f64s(&mut u[r0..][..B * lanes]).0;
         for (o, a) in out.iter_mut().zip(acc) {
@@ -282,14 +273,9 @@ impl Columns<'_> {
     /// multiply-adds: the numbers of the vector path.
     fn scalar(&self, u: &mut [f64]) {
         for (r, out) in u.iter_mut().enumerate() {
-            let mut acc = 0.0;
-            for (&k, &v) in self.idx.iter().zip(self.val) {
-                acc = self.p[k * self.n + r].mul_add(v, acc);
-            }
-            for (column, &cl) in self.w.chunks_exact(self.ld).zip(self.c) {
-                acc = column[r].mul_add(cl, acc);
-            }
-            *out = acc;
+            *out = self
+                .each()
+                .fold(0.0, |acc, (column, v)| column[r].mul_add(v, acc));
         }
     }
 }
@@ -317,7 +303,7 @@ fn axpy_rows<S: Simd, const B: usize, const TAIL: bool>(
     }
 }
 
-/// Vectors of rows per block of [`sparse_times`] (8 independent FMA chains cover the FMA
+/// Vectors of rows per block of [`weighted_sum`] (8 independent FMA chains cover the FMA
 /// latency on two ports).
 const VECTORS: usize = 8;
 
@@ -533,9 +519,12 @@ mod tests {
     use super::*;
 
     fn pending_from(w: &DMatrix<f64>) -> Pending {
-        let mut pending = Pending::new(w.nrows(), 1);
-        for l in 0..w.ncols() {
-            pending.push(w.column(l).as_slice(), 1.0);
+        let (n, k) = w.shape();
+        let mut pending = Pending::new(n, 1);
+        let ld = pending.ld();
+        let columns = pending.columns_mut(k);
+        for l in 0..k {
+            columns[l * ld..][..n].copy_from_slice(w.column(l).as_slice());
         }
         pending
     }
@@ -630,19 +619,16 @@ mod tests {
     }
 
     #[test]
-    fn clone_and_growth_keep_the_columns() {
-        // The clone's buffer may start at another offset from a cache line, and growth
-        // reallocates: both must carry the columns over.
+    fn clone_keeps_the_columns() {
+        // The clone's buffer may start at another offset from a cache line: it must carry
+        // the columns over (the original grew past its capacity of 1 in `pending_from`).
         let (n, k) = (19, 5);
         let (p0, w) = operands(n, k);
-        let mut grown = Pending::new(n, 1);
-        for l in 0..k {
-            grown.push(w.column(l).as_slice(), 1.0);
-        }
-        let copy = grown.clone();
+        let pending = pending_from(&w);
+        let copy = pending.clone();
         let mut expected = p0.clone();
         apply_pending(expected.as_mut_slice(), &mut pending_from(&w));
-        for mut pending in [grown, copy] {
+        for mut pending in [pending, copy] {
             assert_eq!(pending.len(), k);
             let mut p = p0.clone();
             apply_pending(p.as_mut_slice(), &mut pending);
@@ -651,19 +637,33 @@ mod tests {
     }
 
     #[test]
-    fn sparse_times_matches_the_textbook_product() {
-        for n in 3..=70 {
+    fn weighted_sum_matches_the_textbook_product() {
+        // Every n to 70: one or two blocks, with and without the tail vector, and the
+        // scalar path below one vector.
+        for n in 1..=70 {
             let p = DMatrix::from_fn(n, n, |i, j| ((i * 7 + j * 7) % 11) as f64);
             let w = DMatrix::from_fn(n, 5, |i, j| ((i * 5 + j * 3) % 13) as f64 * 0.1);
-            let (idx, val) = ([0usize, 2, n - 1], [0.5, -1.0, 2.0]);
+            let (idx, val) = ([0usize, n / 2, n - 1], [0.5, -1.0, 2.0]);
+            let c = [0.3, -0.7, 1.1, 0.0, 2.5];
             let mut h = DVector::zeros(n);
             for (&i, &v) in idx.iter().zip(&val) {
                 h[i] += v;
             }
             let pending = pending_from(&w);
+            let picked = Picked {
+                data: p.as_slice(),
+                ld: n,
+                idx: &idx,
+                weight: &val,
+            };
+            let run = Run {
+                data: &pending.w()[..5 * pending.ld()],
+                ld: pending.ld(),
+                weight: &c,
+            };
             let mut u = vec![f64::NAN; padded(n)];
-            sparse_times(p.as_slice(), &pending, &idx, &val, &mut Vec::new(), &mut u);
-            let expected = (&p - &w * w.transpose()) * h;
+            weighted_sum(n, picked, run, &mut u);
+            let expected = &p * h + &w * DVector::from_column_slice(&c);
             for i in 0..n {
                 // Rounding only (entries ~10).
                 assert!((u[i] - expected[i]).abs() < 1e-12, "n {n} row {i}");

@@ -4,6 +4,8 @@
 
 use nalgebra::{DMatrix, DVector, Matrix6};
 
+use crate::sequential::{Outcome, Rows};
+
 /// `P <- Phi P Phi^T + Q` with the full `n x n` `Phi = diag(phi6, I)` and
 /// `Q = diag(qd6, cal_noise[6..])`.
 pub fn propagate(
@@ -28,6 +30,34 @@ fn full_row(n: usize, idx: &[usize], val: &[f64]) -> DVector<f64> {
         h[k] += v;
     }
     h
+}
+
+/// The step's rows one after the other (the textbook sequential filter): innovation with
+/// the corrections so far, gate `nu^2 <= gate2 s`, [`joseph_update`].
+pub(crate) fn sequential_update(
+    p: &mut DMatrix<f64>,
+    rows: &Rows,
+    gate2: f64,
+    dx: &mut DVector<f64>,
+    outcome: &mut Vec<Outcome>,
+) {
+    outcome.clear();
+    for l in 0..rows.len() {
+        let (idx, val) = rows.row(l);
+        let (innovation, r) = rows.innovation_and_variance(l);
+        let h_dx: f64 = idx.iter().zip(val).map(|(&k, v)| v * dx[k]).sum();
+        let nu = innovation - h_dx;
+        let spread = innovation_variance(p, idx, val, r);
+        let accepted = nu * nu <= gate2 * spread;
+        if accepted {
+            joseph_update(p, dx, idx, val, nu, r);
+        }
+        outcome.push(Outcome {
+            residual: nu,
+            spread,
+            accepted,
+        });
+    }
 }
 
 /// `H P H^T + R` with the full row.

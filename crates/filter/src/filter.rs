@@ -12,6 +12,7 @@ use crate::algebra::{self, Pending};
 use crate::calibration::{Calibration, ParameterEstimate, PdCalibration};
 use crate::dense;
 use crate::layout::{ATTITUDE, BIAS, CORE, StateLayout};
+use crate::sequential::{self, Outcome, Rows, Workspace};
 use crate::{FilterError, StepReference};
 
 /// How the covariance algebra is done. Both give the same numbers to rounding (a test
@@ -176,32 +177,33 @@ pub struct Filter {
 /// Preallocated work space: nothing is allocated per step.
 struct Scratch {
     dx: DVector<f64>,
-    /// `P H^T` of the current update (padded length, see [`algebra::padded`]).
-    u: Vec<f64>,
     rows6: OMatrix<f64, U6, Dyn>,
-    h_idx: Vec<usize>,
-    h_val: Vec<f64>,
     partials: Partials,
     cal_noise: DVector<f64>,
-    /// Columns `w_l = P_l H_l^T / sqrt(s_l)` of this step's accepted updates: during a step
-    /// `P = P_0 - W W^T`, applied once at the end as a rank-k downdate of the lower
-    /// triangle ([`algebra::apply_pending`]).
+    /// The step's scalar rows, linearised at the prior, and per row its sensor and
+    /// measured value.
+    rows: Rows,
+    sources: Vec<(Sensor, f64)>,
+    /// What became of each row.
+    outcome: Vec<Outcome>,
+    work: Workspace,
+    /// Columns `w_l = P_{l-1} H_l^T / sqrt(s_l)` of this step's accepted updates, applied
+    /// at the end as one rank-k downdate of the lower triangle ([`algebra::apply_pending`]).
     pending: Pending,
-    /// `-W[idx, :]^T h` of the current update.
-    w_dot_h: Vec<f64>,
-    /// This step's albedo per photodiode, linearised at the prior ([`Filter::linearise_albedo`]).
+    /// This step's albedo per photodiode, evaluated at the prior ([`Filter::prior_albedo`]).
     albedo: AlbedoScratch,
 }
 
 /// The step's albedo evaluations: the photodiodes that may be updated, their normals in
-/// GCRF at the attitude before the photodiode updates, and the results.
+/// GCRF at the prior attitude, and the results.
 #[derive(Default)]
 struct AlbedoScratch {
     index: Vec<usize>,
     normals_gcrf: Vec<Vector3<f64>>,
     cos_fov: Vec<f64>,
     results: Vec<(f64, Vector3<f64>)>,
-    /// Per photodiode; `None` where not evaluated this step.
+    /// Per photodiode, the result as an [`AlbedoIrradiance`] at its prior normal (a
+    /// [`LinearAlbedo`] there returns the evaluation itself); `None` where not evaluated.
     linear: Vec<Option<LinearAlbedo>>,
 }
 
@@ -268,21 +270,20 @@ impl Filter {
             d_parameters: vec![0.0; model.parameter_count()],
             ..Partials::default()
         };
-        let row = layout.max_row_len();
         Ok(Filter {
             basis: (0..normal.len())
                 .map(|i| layout.tangent_basis(i, &normal[i]))
                 .collect(),
             scratch: Scratch {
                 dx: DVector::zeros(n),
-                u: vec![0.0; algebra::padded(n)],
                 rows6: OMatrix::<f64, U6, Dyn>::zeros(n),
-                h_idx: Vec::with_capacity(row),
-                h_val: Vec::with_capacity(row),
                 partials,
                 cal_noise: DVector::zeros(n),
+                rows: Rows::default(),
+                sources: Vec::with_capacity(3 + m),
+                outcome: Vec::with_capacity(3 + m),
+                work: Workspace::default(),
                 pending: Pending::new(n, 3 + m),
-                w_dot_h: Vec::with_capacity(3 + m),
                 albedo: AlbedoScratch {
                     index: Vec::with_capacity(m),
                     normals_gcrf: Vec::with_capacity(m),
@@ -391,10 +392,11 @@ impl Filter {
         }
     }
 
-    /// All measurement updates of one sample: magnetometer axes, then photodiodes, each a
-    /// sequential scalar update; the attitude is relinearised after each accepted one
-    /// ([`Filter::fold_attitude`]), the other states at the prior with the accumulated
-    /// correction; then the multiplicative reset. Records of this sample: [`Filter::records`].
+    /// All measurement updates of one sample: magnetometer axes, then photodiodes, as
+    /// sequential scalar updates all linearised at the prior (the paper's EKF; the
+    /// structured algebra runs the recursion in its Cholesky form, see `sequential`), then
+    /// the multiplicative reset. Records of this sample: [`Filter::records`]. On an error
+    /// nothing is applied.
     pub fn update(
         &mut self,
         t_s: f64,
@@ -404,32 +406,17 @@ impl Filter {
     ) -> Result<(), FilterError> {
         check_len("photodiode samples", self.scale.len(), meas.pd_v.len())?;
         self.records.clear();
-        self.scratch.dx.fill(0.0);
-        self.scratch.pending.clear();
-        let mut any = false;
+        self.scratch.rows.clear();
+        self.scratch.sources.clear();
+        let attitude = self.q.attitude_matrix();
         if let Some(mag) = meas.mag_nt {
-            any |= self.mag_updates(&mag, &reference.b_gcrf_nt);
+            self.mag_rows(&attitude, &mag, &reference.b_gcrf_nt);
         }
-        let result = self.photodiode_updates(t_s, meas.pd_v, reference, albedo);
-        self.apply_downdates();
-        any |= result?;
-        if any {
+        self.photodiode_rows(&attitude, t_s, meas.pd_v, reference, albedo)?;
+        if self.apply_rows() {
             self.reset()?;
         }
         Ok(())
-    }
-
-    /// Moves the attitude part of the accumulated correction into `q` so that the next
-    /// scalar update is linearised at the corrected attitude (the attitude is shared by every
-    /// measurement and carries most of the nonlinearity). The other states stay linearised
-    /// at the prior with their accumulated correction in `H dx`.
-    fn fold_attitude(&mut self) {
-        let dx = &mut self.scratch.dx;
-        let a = Vector3::new(dx[ATTITUDE], dx[ATTITUDE + 1], dx[ATTITUDE + 2]);
-        // One update's correction is small: the series form of the reset
-        // (`apply_small_error`, the exact `apply_error` above 0.1 rad).
-        self.q = apply_small_error(&self.q, &a);
-        dx.fixed_rows_mut::<3>(ATTITUDE).fill(0.0);
     }
 
     /// Counts a magnetometer sample that was not taken (empty cell).
@@ -437,31 +424,21 @@ impl Filter {
         self.counts.magnetometer.not_sampled += 3;
     }
 
-    fn mag_updates(&mut self, mag: &Vector3<f64>, b_gcrf: &Vector3<f64>) -> bool {
-        let r0 = self.noise.mag_sigma_nt.powi(2);
-        let mut any = false;
+    /// The three magnetometer rows `[(A b) x]` at the prior attitude `attitude`.
+    fn mag_rows(&mut self, attitude: &Matrix3<f64>, mag: &Vector3<f64>, b_gcrf: &Vector3<f64>) {
+        let b_body = attitude * b_gcrf;
+        let h = skew(&b_body);
+        let r = self.noise.mag_sigma_nt.powi(2) + self.mag_second_order_var(&b_body);
+        let rows = &mut self.scratch.rows;
         for axis in 0..3 {
-            let b_body = self.q.attitude_matrix() * b_gcrf;
-            let h = skew(&b_body);
-            self.scratch.h_idx.clear();
-            self.scratch.h_val.clear();
+            rows.begin(mag[axis] - b_body[axis], r);
             for k in 0..3 {
-                self.scratch.h_idx.push(ATTITUDE + k);
-                self.scratch.h_val.push(h[(axis, k)]);
+                rows.entry(ATTITUDE + k, h[(axis, k)]);
             }
-            let r = r0 + self.mag_second_order_var(&b_body);
-            let accepted =
-                self.scalar_update(Sensor::Magnetometer(axis), mag[axis], b_body[axis], r);
-            let c = &mut self.counts.magnetometer;
-            if accepted {
-                c.accepted += 1;
-                self.fold_attitude();
-            } else {
-                c.gated += 1;
-            }
-            any |= accepted;
+            self.scratch
+                .sources
+                .push((Sensor::Magnetometer(axis), mag[axis]));
         }
-        any
     }
 
     /// Variance of the second-order term of `A b` under the attitude uncertainty, per axis:
@@ -495,31 +472,26 @@ impl Filter {
         0.25 * c * c * angle_var * angle_var + 0.5 * self.p_diag(sc) * angle_var
     }
 
-    /// Diagonal entry `i` of the current covariance during a step: `P_0 - W W^T`
-    /// (structured) or `P` (dense, updated in place).
+    /// Diagonal entry `i` of the prior covariance.
     fn p_diag(&self, i: usize) -> f64 {
-        self.p[(i, i)] - self.scratch.pending.diagonal(i)
+        self.p[(i, i)]
     }
 
-    /// `P <- P_0 - W W^T` for the step's accepted updates (lower triangle, one rank-k
-    /// downdate), then the upper triangle copied from the lower so that `P` stays exactly
-    /// symmetric.
-    fn apply_downdates(&mut self) {
-        algebra::apply_pending(self.p.as_mut_slice(), &mut self.scratch.pending);
-    }
-
-    fn photodiode_updates(
+    /// The photodiode rows at the prior attitude `attitude`: one per photodiode that is
+    /// sampled, lit, in use and inside the field of view.
+    fn photodiode_rows(
         &mut self,
+        attitude: &Matrix3<f64>,
         t_s: f64,
         pd_v: &[Option<f64>],
         reference: &StepReference,
         albedo: Option<&dyn AlbedoIrradiance>,
-    ) -> Result<bool, FilterError> {
+    ) -> Result<(), FilterError> {
         let lit = reference.sun_fraction >= self.noise.min_sun_fraction;
         if lit && let Some(albedo) = albedo {
-            self.linearise_albedo(pd_v, reference, albedo);
+            self.prior_albedo(attitude, pd_v, reference, albedo);
         }
-        let mut any = false;
+        let sun_body = attitude * reference.sun_gcrf_unit;
         for (i, sample) in pd_v.iter().enumerate() {
             let counts = &mut self.counts.photodiode;
             let Some(y) = *sample else {
@@ -534,18 +506,14 @@ impl Filter {
                 counts.unused_sensor += 1;
                 continue;
             }
-            let attitude = self.q.attitude_matrix();
-            let sun_body = attitude * reference.sun_gcrf_unit;
             let cos_incidence = self.normal[i].dot(&sun_body);
             if cos_incidence < self.noise.cos_fov {
                 counts.outside_fov += 1;
                 continue;
             }
-            // The step's linearised albedo; a photodiode that entered the field of view
-            // through this step's attitude corrections evaluates the provider itself.
             let linear = self.scratch.albedo.linear[i];
             let scene = Scene {
-                attitude,
+                attitude: *attitude,
                 sun_body,
                 sun_fraction: reference.sun_fraction,
                 rate_body_rad_s: self.rate_est,
@@ -557,38 +525,74 @@ impl Filter {
             };
             self.model
                 .partials_into(i, &scene, &mut self.scratch.partials)?;
-            self.fill_photodiode_row(i);
             let albedo_sigma = self.scale[i] * self.noise.albedo_sigma_ratio;
             let r = self.noise.photodiode_sigma_v.powi(2)
                 + albedo_sigma * albedo_sigma
                 + self.photodiode_second_order_var(i, cos_incidence);
             let predicted = self.scratch.partials.value_v;
-            let accepted = self.scalar_update(Sensor::Photodiode(i), y, predicted, r);
-            let counts = &mut self.counts.photodiode;
-            if accepted {
+            self.scratch.rows.begin(y - predicted, r);
+            self.fill_photodiode_row(i);
+            self.scratch.sources.push((Sensor::Photodiode(i), y));
+        }
+        Ok(())
+    }
+
+    /// Runs the step's rows through the algebra, records each and counts it. Whether any
+    /// was accepted.
+    fn apply_rows(&mut self) -> bool {
+        let s = &mut self.scratch;
+        let gate2 = self.noise.gate_sigmas.powi(2);
+        s.dx.fill(0.0);
+        match self.algebra {
+            Algebra::Structured => {
+                sequential::update(
+                    self.p.as_slice(),
+                    &s.rows,
+                    gate2,
+                    &mut s.pending,
+                    &mut s.work,
+                    s.dx.as_mut_slice(),
+                    &mut s.outcome,
+                );
+                algebra::apply_pending(self.p.as_mut_slice(), &mut s.pending);
+            }
+            Algebra::Dense => {
+                dense::sequential_update(&mut self.p, &s.rows, gate2, &mut s.dx, &mut s.outcome)
+            }
+        }
+        let mut any = false;
+        for (o, &(sensor, measured)) in s.outcome.iter().zip(&s.sources) {
+            self.records.push(UpdateRecord {
+                sensor,
+                measured,
+                residual: o.residual,
+                bound_3sigma: 3.0 * o.spread.sqrt(),
+                accepted: o.accepted,
+            });
+            let counts = match sensor {
+                Sensor::Photodiode(_) => &mut self.counts.photodiode,
+                Sensor::Magnetometer(_) => &mut self.counts.magnetometer,
+            };
+            if o.accepted {
                 counts.accepted += 1;
-                self.fold_attitude();
             } else {
                 counts.gated += 1;
             }
-            any |= accepted;
+            any |= o.accepted;
         }
-        Ok(any)
+        any
     }
 
     /// Evaluates the albedo of every photodiode this step may update (sampled, in use,
-    /// inside the field of view at the attitude before the photodiode updates) in one batch
-    /// call, and keeps each as a [`LinearAlbedo`] about that attitude: the sequential updates
-    /// move the attitude by their small corrections only, which the linearisation follows to
-    /// first order. One call lets the provider (or the CPU) work on the photodiodes
-    /// together instead of one per update, in the updates' serial chain.
-    fn linearise_albedo(
+    /// inside the field of view at the prior attitude `attitude`) in one batch call: one
+    /// call lets the provider (or the CPU) work on the photodiodes together.
+    fn prior_albedo(
         &mut self,
+        attitude: &Matrix3<f64>,
         pd_v: &[Option<f64>],
         reference: &StepReference,
         albedo: &dyn AlbedoIrradiance,
     ) {
-        let attitude = self.q.attitude_matrix();
         let sun_body = attitude * reference.sun_gcrf_unit;
         let a = &mut self.scratch.albedo;
         a.index.clear();
@@ -618,88 +622,26 @@ impl Filter {
         }
     }
 
-    /// The sparse H row of photodiode `i` from the model's partials: Eq. (20) for `a`,
-    /// Eq. (22) for `C`, the normal gradient projected on the tangent basis for `(d1, d2)`
-    /// (the singularity-free replacement of Eqs. 23-24), and the estimated parameters.
+    /// The sparse H row of photodiode `i` from the model's partials, appended to the row
+    /// begun last: Eq. (20) for `a`, Eq. (22) for `C`, the normal gradient projected on the
+    /// tangent basis for `(d1, d2)` (the singularity-free replacement of Eqs. 23-24), and the
+    /// estimated parameters.
     fn fill_photodiode_row(&mut self, i: usize) {
         let s = &mut self.scratch;
         let pa = &s.partials;
-        s.h_idx.clear();
-        s.h_val.clear();
         for k in 0..3 {
-            s.h_idx.push(ATTITUDE + k);
-            s.h_val.push(pa.d_attitude[k]);
+            s.rows.entry(ATTITUDE + k, pa.d_attitude[k]);
         }
-        s.h_idx.push(self.layout.scale(i));
-        s.h_val.push(pa.d_scale);
+        s.rows.entry(self.layout.scale(i), pa.d_scale);
         if let Some(d) = self.layout.normal(i) {
             let (e1, e2) = &self.basis[i];
-            s.h_idx.extend_from_slice(&[d, d + 1]);
-            s.h_val.push(pa.d_normal.dot(e1));
-            s.h_val.push(pa.d_normal.dot(e2));
+            s.rows.entry(d, pa.d_normal.dot(e1));
+            s.rows.entry(d + 1, pa.d_normal.dot(e2));
         }
         for &k in self.layout.extras_of(i) {
             let e = &self.layout.extras()[k];
-            s.h_idx.push(e.state);
-            s.h_val.push(pa.d_parameters[e.parameter]);
+            s.rows.entry(e.state, pa.d_parameters[e.parameter]);
         }
-    }
-
-    /// One scalar update with the row in `scratch.h_idx/h_val`, linearised at the prior:
-    /// innovation `y - h(x-) - H dx`, gain `K = P H^T / s` (Eq. 4), `dx += K nu` (Eq. 6),
-    /// `P -= (P H^T)(P H^T)^T / s` (Eq. 7, symmetric form; for the optimal gain it equals the
-    /// Joseph form), deferred: `w = P H^T / sqrt(s)` is stored and `P = P_0 - W W^T` is
-    /// formed once per step ([`Filter::apply_downdates`]); `P H^T` of later updates
-    /// subtracts the pending columns. Rejected when `nu^2 > gate^2 s`.
-    fn scalar_update(&mut self, sensor: Sensor, measured: f64, predicted: f64, r: f64) -> bool {
-        let s = &mut self.scratch;
-        let h_dx: f64 = s
-            .h_idx
-            .iter()
-            .zip(&s.h_val)
-            .map(|(&k, v)| v * s.dx[k])
-            .sum();
-        let nu = measured - predicted - h_dx;
-        let spread = match self.algebra {
-            Algebra::Structured => {
-                // u = (P_0 - W W^T) H^T: the pending updates subtracted.
-                algebra::sparse_times(
-                    self.p.as_slice(),
-                    &s.pending,
-                    &s.h_idx,
-                    &s.h_val,
-                    &mut s.w_dot_h,
-                    &mut s.u,
-                );
-                let hph: f64 = s.h_idx.iter().zip(&s.h_val).map(|(&k, v)| v * s.u[k]).sum();
-                hph + r
-            }
-            Algebra::Dense => dense::innovation_variance(&self.p, &s.h_idx, &s.h_val, r),
-        };
-        let accepted = nu * nu <= self.noise.gate_sigmas.powi(2) * spread;
-        self.records.push(UpdateRecord {
-            sensor,
-            measured,
-            residual: nu,
-            bound_3sigma: 3.0 * spread.sqrt(),
-            accepted,
-        });
-        if !accepted {
-            return false;
-        }
-        match self.algebra {
-            Algebra::Structured => {
-                let gain = nu / spread;
-                for (x, u) in s.dx.as_mut_slice().iter_mut().zip(&s.u) {
-                    *x += gain * u;
-                }
-                s.pending.push(&s.u, 1.0 / spread.sqrt());
-            }
-            Algebra::Dense => {
-                dense::joseph_update(&mut self.p, &mut s.dx, &s.h_idx, &s.h_val, nu, r);
-            }
-        }
-        true
     }
 
     /// The multiplicative reset: `q <- dq(a) ⊗ q`, additive for bias, scales and parameters,
@@ -708,11 +650,10 @@ impl Filter {
     /// error frames by the correction) is neglected, as usual for the MEKF.
     fn reset(&mut self) -> Result<(), FilterError> {
         let dx = &self.scratch.dx;
-        // The attitude part was folded into q after each accepted update: zero here.
+        // A step's correction is small: the series form (`apply_small_error`, the exact
+        // `apply_error` above 0.1 rad).
         let a = Vector3::new(dx[ATTITUDE], dx[ATTITUDE + 1], dx[ATTITUDE + 2]);
-        if a != Vector3::zeros() {
-            self.q = apply_small_error(&self.q, &a);
-        }
+        self.q = apply_small_error(&self.q, &a);
         self.bias += Vector3::new(dx[BIAS], dx[BIAS + 1], dx[BIAS + 2]);
         for i in 0..self.scale.len() {
             self.scale[i] += dx[self.layout.scale(i)];
