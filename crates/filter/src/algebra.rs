@@ -352,12 +352,7 @@ impl WithSimd for LowerDowndate<'_> {
                     j0,
                     jb,
                 };
-                match size {
-                    1 => tile.downdate::<S, 1>(simd),
-                    2 => tile.downdate::<S, 2>(simd),
-                    3 => tile.downdate::<S, 3>(simd),
-                    _ => unreachable!("tiles are 1 to TILE_VECTORS vectors"),
-                }
+                tile.dispatch(simd, size);
                 done += size;
             }
             j0 += jb;
@@ -382,28 +377,34 @@ struct Tile<'a> {
 }
 
 impl Tile<'_> {
-    /// `P[i.., j0..] -= W[i.., :] W[j0.., :]^T`: loads, `k` rank-1 steps in registers,
-    /// stores. Vectors reaching past row `n` are loaded and stored partially (masked).
+    /// [`Tile::downdate`] with the tile's `size` vectors and `jb` columns as constants (so
+    /// that its accumulators stay in registers).
     #[inline(always)]
-    fn downdate<S: Simd, const B: usize>(self, simd: S) {
+    fn dispatch<S: Simd>(self, simd: S, size: usize) {
+        macro_rules! shapes {
+            ($(($b:literal, $c:literal))*) => {
+                match (size, self.jb) {
+                    $(($b, $c) => self.downdate::<S, $b, $c>(simd),)*
+                    _ => unreachable!("tiles are 1 to TILE_VECTORS vectors, 1 to COL_BLOCK columns"),
+                }
+            };
+        }
+        shapes!((1, 1) (1, 2) (1, 3) (1, 4) (2, 1) (2, 2) (2, 3) (2, 4) (3, 1) (3, 2) (3, 3) (3, 4))
+    }
+
+    /// `P[i.., j0..] -= W[i.., :] W[j0.., :]^T` for `B` vectors of rows and `JB` columns:
+    /// loads, `k` rank-1 steps in registers, stores. Vectors reaching past row `n` are
+    /// loaded and stored partially (masked).
+    #[inline(always)]
+    fn downdate<S: Simd, const B: usize, const JB: usize>(self, simd: S) {
         let Tile {
-            p,
-            pending,
-            i,
-            j0,
-            jb,
+            p, pending, i, j0, ..
         } = self;
         let (n, ld, k, lanes) = (pending.n, pending.ld, pending.count, S::F64_LANES);
         let zero = simd.splat_f64s(0.0);
-        let mut acc = [[zero; B]; COL_BLOCK];
-        // Whole vectors only (all tiles but the last of a column block): one slice each.
-        let inside = i + B * lanes <= n;
-        for (c, a) in acc.iter_mut().enumerate().take(jb) {
+        let mut acc = [[zero; B]; JB];
+        for (c, a) in acc.iter_mut().enumerate() {
             let column = &p[(j0 + c) * n..][..n];
-            if inside {
-                a.copy_from_slice(S::as_simd_f64s(&column[i..i + B * lanes]).0);
-                continue;
-            }
             for (b, x) in a.iter_mut().enumerate() {
                 let r = i + b * lanes;
                 if r + lanes <= n {
@@ -414,14 +415,14 @@ impl Tile<'_> {
             }
         }
         // Each column of W from row i (B vectors; rows past n, from the pad or the next
-        // column, only reach accumulator rows that are never stored) and from row j0
-        // (COL_BLOCK entries; past n only accumulator columns that are never stored).
+        // column, only reach accumulator rows that are never stored) and from row j0 (JB
+        // entries).
         let w = pending.w();
         let rows = w[i..i + k * ld].chunks_exact(ld);
         let cols = w[j0..j0 + k * ld].chunks_exact(ld);
         for (w_rows, w_cols) in rows.zip(cols) {
             let w = S::as_simd_f64s(&w_rows[..B * lanes]).0;
-            let w_cols = &w_cols[..COL_BLOCK];
+            let w_cols: &[f64; JB] = w_cols[..JB].try_into().expect("JB entries");
             for (a, &s) in acc.iter_mut().zip(w_cols) {
                 let s = simd.splat_f64s(s);
                 for (x, &v) in a.iter_mut().zip(w) {
@@ -429,14 +430,8 @@ impl Tile<'_> {
                 }
             }
         }
-        for (c, a) in acc.iter().enumerate().take(jb) {
+        for (c, a) in acc.iter().enumerate() {
             let column = &mut p[(j0 + c) * n..][..n];
-            if inside {
-                S::as_mut_simd_f64s(&mut column[i..i + B * lanes])
-                    .0
-                    .copy_from_slice(a);
-                continue;
-            }
             for (b, &x) in a.iter().enumerate() {
                 let r = i + b * lanes;
                 if r + lanes <= n {
