@@ -122,6 +122,7 @@ impl TangentFrame {
     }
 
     /// The tangent basis `(e1, e2)` of the unit normal `n` (see [`tangent_basis_about`]).
+    #[inline]
     pub fn basis_at(&self, n: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
         carried_basis(n, &self.reference, &self.u0)
     }
@@ -129,6 +130,7 @@ impl TangentFrame {
 
 /// Carries the frame `(u0, c x u0, c)` to `n` by the smallest rotation taking `c` to `n`
 /// (Rodrigues, `k = c x n`: `R = I + [k x] + [k x]^2 / (1 + c·n)`), re-orthonormalised.
+#[inline]
 fn carried_basis(
     n: &Vector3<f64>,
     c: &Vector3<f64>,
@@ -159,6 +161,7 @@ pub fn rotate_normal(n: &Vector3<f64>, d1: f64, d2: f64) -> Vector3<f64> {
 
 /// [`rotate_normal`] in a given tangent basis `(e1, e2)` of `n` (e.g. from
 /// [`tangent_basis_about`]).
+#[inline]
 pub fn rotate_normal_in(
     n: &Vector3<f64>,
     (e1, e2): (&Vector3<f64>, &Vector3<f64>),

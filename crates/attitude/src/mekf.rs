@@ -91,6 +91,7 @@ pub const SMALL_ERROR_RAD: f64 = 0.1;
 /// normalised once (no libm call, one square root). Agrees with [`apply_error`] to rounding
 /// (a test holds them to 1e-15 per component); larger or non-finite `a` go to
 /// [`apply_error`] itself.
+#[inline]
 pub fn apply_small_error(q_est: &Quat, a: &Vector3<f64>) -> Quat {
     let h2 = 0.25 * a.norm_squared();
     // NaN fails the comparison and goes to the exact form too.

@@ -50,6 +50,7 @@ impl Quat {
     }
 
     /// The attitude matrix `A(q) = (q_w^2 - |q_v|^2) I + 2 q_v q_v^T - 2 q_w [q_v x]`.
+    #[inline]
     pub fn attitude_matrix(&self) -> Matrix3<f64> {
         let v = self.vector();
         Matrix3::identity() * (self.w * self.w - v.norm_squared()) + v * v.transpose() * 2.0
