@@ -279,7 +279,7 @@ impl Filter {
                 rows6: OMatrix::<f64, U6, Dyn>::zeros(n),
                 partials,
                 cal_noise: DVector::zeros(n),
-                rows: Rows::default(),
+                rows: Rows::with_capacity(3 + m, 9 + m * layout.max_row_len()),
                 sources: Vec::with_capacity(3 + m),
                 outcome: Vec::with_capacity(3 + m),
                 work: Workspace::default(),

@@ -22,7 +22,7 @@
 use crate::algebra::{self, Pending, Picked, Run};
 
 /// The step's scalar rows, linearised at the prior.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub(crate) struct Rows {
     /// Row `l`'s non-zeros are `idx/val[start[l]..start[l + 1]]`.
     start: Vec<usize>,
@@ -35,6 +35,19 @@ pub(crate) struct Rows {
 }
 
 impl Rows {
+    /// Room for `rows` rows with `entries` non-zeros in all.
+    pub(crate) fn with_capacity(rows: usize, entries: usize) -> Self {
+        let mut start = Vec::with_capacity(rows + 1);
+        start.push(0);
+        Rows {
+            start,
+            idx: Vec::with_capacity(entries),
+            val: Vec::with_capacity(entries),
+            innovation: Vec::with_capacity(rows),
+            r: Vec::with_capacity(rows),
+        }
+    }
+
     /// No rows.
     pub(crate) fn clear(&mut self) {
         self.start.clear();
@@ -53,9 +66,6 @@ impl Rows {
     /// Starts a row with innovation `y - h(x_0)` and variance `r`; its non-zeros follow
     /// through [`Rows::entry`].
     pub(crate) fn begin(&mut self, innovation: f64, r: f64) {
-        if self.start.is_empty() {
-            self.start.push(0);
-        }
         self.innovation.push(innovation);
         self.r.push(r);
         self.start.push(self.idx.len());
