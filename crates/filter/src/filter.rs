@@ -396,7 +396,7 @@ impl Filter {
     /// sequential scalar updates all linearised at the prior (the paper's EKF; the
     /// structured algebra runs the recursion in its Cholesky form, see `sequential`), then
     /// the multiplicative reset. Records of this sample: [`Filter::records`]. On an error
-    /// nothing is applied.
+    /// the state and covariance are left as they were.
     pub fn update(
         &mut self,
         t_s: f64,
