@@ -8,37 +8,12 @@ use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use pdcal_albedo::{AlbedoModel, MapChoice};
-use pdcal_dataset::{DatasetMeta, OrbitSpec, Telemetry};
-use pdcal_ephem::{OrbitSource, PositionColumns, ReferenceModel, TleOrbit};
-use pdcal_filter::{FilterConfig, Mode, RunInputs, StepReference, calibrate};
-
-/// One reference per telemetry row, as the driver builds them (`pdcal::references`).
-fn step_references(meta: &DatasetMeta, telemetry: &Telemetry) -> Vec<StepReference> {
-    let orbit: Box<dyn OrbitSource + Send + Sync> = match &meta.orbit {
-        OrbitSpec::Tle { line1, line2 } => Box::new(TleOrbit::from_lines(line1, line2).unwrap()),
-        OrbitSpec::PositionColumns => {
-            let r = telemetry.r_gcrf_km.as_ref().unwrap();
-            let (t, pos): (Vec<f64>, Vec<_>) = telemetry
-                .t_s
-                .iter()
-                .zip(r)
-                .filter_map(|(t, r)| r.map(|r| (*t, r)))
-                .unzip();
-            Box::new(PositionColumns::new(meta.epoch_utc.epoch(), t, pos).unwrap())
-        }
-    };
-    let model = ReferenceModel::new(meta.epoch_utc.epoch(), orbit).unwrap();
-    telemetry
-        .t_s
-        .iter()
-        .map(|&t_s| StepReference::from(&model.at(t_s).unwrap()))
-        .collect()
-}
+use pdcal_filter::{FilterConfig, Mode, RunInputs, calibrate, step_references};
 
 fn bench(c: &mut Criterion) {
     let scenario = pdcal_sim::Scenario::rax2_like().unwrap();
     let sim = pdcal_sim::simulate(&scenario, 1).unwrap();
-    let references = step_references(&sim.meta, &sim.telemetry);
+    let references = step_references(&sim.meta, &sim.telemetry).unwrap();
     let albedo = AlbedoModel::from_choice(&MapChoice::TomsMean1p25x1).unwrap();
     let inputs = RunInputs {
         meta: &sim.meta,

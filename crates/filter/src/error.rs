@@ -64,6 +64,27 @@ pub enum FilterError {
     /// An error from the photodiode model.
     #[error(transparent)]
     Photodiode(#[from] pdcal_photodiode::PhotodiodeError),
+    /// The dataset's orbit description could not be turned into an orbit source.
+    #[error("{what}: {source}")]
+    Orbit {
+        /// Where the orbit came from (`dataset.ron orbit`, `telemetry.csv position columns`).
+        what: &'static str,
+        /// The ephemeris crate's error.
+        source: pdcal_ephem::OrbitError,
+    },
+    /// `orbit: PositionColumns` without the position columns.
+    #[error("telemetry.csv: orbit PositionColumns needs r_x_km, r_y_km, r_z_km")]
+    MissingPositionColumns,
+    /// A row's reference vectors could not be computed.
+    #[error("reference{}: {source}", index.map(|i| format!(" at row {i} (t_s = {t_s})")).unwrap_or_default())]
+    Reference {
+        /// Telemetry row (`None`: building the reference model).
+        index: Option<usize>,
+        /// Its time, s.
+        t_s: f64,
+        /// The ephemeris crate's error.
+        source: pdcal_ephem::ReferenceError,
+    },
     /// An error from the albedo model.
     #[error("albedo at sample {index}: {message}")]
     Albedo {

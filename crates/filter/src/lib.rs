@@ -91,6 +91,7 @@ pub mod filter;
 pub mod init;
 pub mod layout;
 pub mod output;
+pub mod references;
 pub mod run;
 mod sequential;
 pub mod smoother;
@@ -104,6 +105,7 @@ pub use filter::{
 };
 pub use layout::StateLayout;
 pub use output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
+pub use references::{orbit_source, step_references};
 pub use run::{RunInputs, calibrate, calibrate_with_model, paper_model};
 
 use nalgebra::{Matrix3, Vector3};

@@ -74,7 +74,7 @@ pub fn run(
     config: &RunConfig,
     albedo: &AlbedoModel,
 ) -> Result<Outcome> {
-    let references = crate::references::step_references(meta, telemetry)?;
+    let references = pdcal_filter::step_references(meta, telemetry)?;
     let inputs = RunInputs {
         meta,
         telemetry,

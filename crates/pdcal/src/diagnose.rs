@@ -32,7 +32,7 @@ pub fn run(
     truth: Option<&[pdcal_dataset::TruePd]>,
     base: BaseModel,
 ) -> Result<DiagnoseOutcome> {
-    let references = crate::references::step_references(meta, telemetry)?;
+    let references = pdcal_filter::step_references(meta, telemetry)?;
     let albedo = crate::calibrate::albedo_model()?;
     let inputs = DiagnoseInputs {
         meta,

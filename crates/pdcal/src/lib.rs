@@ -13,6 +13,5 @@ pub mod evaluate;
 pub mod figures;
 pub mod files;
 pub mod output;
-pub mod references;
 pub mod simulate;
 pub mod sunvec;

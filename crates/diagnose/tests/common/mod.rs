@@ -4,9 +4,8 @@
 #![allow(dead_code)]
 
 use pdcal_albedo::{AlbedoModel, MapChoice};
-use pdcal_dataset::{Effect, OrbitSpec};
+use pdcal_dataset::Effect;
 use pdcal_diagnose::{BaseModel, DiagnoseConfig, DiagnoseInputs, Diagnosis, diagnose};
-use pdcal_ephem::{ReferenceModel, TleOrbit};
 use pdcal_filter::StepReference;
 use pdcal_sim::{Scenario, SimOutput, simulate};
 
@@ -29,18 +28,9 @@ pub fn albedo() -> Effect {
     }
 }
 
-/// One reference per telemetry row, from the dataset's TLE (as `pdcal::references`).
+/// One reference per telemetry row, from the dataset's TLE.
 pub fn references(sim: &SimOutput) -> Vec<StepReference> {
-    let OrbitSpec::Tle { line1, line2 } = &sim.meta.orbit else {
-        panic!("simulated data sets carry a TLE");
-    };
-    let orbit = TleOrbit::from_lines(line1, line2).expect("TLE");
-    let model = ReferenceModel::new(sim.meta.epoch_utc.epoch(), Box::new(orbit)).expect("model");
-    sim.telemetry
-        .t_s
-        .iter()
-        .map(|&t| StepReference::from(&model.at(t).expect("reference")))
-        .collect()
+    pdcal_filter::step_references(&sim.meta, &sim.telemetry).expect("references")
 }
 
 /// The filter's albedo model.
