@@ -219,8 +219,8 @@ impl Columns<'_> {
         sizes!(1 2 3 4 5 6 7 8)
     }
 
-    /// The picked columns, then the run's, each with its weight.
-    fn each(&self) -> impl Iterator<Item = (&[f64], f64)> {
+    /// The picked columns (their first `n` rows), each with its weight.
+    fn picked_columns(&self) -> impl Iterator<Item = (&[f64], f64)> {
         let Picked {
             data,
             ld,
@@ -228,17 +228,19 @@ impl Columns<'_> {
             weight,
         } = self.picked;
         let n = self.n;
-        let picked = idx
-            .iter()
+        idx.iter()
             .zip(weight)
-            .map(move |(&k, &v)| (&data[k * ld..][..n], v));
-        let run = self
-            .run
+            .map(move |(&k, &v)| (&data[k * ld..][..n], v))
+    }
+
+    /// The run's columns (their first `n` rows), each with its weight.
+    fn run_columns(&self) -> impl Iterator<Item = (&[f64], f64)> {
+        let n = self.n;
+        self.run
             .data
             .chunks(self.run.ld)
             .zip(self.run.weight)
-            .map(move |(column, &v)| (&column[..n], v));
-        picked.chain(run)
+            .map(move |(column, &v)| (&column[..n], v))
     }
 
     /// `u` over the `B` whole vectors of rows from row `r0` and, with `TAIL`, the vector
@@ -248,17 +250,12 @@ impl Columns<'_> {
         let (n, lanes) = (self.n, S::F64_LANES);
         let zero = simd.splat_f64s(0.0);
         let (mut acc, mut last) = ([zero; B], zero);
-        let Picked {
-            data,
-            ld,
-            idx,
-            weight,
-        } = self.picked;
-        for (&k, &v) in idx.iter().zip(weight) {
-            axpy_rows::<S, B, TAIL>(simd, &mut acc, &mut last, &data[k * ld..][..n], r0, v);
+        // Two loops, not one chained iterator: each keeps a fixed body.
+        for (column, v) in self.picked_columns() {
+            axpy_rows::<S, B, TAIL>(simd, &mut acc, &mut last, column, r0, v);
         }
-        for (column, &v) in self.run.data.chunks(self.run.ld).zip(self.run.weight) {
-            axpy_rows::<S, B, TAIL>(simd, &mut acc, &mut last, &column[..n], r0, v);
+        for (column, v) in self.run_columns() {
+            axpy_rows::<S, B, TAIL>(simd, &mut acc, &mut last, column, r0, v);
         }
         let out = S::as_mut_simd_f64s(&mut u[r0..][..B * lanes]).0;
         for (o, a) in out.iter_mut().zip(acc) {
@@ -274,7 +271,8 @@ impl Columns<'_> {
     fn scalar(&self, u: &mut [f64]) {
         for (r, out) in u.iter_mut().enumerate() {
             *out = self
-                .each()
+                .picked_columns()
+                .chain(self.run_columns())
                 .fold(0.0, |acc, (column, v)| column[r].mul_add(v, acc));
         }
     }
