@@ -94,3 +94,20 @@ pub enum FilterError {
         message: String,
     },
 }
+
+/// [`FilterError::LengthMismatch`] unless `found == expected`.
+pub(crate) fn check_len(
+    what: &'static str,
+    expected: usize,
+    found: usize,
+) -> Result<(), FilterError> {
+    if expected == found {
+        Ok(())
+    } else {
+        Err(FilterError::LengthMismatch {
+            what,
+            expected,
+            found,
+        })
+    }
+}

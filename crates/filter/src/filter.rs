@@ -11,6 +11,7 @@ use pdcal_photodiode::{AlbedoIrradiance, MeasurementModel, Partials, Scene};
 use crate::algebra::{self, Pending};
 use crate::calibration::{Calibration, ParameterEstimate, PdCalibration};
 use crate::dense;
+use crate::error::check_len;
 use crate::layout::{ATTITUDE, BIAS, CORE, StateLayout};
 use crate::sequential::{self, Outcome, Rows, Workspace};
 use crate::{FilterError, StepReference};
@@ -827,17 +828,5 @@ impl StateView<'_> {
                 })
                 .collect(),
         }
-    }
-}
-
-fn check_len(what: &'static str, expected: usize, found: usize) -> Result<(), FilterError> {
-    if expected == found {
-        Ok(())
-    } else {
-        Err(FilterError::LengthMismatch {
-            what,
-            expected,
-            found,
-        })
     }
 }

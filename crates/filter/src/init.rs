@@ -166,17 +166,7 @@ pub fn find_start(inputs: &StartInputs<'_>, config: &FilterConfig) -> Result<Sta
             inputs.mag_sigma_nt,
         )?;
         if let Some(model) = inputs.albedo {
-            model
-                .compute_into(
-                    &mut view,
-                    &reference.r_gcrf_km,
-                    &reference.sun_gcrf_km,
-                    &reference.gcrf_to_itrf,
-                )
-                .map_err(|e| FilterError::Albedo {
-                    index: k,
-                    message: e.to_string(),
-                })?;
+            reference.albedo_into(model, &mut view, k)?;
             for _ in 0..2 {
                 let a = q.attitude_matrix();
                 for (i, pd) in inputs.photodiodes.iter().enumerate() {

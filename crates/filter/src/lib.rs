@@ -128,6 +128,24 @@ pub struct StepReference {
     pub gcrf_to_itrf: Matrix3<f64>,
 }
 
+impl StepReference {
+    /// The albedo `model`'s view from this reference's position and Sun into `view`; errors
+    /// name the telemetry row `index`.
+    pub(crate) fn albedo_into(
+        &self,
+        model: &pdcal_albedo::AlbedoModel,
+        view: &mut pdcal_albedo::AlbedoView,
+        index: usize,
+    ) -> Result<(), FilterError> {
+        model
+            .compute_into(view, &self.r_gcrf_km, &self.sun_gcrf_km, &self.gcrf_to_itrf)
+            .map_err(|e| FilterError::Albedo {
+                index,
+                message: e.to_string(),
+            })
+    }
+}
+
 impl From<&pdcal_ephem::reference::Reference> for StepReference {
     fn from(r: &pdcal_ephem::reference::Reference) -> Self {
         StepReference {

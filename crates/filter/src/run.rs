@@ -8,6 +8,7 @@ use pdcal_photodiode::{Albedo, DirectSun, MeasurementModel, Photodiode};
 
 use crate::calibration::Calibration;
 use crate::config::{E_AM0_W_M2, FilterConfig, Mode};
+use crate::error::check_len;
 use crate::filter::{Algebra, Filter, FilterNoise, InitialState, Measurements, StateView};
 use crate::init::{StartInputs, find_start, initial_scales};
 use crate::layout::{ATTITUDE, StateLayout};
@@ -245,17 +246,7 @@ pub fn calibrate_with_model(
                 if reference.sun_fraction >= config.min_sun_fraction
                     && row.iter().any(Option::is_some) =>
             {
-                model
-                    .compute_into(
-                        &mut view,
-                        &reference.r_gcrf_km,
-                        &reference.sun_gcrf_km,
-                        &reference.gcrf_to_itrf,
-                    )
-                    .map_err(|e| FilterError::Albedo {
-                        index: k,
-                        message: e.to_string(),
-                    })?;
+                reference.albedo_into(model, &mut view, k)?;
                 Some(&view)
             }
             _ => None,
@@ -382,17 +373,5 @@ pub(crate) fn step_estimate(
         q,
         attitude_sigma_deg: [sig(0), sig(1), sig(2)],
         calibration: view.calibration(layout, fixed),
-    }
-}
-
-fn check_len(what: &'static str, expected: usize, found: usize) -> Result<(), FilterError> {
-    if expected == found {
-        Ok(())
-    } else {
-        Err(FilterError::LengthMismatch {
-            what,
-            expected,
-            found,
-        })
     }
 }
