@@ -329,19 +329,10 @@ pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
     let m = (1..)
         .take_while(|i| header.iter().any(|h| h == format!("pd{i:02}_scale_V")))
         .count();
-    let base: Vec<usize> = [
-        "t_s",
-        "q_x",
-        "q_y",
-        "q_z",
-        "q_w",
-        "att_sigma_x_deg",
-        "att_sigma_y_deg",
-        "att_sigma_z_deg",
-    ]
-    .iter()
-    .map(|n| col(n))
-    .collect::<Result<_>>()?;
+    let base: Vec<usize> = crate::files::ESTIMATE_LEADING_COLUMNS
+        .iter()
+        .map(|n| col(n))
+        .collect::<Result<_>>()?;
     let bias: Vec<usize> = ["x", "y", "z"]
         .iter()
         .map(|a| col(&format!("gyro_bias_{a}_rad_s")))

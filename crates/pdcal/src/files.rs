@@ -205,20 +205,22 @@ fn counts_json(run: &CalibrationRun) -> serde_json::Value {
     })
 }
 
+/// The first columns of `estimates.csv`: time, attitude and its sigmas (written here, read
+/// back by `evaluate`).
+pub const ESTIMATE_LEADING_COLUMNS: [&str; 8] = [
+    "t_s",
+    "q_x",
+    "q_y",
+    "q_z",
+    "q_w",
+    "att_sigma_x_deg",
+    "att_sigma_y_deg",
+    "att_sigma_z_deg",
+];
+
 /// Column names of `estimates.csv` for `m` photodiodes and the extra parameters.
 pub fn estimate_header(m: usize, parameters: &[String]) -> Vec<String> {
-    let mut h: Vec<String> = [
-        "t_s",
-        "q_x",
-        "q_y",
-        "q_z",
-        "q_w",
-        "att_sigma_x_deg",
-        "att_sigma_y_deg",
-        "att_sigma_z_deg",
-    ]
-    .map(String::from)
-    .to_vec();
+    let mut h: Vec<String> = ESTIMATE_LEADING_COLUMNS.map(String::from).to_vec();
     for axis in ["x", "y", "z"] {
         h.push(format!("gyro_bias_{axis}_rad_s"));
     }
