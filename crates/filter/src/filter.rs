@@ -191,21 +191,31 @@ struct Scratch {
     /// Columns `w_l = P_{l-1} H_l^T / sqrt(s_l)` of this step's accepted updates, applied
     /// at the end as one rank-k downdate of the lower triangle ([`algebra::apply_pending`]).
     pending: Pending,
-    /// This step's albedo per photodiode, evaluated at the prior ([`Filter::prior_albedo`]).
+    /// The photodiodes this step updates ([`Filter::select_photodiodes`]).
+    selected: Vec<Selected>,
+    /// This step's albedo per selected photodiode, evaluated at the prior
+    /// ([`Filter::prior_albedo`]).
     albedo: AlbedoScratch,
 }
 
-/// The step's albedo evaluations: the photodiodes that may be updated, their normals in
-/// GCRF at the prior attitude, and the results.
+/// A photodiode this step updates.
+#[derive(Debug, Clone, Copy)]
+struct Selected {
+    index: usize,
+    measured_v: f64,
+    /// `n . s` at the prior.
+    cos_incidence: f64,
+}
+
+/// The step's albedo evaluations, one per selected photodiode: its normal in GCRF at the
+/// prior attitude, its field-of-view cosine and the result.
 #[derive(Default)]
 struct AlbedoScratch {
-    index: Vec<usize>,
     normals_gcrf: Vec<Vector3<f64>>,
     cos_fov: Vec<f64>,
     results: Vec<(f64, Vector3<f64>)>,
-    /// Per photodiode, the result as an [`AlbedoIrradiance`] at its prior normal (a
-    /// [`LinearAlbedo`] there returns the evaluation itself); `None` where not evaluated.
-    linear: Vec<Option<LinearAlbedo>>,
+    /// The results as [`AlbedoIrradiance`]s for the model.
+    linear: Vec<LinearAlbedo>,
 }
 
 impl Filter {
@@ -285,12 +295,12 @@ impl Filter {
                 outcome: Vec::with_capacity(3 + m),
                 work: Workspace::default(),
                 pending: Pending::new(n, 3 + m),
+                selected: Vec::with_capacity(m),
                 albedo: AlbedoScratch {
-                    index: Vec::with_capacity(m),
                     normals_gcrf: Vec::with_capacity(m),
                     cos_fov: Vec::with_capacity(m),
                     results: Vec::with_capacity(m),
-                    linear: vec![None; m],
+                    linear: Vec::with_capacity(m),
                 },
             },
             layout,
@@ -479,7 +489,8 @@ impl Filter {
     }
 
     /// The photodiode rows at the prior attitude `attitude`: one per photodiode that is
-    /// sampled, lit, in use and inside the field of view.
+    /// sampled, lit, in use and inside the field of view ([`Filter::select_photodiodes`]),
+    /// with the albedo of all of them evaluated in one batch first.
     fn photodiode_rows(
         &mut self,
         attitude: &Matrix3<f64>,
@@ -488,41 +499,26 @@ impl Filter {
         reference: &StepReference,
         albedo: Option<&dyn AlbedoIrradiance>,
     ) -> Result<(), FilterError> {
-        let lit = reference.sun_fraction >= self.noise.min_sun_fraction;
-        if lit && let Some(albedo) = albedo {
-            self.prior_albedo(attitude, pd_v, reference, albedo);
-        }
         let sun_body = attitude * reference.sun_gcrf_unit;
-        for (i, sample) in pd_v.iter().enumerate() {
-            let counts = &mut self.counts.photodiode;
-            let Some(y) = *sample else {
-                counts.not_sampled += 1;
-                continue;
-            };
-            if !lit {
-                counts.shadowed += 1;
-                continue;
-            }
-            if !self.used[i] || self.scale[i] <= 0.0 {
-                counts.unused_sensor += 1;
-                continue;
-            }
-            let cos_incidence = self.normal[i].dot(&sun_body);
-            if cos_incidence < self.noise.cos_fov {
-                counts.outside_fov += 1;
-                continue;
-            }
-            let linear = self.scratch.albedo.linear[i];
+        self.select_photodiodes(pd_v, reference, &sun_body);
+        let albedo_used = albedo.filter(|_| !self.scratch.selected.is_empty());
+        if let Some(albedo) = albedo_used {
+            self.prior_albedo(attitude, albedo);
+        }
+        for k in 0..self.scratch.selected.len() {
+            let Selected {
+                index: i,
+                measured_v: y,
+                cos_incidence,
+            } = self.scratch.selected[k];
             let scene = Scene {
                 attitude: *attitude,
                 sun_body,
                 sun_fraction: reference.sun_fraction,
                 rate_body_rad_s: self.rate_est,
                 t_s,
-                albedo: match &linear {
-                    Some(l) => Some(l as &dyn AlbedoIrradiance),
-                    None => albedo,
-                },
+                albedo: albedo_used
+                    .map(|_| &self.scratch.albedo.linear[k] as &dyn AlbedoIrradiance),
             };
             self.model
                 .partials_into(i, &scene, &mut self.scratch.partials)?;
@@ -536,6 +532,45 @@ impl Filter {
             self.scratch.sources.push((Sensor::Photodiode(i), y));
         }
         Ok(())
+    }
+
+    /// The photodiodes this step updates, into `scratch.selected`: sampled, lit (full Sun),
+    /// in use and inside the field of view at the prior (`sun_body`); the others counted by
+    /// why they were left out.
+    fn select_photodiodes(
+        &mut self,
+        pd_v: &[Option<f64>],
+        reference: &StepReference,
+        sun_body: &Vector3<f64>,
+    ) {
+        let lit = reference.sun_fraction >= self.noise.min_sun_fraction;
+        let counts = &mut self.counts.photodiode;
+        let selected = &mut self.scratch.selected;
+        selected.clear();
+        for (i, sample) in pd_v.iter().enumerate() {
+            let Some(y) = *sample else {
+                counts.not_sampled += 1;
+                continue;
+            };
+            if !lit {
+                counts.shadowed += 1;
+                continue;
+            }
+            if !self.used[i] || self.scale[i] <= 0.0 {
+                counts.unused_sensor += 1;
+                continue;
+            }
+            let cos_incidence = self.normal[i].dot(sun_body);
+            if cos_incidence < self.noise.cos_fov {
+                counts.outside_fov += 1;
+                continue;
+            }
+            selected.push(Selected {
+                index: i,
+                measured_v: y,
+                cos_incidence,
+            });
+        }
     }
 
     /// Runs the step's rows through the algebra, records each and counts it. Whether any
@@ -584,43 +619,33 @@ impl Filter {
         any
     }
 
-    /// Evaluates the albedo of every photodiode this step may update (sampled, in use,
-    /// inside the field of view at the prior attitude `attitude`) in one batch call: one
-    /// call lets the provider (or the CPU) work on the photodiodes together.
-    fn prior_albedo(
-        &mut self,
-        attitude: &Matrix3<f64>,
-        pd_v: &[Option<f64>],
-        reference: &StepReference,
-        albedo: &dyn AlbedoIrradiance,
-    ) {
-        let sun_body = attitude * reference.sun_gcrf_unit;
+    /// Evaluates the albedo of the selected photodiodes at the prior attitude `attitude` in
+    /// one batch call (one call lets the provider, or the CPU, work on the photodiodes
+    /// together), each kept as the [`LinearAlbedo`] at its prior normal, which returns the
+    /// evaluation itself there.
+    fn prior_albedo(&mut self, attitude: &Matrix3<f64>, albedo: &dyn AlbedoIrradiance) {
         let a = &mut self.scratch.albedo;
-        a.index.clear();
         a.normals_gcrf.clear();
         a.cos_fov.clear();
-        a.linear.fill(None);
-        for (i, sample) in pd_v.iter().enumerate() {
-            let wanted = sample.is_some()
-                && self.used[i]
-                && self.scale[i] > 0.0
-                && self.normal[i].dot(&sun_body) >= self.noise.cos_fov;
-            if wanted {
-                a.index.push(i);
-                a.normals_gcrf.push(attitude.tr_mul(&self.normal[i]));
-                a.cos_fov.push(self.model.photodiodes()[i].cos_fov());
-            }
+        for pd in &self.scratch.selected {
+            a.normals_gcrf.push(attitude.tr_mul(&self.normal[pd.index]));
+            a.cos_fov.push(self.model.photodiodes()[pd.index].cos_fov());
         }
         a.results.clear();
-        a.results.resize(a.index.len(), (0.0, Vector3::zeros()));
+        a.results
+            .resize(a.normals_gcrf.len(), (0.0, Vector3::zeros()));
         albedo.ratios_and_vectors(&a.normals_gcrf, &a.cos_fov, &mut a.results);
-        for ((&i, n0), &(ratio0, vector)) in a.index.iter().zip(&a.normals_gcrf).zip(&a.results) {
-            a.linear[i] = Some(LinearAlbedo {
-                n0_gcrf: *n0,
-                ratio0,
-                vector_gcrf: vector,
-            });
-        }
+        a.linear.clear();
+        a.linear.extend(
+            a.normals_gcrf
+                .iter()
+                .zip(&a.results)
+                .map(|(n0, &(ratio0, vector))| LinearAlbedo {
+                    n0_gcrf: *n0,
+                    ratio0,
+                    vector_gcrf: vector,
+                }),
+        );
     }
 
     /// The sparse H row of photodiode `i` from the model's partials, appended to the row
