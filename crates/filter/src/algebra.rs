@@ -115,20 +115,6 @@ fn line_offset(data: &[f64]) -> usize {
     if offset < LINE { offset } else { 0 }
 }
 
-impl Clone for Pending {
-    /// A copy with its own offset to a cache line.
-    fn clone(&self) -> Self {
-        let mut copy = Pending {
-            data: vec![0.0; self.data.len()],
-            ..*self
-        };
-        let count = self.count;
-        copy.columns_mut(count)
-            .copy_from_slice(&self.w()[..count * self.ld]);
-        copy
-    }
-}
-
 /// Columns `idx` of a column-major matrix (leading dimension `ld`), one weight each: the
 /// sparse part of a [`weighted_sum`] (`P H^T` for a sparse row `H`).
 #[derive(Clone, Copy)]
@@ -608,24 +594,6 @@ mod tests {
                 pulp::Simd::vectorize(simd, op);
                 assert_eq!(p.lower_triangle(), expected, "n {n}, AVX2");
             }
-        }
-    }
-
-    #[test]
-    fn clone_keeps_the_columns() {
-        // The clone's buffer may start at another offset from a cache line: it must carry
-        // the columns over (the original grew past its capacity of 1 in `pending_from`).
-        let (n, k) = (19, 5);
-        let (p0, w) = operands(n, k);
-        let pending = pending_from(&w);
-        let copy = pending.clone();
-        let mut expected = p0.clone();
-        apply_pending(expected.as_mut_slice(), &mut pending_from(&w));
-        for mut pending in [pending, copy] {
-            assert_eq!(pending.len(), k);
-            let mut p = p0.clone();
-            apply_pending(p.as_mut_slice(), &mut pending);
-            assert_eq!(p, expected);
         }
     }
 
