@@ -104,6 +104,35 @@ pub fn evaluate(
         );
     }
     let truth_row = |t: f64| truth.t_s.binary_search_by(|x| x.total_cmp(&t)).ok();
+    let (photodiodes, worst_normal_error_deg, worst_scale_error_percent) =
+        photodiode_errors(final_cal, truth, constants);
+    let attitude = attitude_stats(estimates, truth, &truth_row)?;
+    let consistency = consistency(
+        estimates,
+        final_cal,
+        truth,
+        constants,
+        &truth_row,
+        &attitude.1,
+    );
+    Ok(Evaluation {
+        format_version: crate::files::OUTPUT_FORMAT_VERSION,
+        worst_normal_error_deg,
+        worst_scale_error_percent,
+        photodiodes,
+        attitude: attitude.0,
+        consistency,
+    })
+}
+
+/// Each photodiode's true errors, and the worst normal (deg) and scale (%) errors over the
+/// photodiodes lit at least 5 minutes. The calibration must have truth.ron's photodiode
+/// count (checked by [`evaluate`]).
+pub fn photodiode_errors(
+    final_cal: &Calibration,
+    truth: &TruthSeries,
+    constants: &TruthConstants,
+) -> (Vec<PdError>, f64, f64) {
     let lit_minutes = lit_minutes(truth, constants);
     let photodiodes: Vec<PdError> = constants
         .photodiodes
@@ -123,25 +152,11 @@ pub fn evaluate(
         })
         .collect();
     let well_lit = || photodiodes.iter().filter(|p| p.lit_minutes >= 5.0);
-    let attitude = attitude_stats(estimates, truth, &truth_row)?;
-    let consistency = consistency(
-        estimates,
-        final_cal,
-        truth,
-        constants,
-        &truth_row,
-        &attitude.1,
-    );
-    Ok(Evaluation {
-        format_version: crate::files::OUTPUT_FORMAT_VERSION,
-        worst_normal_error_deg: well_lit().map(|p| p.normal_error_deg).fold(0.0, f64::max),
-        worst_scale_error_percent: well_lit()
-            .map(|p| p.scale_error_percent.abs())
-            .fold(0.0, f64::max),
-        photodiodes,
-        attitude: attitude.0,
-        consistency,
-    })
+    let normal = well_lit().map(|p| p.normal_error_deg).fold(0.0, f64::max);
+    let scale = well_lit()
+        .map(|p| p.scale_error_percent.abs())
+        .fold(0.0, f64::max);
+    (photodiodes, normal, scale)
 }
 
 /// Minutes each photodiode spent in full Sun with the Sun inside its field of view (truth).
