@@ -309,25 +309,9 @@ fn albedo_gain(res: &Residuals, lag: usize) -> CandidateFit {
 /// the calibrated scale's), in 1/K; the effect carries the coefficients about the reference
 /// temperature.
 fn temperature(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
-    let mut sum = vec![0.0; n_pd];
-    let mut weight = vec![0.0; n_pd];
-    for p in res.pd.iter().filter(|p| p.scale_v > 0.0 && p.pd < n_pd) {
-        if p.temperature_c.is_finite() {
-            let w = p.scale_v * p.scale_v;
-            sum[p.pd] += w * p.temperature_c;
-            weight[p.pd] += w;
-        }
-    }
-    let mean: Vec<f64> = sum
-        .iter()
-        .zip(&weight)
-        .map(|(s, w)| if *w > 0.0 { s / w } else { 0.0 })
-        .collect();
-    let (entries, support) = pd_entries(res, |p| {
-        (p.scale_v > 0.0 && p.pd < n_pd && p.temperature_c.is_finite())
-            .then(|| (p.pd, p.scale_v * (p.temperature_c - mean[p.pd])))
+    let (fit, support) = scale_gain_fit(res, n_pd, lag, |p| {
+        p.temperature_c.is_finite().then_some(p.temperature_c)
     });
-    let fit = hac_wald(&entries, n_pd, lag, &vec![pd_var(res); n_pd]);
     let (lo, hi) = min_max(&fit.amplitudes);
     let evidence = format!(
         "photodiode residual vs C dI/dC (T - mean T), per photodiode: {:.3} .. {:.3} %/K",
@@ -443,24 +427,42 @@ fn time_offset(res: &Residuals, lag: usize) -> CandidateFit {
     candidate(Effect::TimeOffset { seconds }, &fit, k, evidence, support)
 }
 
+/// A relative scale change linear in `x` per photodiode (`scale-drift`: time in hours;
+/// `temperature`: degrees): the residual regressed on `C dI/dC (x - mean x)`, the mean
+/// weighted by `(C dI/dC)^2` per photodiode, so that a constant scale error (the
+/// calibration's) carries no signature. Samples where `x` is `None` are left out.
+fn scale_gain_fit(
+    res: &Residuals,
+    n_pd: usize,
+    lag: usize,
+    x: impl Fn(&PdSample) -> Option<f64>,
+) -> (WaldFit, Vec<(usize, usize)>) {
+    let usable = |p: &PdSample| (p.scale_v > 0.0 && p.pd < n_pd).then(|| x(p)).flatten();
+    let mut sum = vec![0.0; n_pd];
+    let mut weight = vec![0.0; n_pd];
+    for p in &res.pd {
+        if let Some(v) = usable(p) {
+            let w = p.scale_v * p.scale_v;
+            sum[p.pd] += w * v;
+            weight[p.pd] += w;
+        }
+    }
+    let mean: Vec<f64> = sum
+        .iter()
+        .zip(&weight)
+        .map(|(s, w)| if *w > 0.0 { s / w } else { 0.0 })
+        .collect();
+    let (entries, support) = pd_entries(res, |p| {
+        usable(p).map(|v| (p.pd, p.scale_v * (v - mean[p.pd])))
+    });
+    let fit = hac_wald(&entries, n_pd, lag, &vec![pd_var(res); n_pd]);
+    (fit, support)
+}
+
 /// `scale-drift`: per photodiode, the residual against `C dI/dC t/3600` made orthogonal to
 /// `C dI/dC` (a constant scale error is the calibration's, not an effect).
 fn scale_drift(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
-    let mut x1x1 = vec![0.0; n_pd];
-    let mut x1x2 = vec![0.0; n_pd];
-    for p in res.pd.iter().filter(|p| p.scale_v > 0.0 && p.pd < n_pd) {
-        x1x1[p.pd] += p.scale_v * p.scale_v;
-        x1x2[p.pd] += p.scale_v * p.scale_v * p.t_s / 3600.0;
-    }
-    let beta: Vec<f64> = x1x1
-        .iter()
-        .zip(&x1x2)
-        .map(|(a, b)| if *a > 0.0 { b / a } else { 0.0 })
-        .collect();
-    let (entries, support) = pd_entries(res, |p| {
-        (p.scale_v > 0.0 && p.pd < n_pd).then(|| (p.pd, p.scale_v * (p.t_s / 3600.0 - beta[p.pd])))
-    });
-    let fit = hac_wald(&entries, n_pd, lag, &vec![pd_var(res); n_pd]);
+    let (fit, support) = scale_gain_fit(res, n_pd, lag, |p| Some(p.t_s / 3600.0));
     let (lo, hi) = min_max(&fit.amplitudes);
     let evidence = format!(
         "photodiode residual vs C dI/dC t, per photodiode: {:.2} .. {:.2} %/h",
