@@ -11,6 +11,7 @@ pub type AlbedoModelType = AlbedoModel;
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_filter::{Calibration, CalibrationRun, FilterConfig, Mode, RunInputs, StepReference};
 
+use crate::output::OutputDir;
 use crate::sunvec::SunVectorMetrics;
 
 /// The resolved run configuration: filter tuning and mode.
@@ -97,11 +98,12 @@ pub fn run(
 
 /// `pdcal calibrate DATASET_DIR --out OUT_DIR [--config FILE.ron]`.
 pub fn run_dir(dataset: &Path, out: &Path, config: &RunConfig) -> Result<Outcome> {
+    let dir = OutputDir::create(out, "calibrate")?;
     // Only meta and telemetry: calibrate never reads truth.*.
     let meta = pdcal_dataset::read_meta(dataset)?;
     let telemetry = pdcal_dataset::read_telemetry(dataset, &meta)?;
     let albedo = albedo_model()?;
     let outcome = run(&meta, &telemetry, config, &albedo)?;
-    crate::files::write_calibration_outputs(out, &meta, &telemetry, &outcome)?;
+    crate::files::write_calibration_outputs(dir, &meta, &telemetry, &outcome, None)?;
     Ok(outcome)
 }

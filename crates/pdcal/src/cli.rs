@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 
 /// On-orbit photodiode calibration. With no command: simulate the RAX-2-like scenario,
@@ -81,9 +81,12 @@ pub fn run(cli: Cli) -> Result<()> {
             plots,
         }) => {
             let scenario = crate::simulate::load_scenario(&scenario)?;
+            let plots = plots
+                .map(|dir| crate::output::OutputDir::create(&dir, "simulate --plots"))
+                .transpose()?;
             let output = crate::simulate::run_to_dir(&scenario, seed, &out)?;
             if let Some(dir) = plots {
-                crate::simulate::write_plots(&output, &dir)?;
+                crate::simulate::write_plots(&output, dir)?;
             }
             println!(
                 "simulated {} (seed {seed}): {} samples, {} photodiodes -> {}",
@@ -104,7 +107,9 @@ pub fn run(cli: Cli) -> Result<()> {
                 None => crate::calibrate::RunConfig::default(),
             };
             let outcome = crate::calibrate::run_dir(&dataset, &out, &config)?;
-            let summary = std::fs::read_to_string(out.join("summary.json"))?;
+            let summary_path = out.join("summary.json");
+            let summary = std::fs::read_to_string(&summary_path)
+                .with_context(|| format!("cannot read {}", summary_path.display()))?;
             println!("{summary}");
             eprintln!(
                 "calibrated in {:.2} s -> {}",

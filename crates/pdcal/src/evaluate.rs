@@ -427,8 +427,9 @@ pub fn run_dir(dataset: &Path, out: &Path) -> Result<Evaluation> {
         Calibration::from_ron_str(&text).with_context(|| format!("{}", cal_path.display()))?;
     let estimates = read_estimates(&out.join("estimates.csv"))?;
     let evaluation = evaluate(&estimates, &final_cal, &truth, &constants)?;
-    crate::output::write_file_atomic(
-        &out.join("evaluation.json"),
+    crate::output::add_file(
+        out,
+        "evaluation.json",
         serde_json::to_string_pretty(&evaluation)?.as_bytes(),
     )?;
     Ok(evaluation)
