@@ -191,7 +191,7 @@ fn dataset_rule(dir: &Path) -> Result<(), String> {
         let is_file = entry.file_type().is_ok_and(|t| t.is_file());
         let known = [DATASET_RON, TELEMETRY_CSV, TRUTH_CSV, TRUTH_RON].contains(&name.as_str());
         if !(is_file && known) {
-            return Err(format!("it holds {:?}", crate::error::quote(&name)));
+            return Err(format!("it holds {}", crate::error::quote(&name)));
         }
         names.push(name);
     }
