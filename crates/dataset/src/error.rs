@@ -190,7 +190,7 @@ pub enum ErrorKind {
         value: f64,
     },
     /// A value outside its allowed range (negative noise hint, eclipse above 1, ...).
-    #[error("{value} is out of range: {rule}")]
+    #[error("{value:?} is out of range: {rule}")]
     OutOfRange {
         /// The value.
         value: f64,
