@@ -22,6 +22,8 @@ pub struct DiagnoseOutcome {
     pub diagnosis: Diagnosis,
     /// Wall-clock time of the diagnosis (all calibrations and fits), s.
     pub runtime_s: f64,
+    /// Physical-plausibility warnings on the input ([`crate::checks`]), one line each.
+    pub warnings: Vec<String>,
 }
 
 /// Diagnoses a dataset held in memory. `truth` (truth.ron's photodiodes) only adds the
@@ -32,6 +34,7 @@ pub fn run(
     truth: Option<&[pdcal_dataset::TruePd]>,
     base: BaseModel,
 ) -> Result<DiagnoseOutcome> {
+    let warnings = crate::checks::check_telemetry(telemetry)?;
     let references = pdcal_filter::step_references(meta, telemetry)?;
     let albedo = crate::calibrate::albedo_model()?;
     let inputs = DiagnoseInputs {
@@ -47,6 +50,7 @@ pub fn run(
     Ok(DiagnoseOutcome {
         diagnosis,
         runtime_s: start.elapsed().as_secs_f64(),
+        warnings,
     })
 }
 

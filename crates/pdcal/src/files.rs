@@ -37,6 +37,8 @@ pub struct Summary {
     pub updates: serde_json::Value,
     /// Wall-clock time of the filter run, s.
     pub runtime_s: f64,
+    /// Physical-plausibility warnings on the input, one line each (also on stderr).
+    pub warnings: Vec<String>,
 }
 
 /// One photodiode in `summary.json`.
@@ -249,6 +251,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         residuals: residual_summary(&run.residuals),
         updates: counts_json(run),
         runtime_s: outcome.runtime_s,
+        warnings: outcome.warnings.clone(),
     }
 }
 
