@@ -327,6 +327,15 @@ fn evaluate_writes_only_into_a_pdcal_output_and_lists_what_it_adds() {
     assert!(!copy.join("evaluation.json").exists());
 }
 
+#[test]
+fn a_full_disk_names_the_file() {
+    let err = pdcal::output::write_file(Path::new("/dev/full"), b"summary").unwrap_err();
+    assert_eq!(
+        pdcal::cli::error_text(&err),
+        "cannot write /dev/full: No space left on device (os error 28)"
+    );
+}
+
 /// A `pdcal calibrate` child replacing an earlier output, SIGKILLed at 200 seeded random
 /// instants: after every kill OUT is a complete output (the previous one or the new one),
 /// and after one more run nothing is left beside it.
@@ -346,12 +355,20 @@ fn killed_at_200_random_instants_out_is_always_complete_old_or_new() {
     let mut previous = complete_output(&out).unwrap();
     let mut rng = rand::rngs::StdRng::seed_from_u64(14);
     let (mut kept_old, mut got_new, mut finished, mut left_siblings) = (0, 0, 0, 0);
+    // Kills that left a complete output under a staging name: inside the publication
+    // (before the swap: the new output; after it: the old one, not yet removed).
+    let mut in_publication = 0;
     for k in 0..200 {
-        // One run in four pauses before publishing, so that more kills land in the
-        // publication phase; the instant itself is uniform over a whole run.
-        let pause_ms = (k % 4 == 3).then(|| rng.random_range(0..200));
-        let span = full_run + Duration::from_millis(pause_ms.unwrap_or(0));
-        let delay = span.mul_f64(rng.random_range(0.0..1.05));
+        // Four runs in five are killed at an instant uniform over a whole run. The fifth
+        // pauses 500 ms between its finished staging directory and the swap (a test-only
+        // hook) and is killed at a random instant from just after its computation, so that
+        // kills also land in the publication, which lasts only a few milliseconds otherwise.
+        let (pause_ms, delay) = if k % 5 == 4 {
+            let after = full_run.mul_f64(1.15) + Duration::from_millis(rng.random_range(0..300));
+            (Some(500), after)
+        } else {
+            (None, full_run.mul_f64(rng.random_range(0.0..1.05)))
+        };
         let mut child = calibrate_child(&out, pause_ms);
         std::thread::sleep(delay);
         let _ = child.kill();
@@ -365,15 +382,23 @@ fn killed_at_200_random_instants_out_is_always_complete_old_or_new() {
         } else {
             got_new += 1;
         }
-        if !siblings(tmp.path(), "out").is_empty() {
+        let left = siblings(tmp.path(), "out");
+        if !left.is_empty() {
             left_siblings += 1;
+        }
+        if left
+            .iter()
+            .filter(|n| n.starts_with(".out.pdcal-staging-"))
+            .any(|n| complete_output(&tmp.path().join(n)).is_ok())
+        {
+            in_publication += 1;
         }
         previous = now;
     }
     eprintln!(
         "200 kills (full run {full_run:?}): old output kept {kept_old}, new output complete \
          {got_new}, run finished before the kill {finished}; staging or lock left {left_siblings} \
-         times"
+         times, {in_publication} of them a complete output (killed inside the publication)"
     );
     assert!(
         kept_old > 0 && got_new + finished > 0,
