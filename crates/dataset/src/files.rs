@@ -167,6 +167,9 @@ fn publish_error(e: PublishError) -> DatasetError {
             source: cause,
         },
         PublishErrorKind::Refused { reason } => ErrorKind::NotADatasetDir { reason },
+        PublishErrorKind::NotADirectory => ErrorKind::NotADatasetDir {
+            reason: "it is not a directory".into(),
+        },
         other => ErrorKind::Output {
             message: other.to_string(),
         },
