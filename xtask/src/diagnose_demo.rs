@@ -10,7 +10,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Result, ensure};
-use pdcal_dataset::Effect;
+use pdcal_dataset::{Effect, EffectId};
 use pdcal_diagnose::BaseModel;
 
 /// Seed of the demo.
@@ -52,8 +52,9 @@ pub fn run(root: &Path) -> Result<()> {
     let outcome = pdcal::diagnose::run_dir(&dataset, &out, BaseModel::Cosine)?;
     print!("{}", pdcal::diagnose::console_summary(&outcome));
     let d = &outcome.diagnosis;
+    print_true_errors(&dataset, d);
     for effect in &d.final_spec.added {
-        if let pdcal_diagnose::AddedEffect::DarkOffset { volts } = effect {
+        if let Effect::DarkOffset { volts } = effect {
             let worst = volts
                 .iter()
                 .zip(&offsets)
@@ -70,10 +71,41 @@ pub fn run(root: &Path) -> Result<()> {
         out.display(),
         start.elapsed().as_secs_f64()
     );
-    let found: Vec<&str> = d.rounds.iter().map(|r| r.found).collect();
+    let found: Vec<EffectId> = d.rounds.iter().map(|r| r.found).collect();
     ensure!(
-        found.contains(&"albedo") && found.contains(&"dark-offset"),
+        found.contains(&EffectId::Albedo) && found.contains(&EffectId::DarkOffset),
         "the demo expected albedo and dark-offset, found {found:?}"
     );
     Ok(())
+}
+
+/// The true calibration errors before and after each round, through `evaluate`'s code,
+/// after the diagnosis has decided; a truth of another layout is a warning, never an error.
+fn print_true_errors(dataset: &Path, d: &pdcal_diagnose::Diagnosis) {
+    let truth = pdcal_dataset::read_meta(dataset)
+        .and_then(|meta| pdcal_dataset::read_truth(dataset, &meta));
+    let (series, constants) = match truth {
+        Ok(Some(t)) => t,
+        Ok(None) => return,
+        Err(e) => {
+            eprintln!("warning: true errors not shown: {e}");
+            return;
+        }
+    };
+    if constants.photodiodes.len() != d.final_run.calibration.photodiodes.len() {
+        eprintln!("warning: true errors not shown: truth.ron's photodiodes differ in number");
+        return;
+    }
+    let worst = |c: &pdcal_filter::Calibration| {
+        let (_, normal, scale) = pdcal::evaluate::photodiode_errors(c, &series, &constants);
+        format!("worst normal {normal:.2} deg, worst scale {scale:.2} %")
+    };
+    for (n, r) in d.rounds.iter().enumerate() {
+        println!(
+            "  round {} true errors: before {}; after {}",
+            n + 1,
+            worst(&r.calibration_before),
+            worst(&r.calibration_after)
+        );
+    }
 }

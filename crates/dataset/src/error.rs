@@ -233,6 +233,21 @@ pub enum ErrorKind {
         /// The csv crate's description.
         message: String,
     },
+    /// A `temp_<panel>_C` column whose panel no photodiode in dataset.ron is on.
+    #[error(
+        "no photodiode in dataset.ron has panel: {panel:?}, so this temperature column would \
+         be unused"
+    )]
+    UnreferencedPanel {
+        /// The panel named by the column.
+        panel: String,
+    },
+    /// A dataset.ron `panel` that cannot appear in a `temp_<panel>_C` column name.
+    #[error("{value:?} is not a panel name: use a-z, 0-9 and _, not starting with pd and a digit")]
+    BadPanelName {
+        /// The name found.
+        value: String,
+    },
     /// The same effect listed twice in truth.ron.
     #[error("effect {id:?} is listed twice")]
     DuplicateEffect {

@@ -5,7 +5,7 @@
 //! | file | type | required |
 //! |---|---|---|
 //! | `dataset.ron` | [`DatasetMeta`]: epoch, orbit source, nominal photodiode mounts, noise hints | yes |
-//! | `telemetry.csv` | [`Telemetry`]: t, gyro, magnetometer, `pdNN_V`, positions | yes |
+//! | `telemetry.csv` | [`Telemetry`]: t, gyro, magnetometer, `pdNN_V`, positions, `temp_*_C` | yes |
 //! | `truth.csv` | [`TruthSeries`]: attitude, rates, bias, sun, eclipse, position, field | simulators |
 //! | `truth.ron` | [`TruthConstants`]: true photodiode parameters and the [`Effect`]s that were on | simulators |
 //!
@@ -23,8 +23,10 @@
 //! Strict: unknown RON fields and CSV columns are errors, every number must be finite,
 //! `t_s` strictly increasing, the `pdNN_V` columns must match `photodiodes` in number and
 //! name, `r_*_km` columns appear exactly with `orbit: PositionColumns`, and TLE checksums
-//! must hold. CSV column order is free and blanks around cells are ignored; an empty cell
-//! means "not sampled". Every error is a [`DatasetError`] naming file, line, column (with its
+//! must hold. Temperature columns are optional: `temp_pdNN_C` must name an existing
+//! photodiode, `temp_<panel>_C` a panel some photodiode's `panel` names, and every value
+//! lies in [`TEMPERATURE_RANGE_C`]. CSV column order is free and blanks around cells are
+//! ignored; an empty cell means "not sampled". Every error is a [`DatasetError`] naming file, line, column (with its
 //! header or RON field path) and the offending value, displayed as
 //! `telemetry.csv:12:4 (pd03_V): "abc" is not a number`. No input makes the reader panic.
 //!
@@ -52,7 +54,6 @@
 //! time scales and can panic on some malformed text. The staging output directory is
 //! hand-made ([`publish`]) because `tempfile` creates it with mode 0700.
 
-mod effect;
 mod error;
 mod files;
 mod meta;
@@ -60,9 +61,9 @@ pub mod publish;
 mod ron_text;
 mod table;
 mod telemetry;
+mod temperature;
 mod truth;
 
-pub use effect::Effect;
 pub use error::{DatasetError, ErrorKind, QUOTE_MAX_CHARS, quote};
 pub use files::{
     Dataset, DatasetWriter, begin_dataset, read_dataset, read_meta, read_telemetry, read_truth,
@@ -71,7 +72,12 @@ pub use files::{
 pub use meta::{
     DatasetMeta, EpochUtc, FORMAT_VERSION, NoiseHints, NominalMount, OrbitSpec, meta_from_str,
 };
+pub use pdcal_effects::{Effect, EffectId};
 pub use telemetry::{Telemetry, columns, photodiode_column, telemetry_from_str};
+pub use temperature::{
+    HeldTemperatures, TEMPERATURE_RANGE_C, TemperatureColumn, is_panel_name,
+    panel_temperature_column, photodiode_temperature_column,
+};
 pub use truth::{
     TruePd, TruthConstants, TruthSeries, truth_columns, truth_constants_from_str,
     truth_series_from_str,

@@ -63,13 +63,17 @@ pub enum OrbitSpec {
 /// Intended (nominal) mounting of one photodiode, body frame, degrees.
 ///
 /// The normal is `n = [cos(el)cos(az), cos(el)sin(az), sin(el)]`, paper Eq. (16).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct NominalMount {
     /// Azimuth, degrees.
     pub azimuth_deg: f64,
     /// Elevation, degrees.
     pub elevation_deg: f64,
+    /// The panel the photodiode sits on, whose `temp_<panel>_C` column gives its temperature
+    /// when it has no `temp_pdNN_C` of its own ([`crate::is_panel_name`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub panel: Option<String>,
 }
 
 /// Optional 1-sigma noise hints for filter tuning; each may be absent.
@@ -213,7 +217,7 @@ pub(crate) fn parse_meta(file: &Path, text: &str) -> Result<DatasetMeta, Dataset
     }
     let epoch_utc = EpochUtc::parse(&raw.epoch_utc).map_err(|kind| at_key("epoch_utc", kind))?;
     check_orbit(file, &text, &raw.orbit)?;
-    check_mounts(file, &raw.photodiodes)?;
+    check_mounts(file, &text, &raw.photodiodes)?;
     if let Some(noise) = &raw.noise {
         check_noise(file, noise)?;
     }
@@ -329,7 +333,7 @@ fn check_tle_elements(file: &Path, text: &str, line2: &str) -> Result<(), Datase
     Ok(())
 }
 
-fn check_mounts(file: &Path, mounts: &[NominalMount]) -> Result<(), DatasetError> {
+fn check_mounts(file: &Path, text: &str, mounts: &[NominalMount]) -> Result<(), DatasetError> {
     for (i, m) in mounts.iter().enumerate() {
         for (name, v) in [
             ("azimuth_deg", m.azimuth_deg),
@@ -357,6 +361,23 @@ fn check_mounts(file: &Path, mounts: &[NominalMount]) -> Result<(), DatasetError
                 m.azimuth_deg,
                 "azimuth must be in [-360, 360] deg",
             );
+        }
+        if let Some(panel) = &m.panel
+            && !crate::is_panel_name(panel)
+        {
+            let kind = ErrorKind::BadPanelName {
+                value: panel.clone(),
+            };
+            // The quoted literal as written; an escaped spelling is not found, and then the
+            // field path alone places the error.
+            let err = match text.find(&format!("\"{panel}\"")) {
+                Some(at) => {
+                    let (line, col) = crate::error::line_col(text, at);
+                    DatasetError::at(file, line, Some(col), kind)
+                }
+                None => DatasetError::whole_file(file, kind),
+            };
+            return Err(err.named(format!("photodiodes[{i}].panel")));
         }
     }
     Ok(())

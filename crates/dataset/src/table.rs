@@ -88,6 +88,11 @@ impl<'a> CsvRows<'a> {
         Ok(Some(line))
     }
 
+    /// An error about the cell in 0-based column `col` of the row at `line`.
+    pub fn cell_error(&self, line: usize, col: usize, kind: ErrorKind) -> DatasetError {
+        self.error(line, col, kind)
+    }
+
     fn error(&self, line: usize, col: usize, kind: ErrorKind) -> DatasetError {
         let name = self.header.get(col).cloned().unwrap_or_default();
         DatasetError::at(self.file, line, Some(col + 1), kind).named(name)

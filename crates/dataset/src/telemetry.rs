@@ -7,6 +7,10 @@ use nalgebra::Vector3;
 use crate::error::{DatasetError, ErrorKind};
 use crate::meta::{DatasetMeta, OrbitSpec};
 use crate::table::{CsvRows, find, push_row, require, require3};
+use crate::temperature::{
+    TEMPERATURE_RANGE_C, TemperatureColumn, TemperatureKey, photodiode_temperature_column,
+    temperature_key,
+};
 
 /// Column names of telemetry.csv (and, for `t_s` and `r_*_km`, of truth.csv).
 pub mod columns {
@@ -43,6 +47,9 @@ pub struct Telemetry {
     pub pd_v: Vec<Vec<Option<f64>>>,
     /// Position, GCRF, km; present exactly when the orbit is `PositionColumns`.
     pub r_gcrf_km: Option<Vec<Option<Vector3<f64>>>>,
+    /// The `temp_*_C` columns in file order, degrees Celsius; empty when there are none.
+    /// [`Telemetry::photodiode_temperatures`] says which photodiode reads which.
+    pub temperature_c: Vec<TemperatureColumn>,
 }
 
 impl Telemetry {
@@ -64,6 +71,7 @@ struct Layout {
     mag: Option<[usize; 3]>,
     pd: Vec<usize>,
     r: Option<[usize; 3]>,
+    temperature: Vec<usize>,
 }
 
 /// The photodiode index of a `pd<digits>_V` header, if it has that shape.
@@ -93,9 +101,13 @@ fn layout(rows: &CsvRows<'_>, meta: &DatasetMeta) -> Result<Layout, DatasetError
         ),
     };
     let mut pd_count = 0;
+    let mut temperature = Vec::new();
     for (col, h) in rows.header.iter().enumerate() {
         if pd_index(h).is_some() {
             pd_count += 1;
+        } else if let Some(key) = temperature_key(h) {
+            check_temperature_header(rows, meta, col, h, key)?;
+            temperature.push(col);
         } else if !known(h) {
             let kind = ErrorKind::UnknownColumn {
                 name: h.clone(),
@@ -147,7 +159,60 @@ fn layout(rows: &CsvRows<'_>, meta: &DatasetMeta) -> Result<Layout, DatasetError
             .map(|i| require(rows, &photodiode_column(i), ""))
             .collect::<Result<_, _>>()?,
         r,
+        temperature,
     })
+}
+
+/// Checks a `temp_*_C` header against dataset.ron: a per-photodiode column needs its
+/// photodiode, a panel column a photodiode on that panel (a panel nobody refers to is
+/// almost surely a misspelling, and its data would be silently unused).
+fn check_temperature_header(
+    rows: &CsvRows<'_>,
+    meta: &DatasetMeta,
+    col: usize,
+    h: &str,
+    key: TemperatureKey<'_>,
+) -> Result<(), DatasetError> {
+    let n = meta.photodiodes.len();
+    let unknown = |hint: String| {
+        let kind = ErrorKind::UnknownColumn {
+            name: h.to_owned(),
+            hint,
+        };
+        rows.header_error(col, kind)
+    };
+    match key {
+        TemperatureKey::Photodiode(i)
+            if i >= 1 && i <= n && h == photodiode_temperature_column(i) => {}
+        TemperatureKey::Photodiode(_) => {
+            return Err(unknown(match n {
+                0 => "; dataset.ron lists no photodiodes".to_owned(),
+                1 => "; the photodiode temperature column is temp_pd01_C".to_owned(),
+                _ => format!(
+                    "; photodiode temperature columns are temp_pd01_C .. {}",
+                    photodiode_temperature_column(n)
+                ),
+            }));
+        }
+        TemperatureKey::Panel(panel) => {
+            let referred = (meta.photodiodes.iter()).any(|m| m.panel.as_deref() == Some(panel));
+            if !referred {
+                let kind = ErrorKind::UnreferencedPanel {
+                    panel: panel.to_owned(),
+                };
+                return Err(rows.header_error(col, kind));
+            }
+        }
+        TemperatureKey::Malformed => {
+            return Err(unknown(
+                "; temperature columns are temp_pdNN_C (one photodiode) or temp_<panel>_C \
+                 (<panel>: a-z, 0-9, _ as in dataset.ron)"
+                    .to_owned(),
+            ));
+        }
+    }
+    // A repeated header is reported at its second occurrence.
+    find(rows, h).map(|_| ())
 }
 
 /// Parses and validates telemetry.csv text against its dataset.ron (file name
@@ -167,6 +232,12 @@ pub(crate) fn parse_telemetry(
         pd_v: vec![Vec::new(); lay.pd.len()],
         mag_nt: lay.mag.map(|_| Vec::new()),
         r_gcrf_km: lay.r.map(|_| Vec::new()),
+        temperature_c: (lay.temperature.iter())
+            .map(|&col| TemperatureColumn {
+                name: rows.header[col].clone(),
+                values: Vec::new(),
+            })
+            .collect(),
         ..Telemetry::default()
     };
     while let Some(line) = rows.next_row()? {
@@ -182,6 +253,22 @@ pub(crate) fn parse_telemetry(
         }
         if let (Some(cols), Some(r)) = (lay.r, tm.r_gcrf_km.as_mut()) {
             r.push(rows.vec3(line, cols)?);
+        }
+        for (&col, temp) in lay.temperature.iter().zip(tm.temperature_c.iter_mut()) {
+            let value = rows.opt(line, col)?;
+            if let Some(v) = value
+                && !(TEMPERATURE_RANGE_C.0..=TEMPERATURE_RANGE_C.1).contains(&v)
+            {
+                let kind = ErrorKind::OutOfRange {
+                    value: v,
+                    rule: format!(
+                        "a temperature must lie within {} .. {} C",
+                        TEMPERATURE_RANGE_C.0, TEMPERATURE_RANGE_C.1
+                    ),
+                };
+                return Err(rows.cell_error(line, col, kind));
+            }
+            temp.values.push(value);
         }
     }
     if tm.is_empty() {
@@ -228,6 +315,9 @@ pub(crate) fn check_shape(tm: &Telemetry, meta: &DatasetMeta) -> Result<(), Data
     for (i, pd) in tm.pd_v.iter().enumerate() {
         lengths.push((format!("pd_v[{i}]"), pd.len()));
     }
+    for column in &tm.temperature_c {
+        lengths.push((column.name.clone(), column.values.len()));
+    }
     for (name, len) in lengths {
         if len != tm.len() {
             let kind = ErrorKind::WrongLength {
@@ -240,7 +330,8 @@ pub(crate) fn check_shape(tm: &Telemetry, meta: &DatasetMeta) -> Result<(), Data
     Ok(())
 }
 
-/// telemetry.csv text: `t_s`, gyro, magnetometer (if any), `pd01_V`.., position (if any).
+/// telemetry.csv text: `t_s`, gyro, magnetometer (if any), `pd01_V`.., position (if any),
+/// temperatures (in their stored order).
 /// Call [`check_shape`] first.
 pub(crate) fn render_telemetry(tm: &Telemetry) -> String {
     let mut header: Vec<String> = vec![columns::T_S.into()];
@@ -252,6 +343,7 @@ pub(crate) fn render_telemetry(tm: &Telemetry) -> String {
     if tm.r_gcrf_km.is_some() {
         header.extend(columns::R.map(String::from));
     }
+    header.extend(tm.temperature_c.iter().map(|c| c.name.clone()));
     let mut out = header.join(",");
     out.push('\n');
     let split = |v: Option<Vector3<f64>>| [v.map(|v| v.x), v.map(|v| v.y), v.map(|v| v.z)];
@@ -264,6 +356,11 @@ pub(crate) fn render_telemetry(tm: &Telemetry) -> String {
         cells.extend(column(&tm.mag_nt, k).into_iter().flatten());
         cells.extend(tm.pd_v.iter().map(|pd| pd.get(k).copied().flatten()));
         cells.extend(column(&tm.r_gcrf_km, k).into_iter().flatten());
+        cells.extend(
+            tm.temperature_c
+                .iter()
+                .map(|c| c.values.get(k).copied().flatten()),
+        );
         push_row(&mut out, cells);
     }
     out

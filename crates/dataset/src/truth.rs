@@ -5,12 +5,12 @@ use std::path::Path;
 use nalgebra::{Vector3, Vector4};
 use serde::{Deserialize, Serialize};
 
-use crate::effect::Effect;
 use crate::error::{DatasetError, ErrorKind, text_of};
 use crate::meta::{DatasetMeta, check_finite};
 use crate::ron_text::{from_ron, to_ron};
 use crate::table::{CsvRows, push_row, require, require3};
 use crate::telemetry::columns::{R, T_S};
+use pdcal_effects::Effect;
 
 /// Column names of truth.csv that telemetry.csv does not share.
 pub mod truth_columns {
@@ -225,41 +225,37 @@ fn check_constants(
     for (i, effect) in tc.effects.iter().enumerate() {
         if tc.effects[..i].iter().any(|e| e.id() == effect.id()) {
             let kind = ErrorKind::DuplicateEffect {
-                id: effect.id().to_owned(),
+                id: effect.id().to_string(),
             };
             return Err(DatasetError::whole_file(file, kind).named(format!("effects[{i}]")));
         }
-        for (name, v) in effect.numbers() {
-            check_finite(file, v, || format!("effects[{i}].{name}"))?;
-        }
-        if let Some((name, len)) = effect.per_photodiode()
-            && len != n
-        {
-            let kind = ErrorKind::WrongLength {
-                expected: n,
-                found: len,
-            };
-            return Err(DatasetError::whole_file(file, kind).named(format!("effects[{i}].{name}")));
-        }
-        check_rolloff(file, i, effect)?;
+        check_effect(file, i, effect, n)?;
     }
     Ok(())
 }
 
-fn check_rolloff(file: &Path, i: usize, effect: &Effect) -> Result<(), DatasetError> {
-    if let Effect::FovRolloff {
-        start_deg,
-        cutoff_deg,
-    } = *effect
-        && !(0.0 <= start_deg && start_deg < cutoff_deg && cutoff_deg <= 90.0)
-    {
-        let kind = ErrorKind::OutOfRange {
-            value: cutoff_deg,
-            rule: "need 0 <= start_deg < cutoff_deg <= 90".into(),
-        };
-        return Err(DatasetError::whole_file(file, kind).named(format!("effects[{i}].cutoff_deg")));
+/// The catalogue's checks of one effect, as the reader's error kinds.
+fn check_effect(file: &Path, i: usize, effect: &Effect, n: usize) -> Result<(), DatasetError> {
+    let record = pdcal_effects::record::EffectRecord::from(effect.clone());
+    for (name, v) in record.numbers() {
+        check_finite(file, v, || format!("effects[{i}].{name}"))?;
     }
-    Ok(())
+    if let Some((name, values)) = effect.per_photodiode()
+        && values.len() != n
+    {
+        let kind = ErrorKind::WrongLength {
+            expected: n,
+            found: values.len(),
+        };
+        return Err(DatasetError::whole_file(file, kind).named(format!("effects[{i}].{name}")));
+    }
+    effect.check(n).map_err(|bad| {
+        let kind = ErrorKind::OutOfRange {
+            value: bad.value,
+            rule: bad.rule,
+        };
+        DatasetError::whole_file(file, kind).named(format!("effects[{i}].{}", bad.field))
+    })
 }
 
 /// Checks that every truth.csv column has one entry per row.

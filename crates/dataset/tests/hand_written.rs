@@ -6,7 +6,7 @@ use std::fs;
 
 use common::{TLE1, TLE2};
 use nalgebra::Vector3;
-use pdcal_dataset::{Effect, OrbitSpec, read_dataset};
+use pdcal_dataset::{OrbitSpec, read_dataset};
 
 fn dataset_ron() -> String {
     format!(
@@ -87,7 +87,7 @@ fn hand_written_dataset_reads() {
     assert_eq!(ts.eclipse, [1.0, 0.5]);
     assert_eq!(ts.sun_body[1], Vector3::y());
     assert_eq!(tc.photodiodes[1].scale_v, 3.70);
-    let ids: Vec<_> = tc.effects.iter().map(Effect::id).collect();
+    let ids: Vec<_> = tc.effects.iter().map(|e| e.id().as_str()).collect();
     assert_eq!(ids, ["albedo", "dark-offset", "penumbra", "mag-bias"]);
 }
 

@@ -4,23 +4,23 @@
 //! the BIC penalty of its parameters.
 
 use nalgebra::Vector3;
+use pdcal_dataset::{Effect, EffectId};
+use pdcal_effects::REFERENCE_TEMPERATURE_C;
 use pdcal_photodiode::{FovRolloff, ShadowMode};
 use serde::Serialize;
 
-use crate::model::{AddedEffect, ModelSpec};
+use crate::model::ModelSpec;
 use crate::residuals::{PdSample, Residuals, in_umbra};
 use crate::stats::{Entry, WaldFit, hac_wald};
-
-/// Every candidate effect id, in the contract's order.
-pub const CANDIDATES: [&str; 9] = pdcal_dataset::Effect::IDS;
 
 /// One candidate's fit and score.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CandidateFit {
     /// Effect id.
-    pub id: &'static str,
-    /// The effect with its fitted parameters, as it would be added.
-    pub effect: AddedEffect,
+    pub id: EffectId,
+    /// The effect with its fitted parameters, as it would be added (for a change of a
+    /// term the model holds, `albedo-gain`, the fitted increment as the effect).
+    pub effect: Effect,
     /// HAC Wald statistic of the signature's amplitudes (2x the log-likelihood gain).
     pub wald: f64,
     /// Parameters the effect adds (the BIC's k).
@@ -31,6 +31,10 @@ pub struct CandidateFit {
     pub score: f64,
     /// One line: what was fitted to what.
     pub evidence: String,
+    /// The photodiode samples `(row, photodiode)` that carry the signature; empty for the
+    /// magnetometer and gyro candidates (all of that sensor's samples).
+    #[serde(skip)]
+    pub support: Vec<(usize, usize)>,
 }
 
 /// Residual against a candidate's regressor, for the figures.
@@ -86,7 +90,22 @@ impl Signature {
     }
 }
 
-/// Scores every candidate not in `spec` on `res`; `n_pd` photodiodes, HAC window `max_lag`
+/// The candidates of a model: every effect of the catalogue it does not hold whose
+/// signature the data can carry, plus the changes of terms it holds (`albedo-gain` when it
+/// has albedo). `temperature` needs temperature columns.
+pub fn candidate_ids(spec: &ModelSpec, res: &Residuals) -> Vec<EffectId> {
+    EffectId::ALL
+        .into_iter()
+        .filter(|&id| !spec.contains(id))
+        .filter(|&id| match id {
+            EffectId::AlbedoGain => spec.contains(EffectId::Albedo),
+            EffectId::Temperature => res.pd.iter().any(|p| p.temperature_c.is_finite()),
+            _ => true,
+        })
+        .collect()
+}
+
+/// Scores every candidate of `spec` on `res`; `n_pd` photodiodes, HAC window `max_lag`
 /// rows. Sorted best first.
 pub fn score_candidates(
     res: &Residuals,
@@ -94,9 +113,8 @@ pub fn score_candidates(
     n_pd: usize,
     max_lag: usize,
 ) -> Vec<CandidateFit> {
-    let mut fits: Vec<CandidateFit> = CANDIDATES
-        .iter()
-        .filter(|id| !spec.contains(id))
+    let mut fits: Vec<CandidateFit> = candidate_ids(spec, res)
+        .into_iter()
         .filter_map(|id| score_one(id, res, n_pd, max_lag))
         .collect();
     fits.sort_by(|a, b| b.score.total_cmp(&a.score));
@@ -105,7 +123,12 @@ pub fn score_candidates(
 
 /// Fits and scores one candidate (whether or not the model already holds it: a second fit
 /// of an added effect measures what its fitted constants still miss).
-pub fn score_one(id: &str, res: &Residuals, n_pd: usize, max_lag: usize) -> Option<CandidateFit> {
+pub fn score_one(
+    id: EffectId,
+    res: &Residuals,
+    n_pd: usize,
+    max_lag: usize,
+) -> Option<CandidateFit> {
     fit_candidate(id, res, n_pd, max_lag).map(|f| scored(f, res))
 }
 
@@ -116,18 +139,20 @@ pub(crate) fn scored(mut f: CandidateFit, res: &Residuals) -> CandidateFit {
     f
 }
 
-fn fit_candidate(id: &str, res: &Residuals, n_pd: usize, lag: usize) -> Option<CandidateFit> {
+/// The catalogue's candidates: one fit per effect.
+fn fit_candidate(id: EffectId, res: &Residuals, n_pd: usize, lag: usize) -> Option<CandidateFit> {
     match id {
-        "albedo" => Some(albedo(res, lag)),
-        "fov-rolloff" => Some(fov_rolloff(res, lag)),
-        "dark-offset" => Some(dark_offset(res, n_pd, lag)),
-        "saturation" => Some(saturation(res, lag)),
-        "penumbra" => Some(penumbra(res, lag)),
-        "time-offset" => Some(time_offset(res, lag)),
-        "scale-drift" => Some(scale_drift(res, n_pd, lag)),
-        "mag-bias" => (!res.mag.is_empty()).then(|| mag_bias(res, lag)),
-        "gyro-scale" => (!res.gyro.is_empty()).then(|| gyro_scale(res, lag)),
-        _ => None,
+        EffectId::Albedo => Some(albedo(res, lag)),
+        EffectId::FovRolloff => Some(fov_rolloff(res, lag)),
+        EffectId::DarkOffset => Some(dark_offset(res, n_pd, lag)),
+        EffectId::Saturation => Some(saturation(res, lag)),
+        EffectId::Penumbra => Some(penumbra(res, lag)),
+        EffectId::TimeOffset => Some(time_offset(res, lag)),
+        EffectId::ScaleDrift => Some(scale_drift(res, n_pd, lag)),
+        EffectId::MagBias => (!res.mag.is_empty()).then(|| mag_bias(res, lag)),
+        EffectId::GyroScale => (!res.gyro.is_empty()).then(|| gyro_scale(res, lag)),
+        EffectId::AlbedoGain => Some(albedo_gain(res, lag)),
+        EffectId::Temperature => Some(temperature(res, n_pd, lag)),
     }
 }
 
@@ -141,15 +166,16 @@ fn signed(mut fit: WaldFit) -> WaldFit {
 }
 
 fn candidate(
-    id: &'static str,
-    effect: AddedEffect,
+    effect: Effect,
     fit: &WaldFit,
     parameters: usize,
     evidence: String,
+    support: Vec<(usize, usize)>,
 ) -> CandidateFit {
     CandidateFit {
-        id,
+        id: effect.id(),
         effect,
+        support,
         wald: fit.wald,
         parameters,
         samples: fit.samples,
@@ -165,32 +191,39 @@ fn pd_var(res: &Residuals) -> f64 {
     res.sigma_pd_v * res.sigma_pd_v
 }
 
+/// The regression entries of a photodiode signature and the samples carrying it.
 fn pd_entries(
     res: &Residuals,
     signature: impl Fn(&PdSample) -> Option<(usize, f64)>,
-) -> Vec<Entry> {
+) -> (Vec<Entry>, Vec<(usize, usize)>) {
     res.pd
         .iter()
         .filter_map(|p| {
-            signature(p).map(|(param, s)| Entry {
-                row: p.row,
-                param,
-                r: p.residual_v,
-                s,
+            signature(p).map(|(param, s)| {
+                let entry = Entry {
+                    row: p.row,
+                    param,
+                    r: p.residual_v,
+                    s,
+                };
+                (entry, (p.row, p.pd))
             })
         })
-        .collect()
+        .unzip()
 }
 
 /// `albedo`: one gain on `C E_a/E_AM0` at the estimated normal (1 when albedo is missing).
 fn albedo(res: &Residuals, lag: usize) -> CandidateFit {
-    let entries = pd_entries(res, |p| Some((0, p.albedo_v)));
+    let (entries, support) = pd_entries(res, |p| Some((0, p.albedo_v)));
     let fit = signed(hac_wald(&entries, 1, lag, &[pd_var(res)]));
     let evidence = format!(
         "photodiode residual vs C E_a/E_AM0 (albedo regressor): gain {:.3}",
         fit.amplitudes[0]
     );
-    candidate("albedo", AddedEffect::Albedo, &fit, 1, evidence)
+    let effect = Effect::Albedo {
+        map: res.albedo_map.clone(),
+    };
+    candidate(effect, &fit, 1, evidence, support)
 }
 
 /// Width of the incidence-angle bins of the roll-off search, deg.
@@ -239,7 +272,7 @@ fn fov_rolloff(res: &Residuals, lag: usize) -> CandidateFit {
     }
     let (_, start, cutoff) = best;
     let law = FovRolloff::from_deg(start, cutoff).ok();
-    let entries = pd_entries(res, |p| {
+    let (entries, support) = pd_entries(res, |p| {
         let law = law.as_ref()?;
         (p.direct_v > 0.0).then(|| (0, p.direct_v * (law.factor(p.cos_incidence) - 1.0)))
     });
@@ -249,11 +282,64 @@ fn fov_rolloff(res: &Residuals, lag: usize) -> CandidateFit {
          amplitude {:.2}",
         fit.amplitudes[0]
     );
-    let effect = AddedEffect::FovRolloff {
+    let effect = Effect::FovRolloff {
         start_rad: start.to_radians(),
         cutoff_rad: cutoff.to_radians(),
     };
-    candidate("fov-rolloff", effect, &fit, 2, evidence)
+    candidate(effect, &fit, 2, evidence, support)
+}
+
+/// `albedo-gain`: the same regressor as `albedo`, on a model that holds the term: the
+/// residual's slope on `C E_a/E_AM0` is the gain's error, either sign (a model with albedo
+/// the data lack gives a slope near -1). The effect carries `1 + slope`, the gain that
+/// explains the residuals when composed with the model's ([`Effect::compose`]).
+fn albedo_gain(res: &Residuals, lag: usize) -> CandidateFit {
+    let (entries, support) = pd_entries(res, |p| (p.albedo_v != 0.0).then_some((0, p.albedo_v)));
+    let fit = hac_wald(&entries, 1, lag, &[pd_var(res)]);
+    let gain = 1.0 + fit.amplitudes[0];
+    let evidence = format!(
+        "photodiode residual vs C E_a/E_AM0 with albedo modelled: albedo term off by {:+.3}, \
+         gain {gain:.3}",
+        fit.amplitudes[0]
+    );
+    candidate(Effect::AlbedoGain { gain }, &fit, 1, evidence, support)
+}
+
+/// `temperature`: per photodiode, the residual against `C dI/dC (T - mean T)` (the mean is
+/// the calibrated scale's), in 1/K; the effect carries the coefficients about the reference
+/// temperature.
+fn temperature(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
+    let mut sum = vec![0.0; n_pd];
+    let mut weight = vec![0.0; n_pd];
+    for p in res.pd.iter().filter(|p| p.scale_v > 0.0 && p.pd < n_pd) {
+        if p.temperature_c.is_finite() {
+            let w = p.scale_v * p.scale_v;
+            sum[p.pd] += w * p.temperature_c;
+            weight[p.pd] += w;
+        }
+    }
+    let mean: Vec<f64> = sum
+        .iter()
+        .zip(&weight)
+        .map(|(s, w)| if *w > 0.0 { s / w } else { 0.0 })
+        .collect();
+    let (entries, support) = pd_entries(res, |p| {
+        (p.scale_v > 0.0 && p.pd < n_pd && p.temperature_c.is_finite())
+            .then(|| (p.pd, p.scale_v * (p.temperature_c - mean[p.pd])))
+    });
+    let fit = hac_wald(&entries, n_pd, lag, &vec![pd_var(res); n_pd]);
+    let (lo, hi) = min_max(&fit.amplitudes);
+    let evidence = format!(
+        "photodiode residual vs C dI/dC (T - mean T), per photodiode: {:.3} .. {:.3} %/K",
+        100.0 * lo,
+        100.0 * hi
+    );
+    let k = fit.active;
+    let effect = Effect::Temperature {
+        coefficient_per_k: fit.amplitudes.clone(),
+        reference_c: REFERENCE_TEMPERATURE_C,
+    };
+    candidate(effect, &fit, k, evidence, support)
 }
 
 /// Smallest and largest of `values` (infinities when empty), for the evidence lines.
@@ -267,19 +353,22 @@ fn min_max(values: &[f64]) -> (f64, f64) {
 
 /// `dark-offset`: per-photodiode mean residual in umbra (no direct Sun, no albedo).
 fn dark_offset(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
-    let entries = pd_entries(res, |p| in_umbra(p).then_some((p.pd, 1.0)));
+    let (entries, support) = pd_entries(res, |p| in_umbra(p).then_some((p.pd, 1.0)));
     let fit = hac_wald(&entries, n_pd, lag, &vec![pd_var(res); n_pd]);
     let (lo, hi) = min_max(&fit.amplitudes);
     let evidence = format!(
         "photodiode residual in umbra, per photodiode: offsets {:.4} .. {:.4} V",
         lo, hi
     );
-    let effect = AddedEffect::DarkOffset {
+    let effect = Effect::DarkOffset {
         volts: fit.amplitudes.clone(),
     };
     let k = fit.active;
-    candidate("dark-offset", effect, &fit, k, evidence)
+    candidate(effect, &fit, k, evidence, support)
 }
+
+/// Fewest samples exactly at the largest output that make it a clip level.
+const MIN_CLIPPED_SAMPLES: usize = 3;
 
 /// `saturation`: the clip level is the largest measured output (a real sensor clips after
 /// noise, so clipped samples sit exactly on it); signature `min(y, L) - y` of the model's
@@ -291,27 +380,27 @@ fn saturation(res: &Residuals, lag: usize) -> CandidateFit {
         .map(|p| p.measured_v)
         .fold(f64::NEG_INFINITY, f64::max);
     let at_level = res.pd.iter().filter(|p| p.measured_v >= level).count();
-    let entries = pd_entries(res, |p| {
+    let (entries, support) = pd_entries(res, |p| {
         (p.pre_stage_v > level).then_some((0, level - p.pre_stage_v))
     });
-    let fit = signed(hac_wald(&entries, 1, lag, &[pd_var(res)]));
+    let mut fit = signed(hac_wald(&entries, 1, lag, &[pd_var(res)]));
+    // The largest output is always at the largest output: clipping shows as several samples
+    // exactly there.
+    if at_level < MIN_CLIPPED_SAMPLES {
+        fit.wald = 0.0;
+    }
     let evidence = format!(
         "photodiode residual vs predicted output: clipped at {level:.4} V ({at_level} samples \
          exactly there), amplitude {:.2}",
         fit.amplitudes[0]
     );
-    candidate(
-        "saturation",
-        AddedEffect::Saturation { volts: level },
-        &fit,
-        1,
-        evidence,
-    )
+    let effect = Effect::Saturation { volts: level };
+    candidate(effect, &fit, 1, evidence, support)
 }
 
 /// `penumbra`: gain on `(nu - hard(nu)) C n^T s` while the Sun is partly hidden.
 fn penumbra(res: &Residuals, lag: usize) -> CandidateFit {
-    let entries = pd_entries(res, |p| {
+    let (entries, support) = pd_entries(res, |p| {
         let nu = p.sun_fraction;
         (nu > 0.0 && nu < 1.0 && p.unshadowed_v > 0.0)
             .then(|| (0, (nu - ShadowMode::Hard.factor(nu)) * p.unshadowed_v))
@@ -321,7 +410,7 @@ fn penumbra(res: &Residuals, lag: usize) -> CandidateFit {
         "photodiode residual vs (nu - hard(nu)) C n^T s in penumbra: gain {:.2}",
         fit.amplitudes[0]
     );
-    candidate("penumbra", AddedEffect::Penumbra, &fit, 1, evidence)
+    candidate(Effect::Penumbra, &fit, 1, evidence, support)
 }
 
 /// `time-offset`: photodiodes sampled `delta` late see `s + delta (w x s)`. The filter's
@@ -329,7 +418,7 @@ fn penumbra(res: &Residuals, lag: usize) -> CandidateFit {
 /// of the signature into the magnetometer (`-g delta w x b`); both amplitudes are fitted
 /// (`a_pd = (1 - g) delta`, `a_mag = -g delta`, so `delta = a_pd - a_mag`), two parameters.
 fn time_offset(res: &Residuals, lag: usize) -> CandidateFit {
-    let mut entries = pd_entries(res, |p| {
+    let (mut entries, support) = pd_entries(res, |p| {
         (p.time_offset_v_s != 0.0).then_some((0, p.time_offset_v_s))
     });
     for m in &res.mag {
@@ -351,13 +440,7 @@ fn time_offset(res: &Residuals, lag: usize) -> CandidateFit {
         -a_mag
     );
     let k = fit.active;
-    candidate(
-        "time-offset",
-        AddedEffect::TimeOffset { seconds },
-        &fit,
-        k,
-        evidence,
-    )
+    candidate(Effect::TimeOffset { seconds }, &fit, k, evidence, support)
 }
 
 /// `scale-drift`: per photodiode, the residual against `C dI/dC t/3600` made orthogonal to
@@ -374,7 +457,7 @@ fn scale_drift(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
         .zip(&x1x2)
         .map(|(a, b)| if *a > 0.0 { b / a } else { 0.0 })
         .collect();
-    let entries = pd_entries(res, |p| {
+    let (entries, support) = pd_entries(res, |p| {
         (p.scale_v > 0.0 && p.pd < n_pd).then(|| (p.pd, p.scale_v * (p.t_s / 3600.0 - beta[p.pd])))
     });
     let fit = hac_wald(&entries, n_pd, lag, &vec![pd_var(res); n_pd]);
@@ -385,10 +468,10 @@ fn scale_drift(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
         100.0 * hi
     );
     let k = fit.active;
-    let effect = AddedEffect::ScaleDrift {
+    let effect = Effect::ScaleDrift {
         fraction_per_hour: fit.amplitudes.clone(),
     };
-    candidate("scale-drift", effect, &fit, k, evidence)
+    candidate(effect, &fit, k, evidence, support)
 }
 
 /// `mag-bias`: body-frame mean of the magnetometer residuals.
@@ -412,11 +495,11 @@ fn mag_bias(res: &Residuals, lag: usize) -> CandidateFit {
         b[0], b[1], b[2]
     );
     candidate(
-        "mag-bias",
-        AddedEffect::MagBias { bias_nt: b },
+        Effect::MagBias { bias_nt: b },
         &fit,
         3,
         evidence,
+        Vec::new(),
     )
 }
 
@@ -484,18 +567,13 @@ fn gyro_scale(res: &Residuals, lag: usize) -> CandidateFit {
          [{:.4}, {:.4}, {:.4}]",
         e[0], e[1], e[2]
     );
-    candidate(
-        "gyro-scale",
-        AddedEffect::GyroScale { scale_error: e },
-        &fit,
-        k,
-        evidence,
-    )
+    let effect = Effect::GyroScale { scale_error: e };
+    candidate(effect, &fit, k, evidence, Vec::new())
 }
 
 /// The residual signature that tells effect `id` apart: its regressor against the
 /// residual of the sensor it affects.
-pub fn signature(id: &str, res: &Residuals) -> Signature {
+pub fn signature(id: EffectId, res: &Residuals) -> Signature {
     let pd = |x_label: &str, f: &dyn Fn(&PdSample) -> Option<(f64, f64)>| {
         let (x, y) = res.pd.iter().filter_map(f).unzip();
         Signature {
@@ -506,10 +584,12 @@ pub fn signature(id: &str, res: &Residuals) -> Signature {
         }
     };
     match id {
-        "albedo" => pd("C E_a/E_AM0 at the estimated normal (V)", &|p| {
-            Some((p.albedo_v, p.residual_v))
-        }),
-        "fov-rolloff" => pd("incidence angle (deg)", &|p| {
+        EffectId::Albedo | EffectId::AlbedoGain => {
+            pd("C E_a/E_AM0 at the estimated normal (V)", &|p| {
+                Some((p.albedo_v, p.residual_v))
+            })
+        }
+        EffectId::FovRolloff => pd("incidence angle (deg)", &|p| {
             (p.direct_v > 0.0).then(|| {
                 (
                     p.cos_incidence.clamp(-1.0, 1.0).acos().to_degrees(),
@@ -517,27 +597,27 @@ pub fn signature(id: &str, res: &Residuals) -> Signature {
                 )
             })
         }),
-        "dark-offset" => pd("photodiode (umbra samples)", &|p| {
+        EffectId::DarkOffset => pd("photodiode (umbra samples)", &|p| {
             in_umbra(p).then(|| ((p.pd + 1) as f64, p.residual_v))
         }),
-        "saturation" => pd("predicted output before clipping (V)", &|p| {
+        EffectId::Saturation => pd("predicted output before clipping (V)", &|p| {
             (p.pre_stage_v > 0.0).then_some((p.pre_stage_v, p.residual_v))
         }),
-        "penumbra" => pd("illuminated fraction of the Sun", &|p| {
+        EffectId::Penumbra => pd("illuminated fraction of the Sun", &|p| {
             (p.sun_fraction > 0.0 && p.sun_fraction < 1.0 && p.unshadowed_v > 0.0)
                 .then_some((p.sun_fraction, p.residual_v))
         }),
-        "time-offset" => pd("C n^T (w x s) (V/s)", &|p| {
+        EffectId::TimeOffset => pd("C n^T (w x s) (V/s)", &|p| {
             (p.time_offset_v_s != 0.0).then_some((p.time_offset_v_s, p.residual_v))
         }),
-        "scale-drift" => {
+        EffectId::ScaleDrift => {
             let mut sig = pd("time (min)", &|p| {
                 (p.direct_v > 1.0).then(|| (p.t_s / 60.0, p.residual_v / p.scale_v))
             });
             sig.y_label = "relative photodiode residual r / (C dI/dC)".to_owned();
             sig
         }
-        "mag-bias" => {
+        EffectId::MagBias => {
             let (x, y) = res
                 .mag
                 .iter()
@@ -550,7 +630,7 @@ pub fn signature(id: &str, res: &Residuals) -> Signature {
                 y,
             }
         }
-        "gyro-scale" => {
+        EffectId::GyroScale => {
             let (x, y) = res
                 .gyro
                 .iter()
@@ -565,6 +645,13 @@ pub fn signature(id: &str, res: &Residuals) -> Signature {
                 y,
             }
         }
-        _ => Signature::default(),
+        EffectId::Temperature => {
+            let mut sig = pd("photodiode temperature (C)", &|p| {
+                (p.direct_v > 1.0 && p.temperature_c.is_finite())
+                    .then(|| (p.temperature_c, p.residual_v / p.scale_v))
+            });
+            sig.y_label = "relative photodiode residual r / (C dI/dC)".to_owned();
+            sig
+        }
     }
 }

@@ -1,8 +1,13 @@
-//! The rounds: calibrate with the current model, score the candidates on the residuals,
-//! add the winner if significant, calibrate again, measure the gap; until `none`.
+//! The rounds: calibrate with the current model, score the candidates on the residuals
+//! (effects to add and terms of the model to rescale), try the best significant one, keep
+//! it only if its refit shrinks the gap it targets, drop earlier effects it made
+//! unsupported, and repeat until nothing is left; then check whether what remains is noise.
+
+use std::collections::HashMap;
 
 use pdcal_albedo::AlbedoModel;
-use pdcal_dataset::{DatasetMeta, Telemetry, TruePd};
+use pdcal_dataset::{DatasetMeta, Effect, EffectId, Telemetry};
+use pdcal_effects::Sensor;
 use pdcal_filter::{
     Algebra, Calibration, CalibrationRun, FilterConfig, Mode, RunInputs, StepReference,
     calibrate_with_model,
@@ -12,15 +17,17 @@ use serde::Serialize;
 
 use crate::DiagnoseError;
 use crate::candidates::{CandidateFit, Signature, score_candidates, score_one, scored, signature};
-use crate::model::{AddedEffect, BaseModel, ModelSpec};
+use crate::consistency::{Misfit, misfit};
+use crate::model::{BaseModel, ModelSpec, changes_filter};
 use crate::refit::time_offset_refit;
-use crate::residuals::{FULL_SUN, ResidualInputs, Residuals, mean_std, residuals, rms};
+use crate::residuals::{ResidualInputs, Residuals, mean_std, residuals, rms};
 
-/// Version of `diagnosis.json`.
-pub const DIAGNOSIS_FORMAT_VERSION: u32 = 1;
+/// Version of `diagnosis.json`: 2 added `unexplained`, the rejected and dropped candidates,
+/// the shrink of each round and the parameters in the files' spelling.
+pub const DIAGNOSIS_FORMAT_VERSION: u32 = 2;
 
-/// What a diagnosis reads: the dataset (never its truth), references, the albedo model, and
-/// optionally the truth's photodiodes, used only to report calibration errors.
+/// What a diagnosis reads: the dataset's metadata and telemetry (never its truth), the
+/// references, and the albedo model.
 #[derive(Clone, Copy)]
 pub struct DiagnoseInputs<'a> {
     /// dataset.ron.
@@ -29,10 +36,10 @@ pub struct DiagnoseInputs<'a> {
     pub telemetry: &'a Telemetry,
     /// One reference per telemetry row.
     pub references: &'a [StepReference],
-    /// The albedo model (the filter's, and the albedo candidate's regressor).
+    /// The albedo model (the filter's, and the albedo candidates' regressor).
     pub albedo: &'a AlbedoModel,
-    /// truth.ron's photodiodes, for the report only: no decision reads them.
-    pub truth: Option<&'a [TruePd]>,
+    /// Its reflectivity map's id (`toms-mean-1p25x1`), for the `albedo` effect it adds.
+    pub albedo_map: &'a str,
 }
 
 /// Tuning of the diagnosis.
@@ -40,13 +47,19 @@ pub struct DiagnoseInputs<'a> {
 pub struct DiagnoseConfig {
     /// The calibration filter's tuning.
     pub filter: FilterConfig,
-    /// Most effects added (rounds). Default 4.
+    /// Most rounds (effects added or changed). Default 4.
     pub max_rounds: usize,
-    /// A candidate is named only when its score (nats, BIC already subtracted) exceeds
+    /// A candidate is tried only when its score (nats, BIC already subtracted) exceeds
     /// this. Default [`DEFAULT_THRESHOLD`].
     pub threshold: f64,
     /// HAC window, telemetry rows. Default [`DEFAULT_MAX_LAG`].
     pub max_lag_rows: usize,
+    /// Least fraction of the excess mean square (mean square minus noise variance) over the
+    /// samples a photodiode candidate targets that its refit must remove. Default
+    /// [`DEFAULT_MIN_SHRINK`].
+    pub min_shrink: f64,
+    /// Most significant candidates tried per round before the round gives up. Default 3.
+    pub max_tries: usize,
 }
 
 /// Score threshold above the BIC, nats (see docs/diagnose.md: set from control seeds).
@@ -54,6 +67,9 @@ pub const DEFAULT_THRESHOLD: f64 = 10.0;
 /// Bartlett window of the HAC covariance, rows (1 min at 1 Hz: longer than the correlation
 /// time of the smoother's attitude error on the built-in scenarios).
 pub const DEFAULT_MAX_LAG: usize = 60;
+/// Default [`DiagnoseConfig::min_shrink`]: a named effect removes at least a quarter of the
+/// misfit it targets (docs/diagnose.md gives the values seen for true and spurious effects).
+pub const DEFAULT_MIN_SHRINK: f64 = 0.25;
 
 impl Default for DiagnoseConfig {
     fn default() -> Self {
@@ -62,18 +78,10 @@ impl Default for DiagnoseConfig {
             max_rounds: 4,
             threshold: DEFAULT_THRESHOLD,
             max_lag_rows: DEFAULT_MAX_LAG,
+            min_shrink: DEFAULT_MIN_SHRINK,
+            max_tries: 3,
         }
     }
-}
-
-/// True calibration errors (reported only when the truth is given).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct CalibrationErrors {
-    /// Worst angle between true and estimated normal, deg, over photodiodes lit inside
-    /// 60 deg incidence in full Sun for at least 5 minutes.
-    pub worst_normal_error_deg: f64,
-    /// Worst |true - estimated| scale over the same photodiodes, % of the true scale.
-    pub worst_scale_error_percent: f64,
 }
 
 /// The gap between model and measurement.
@@ -99,32 +107,94 @@ pub struct Gap {
     pub magnetometer_noise_nt: f64,
     /// RMS of the smoothed attitude rate beyond the gyro, rad/s.
     pub gyro_residual_rms_rad_s: f64,
-    /// True calibration errors, when the truth was given.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub calibration: Option<CalibrationErrors>,
 }
 
-/// One round that found an effect.
+/// How much a refit shrank the residuals its candidate targets.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Shrink {
+    /// The sensor whose residuals were compared.
+    pub sensor: &'static str,
+    /// Samples compared (the candidate's support, matched before and after).
+    pub samples: usize,
+    /// RMS over them before, in the sensor's unit (V, nT, rad/s).
+    pub rms_before: f64,
+    /// RMS over them after.
+    pub rms_after: f64,
+    /// Fraction of the excess mean square (above the noise variance) removed; for the
+    /// magnetometer and gyro, of the whole mean square.
+    pub fraction_removed: f64,
+    /// Log-likelihood gain of the refit over those samples, nats.
+    pub nats: f64,
+    /// Whether it meets [`DiagnoseConfig::min_shrink`] and the threshold.
+    pub significant: bool,
+}
+
+/// What a round did to the model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Action {
+    /// An effect the model lacked was added.
+    Added,
+    /// A term the model holds was rescaled (`albedo-gain`).
+    Rescaled,
+}
+
+/// A significant candidate that was not named, and why.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Rejected {
+    /// Effect id.
+    pub id: EffectId,
+    /// Its score, nats.
+    pub score: f64,
+    /// Why: its refit failed (a physically invalid refit, e.g. a negative scale factor) or
+    /// did not shrink the gap.
+    pub reason: String,
+}
+
+/// An effect added earlier that a later round made unsupported, removed again.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Dropped {
+    /// Effect id.
+    pub id: EffectId,
+    /// Its score on the residuals of the model without it, nats (at most the threshold).
+    pub score: f64,
+    /// The gap once dropped.
+    pub gap_after: Gap,
+}
+
+/// One round that named an effect.
 #[derive(Debug, Clone)]
 pub struct Round {
     /// Effect id found.
-    pub found: &'static str,
-    /// The effect as added, with its fitted values.
-    pub effect: AddedEffect,
+    pub found: EffectId,
+    /// Added or rescaled.
+    pub action: Action,
+    /// The effect as kept, with its fitted (or filter-estimated) values.
+    pub effect: Effect,
     /// What gave it away.
     pub evidence: String,
     /// Its score, nats.
     pub score: f64,
     /// Every candidate of the round, best first.
     pub candidates: Vec<CandidateFit>,
-    /// Gap before adding it.
+    /// Significant candidates tried before it and not named.
+    pub rejected: Vec<Rejected>,
+    /// Effects of earlier rounds dropped after it.
+    pub dropped: Vec<Dropped>,
+    /// The shrink its refit achieved.
+    pub shrink: Shrink,
+    /// Gap before the round.
     pub gap_before: Gap,
-    /// Gap after adding it and calibrating again.
+    /// Gap after it (and after any drop).
     pub gap_after: Gap,
     /// The residual signature before.
     pub signature_before: Signature,
     /// The same signature after.
     pub signature_after: Signature,
+    /// The calibration before the round (for the developer demo's true errors).
+    pub calibration_before: Calibration,
+    /// The calibration after it.
+    pub calibration_after: Calibration,
 }
 
 /// The outcome of a diagnosis.
@@ -132,10 +202,15 @@ pub struct Round {
 pub struct Diagnosis {
     /// Where it started.
     pub base_model: BaseModel,
-    /// Rounds that found something, in order.
+    /// Effects of the starting model removed before the first round (their score on the
+    /// model without them at most the threshold).
+    pub initial_dropped: Vec<Dropped>,
+    /// Rounds that named something, in order.
     pub rounds: Vec<Round>,
-    /// The candidates of the last check (none significant, or the round cap reached).
+    /// The candidates of the last check.
     pub final_candidates: Vec<CandidateFit>,
+    /// Significant candidates of the last check that were not named, and why.
+    pub final_rejected: Vec<Rejected>,
     /// The final model (filter-estimated values updated).
     pub final_spec: ModelSpec,
     /// The gap with the final model.
@@ -146,19 +221,39 @@ pub struct Diagnosis {
     pub initial_residuals: Residuals,
     /// Residuals of the final model.
     pub final_residuals: Residuals,
+    /// Whether the final residuals are consistent with the noise model, and where not.
+    pub misfit: Misfit,
     /// The significance threshold used, nats.
     pub threshold: f64,
 }
 
 impl Diagnosis {
-    /// Effects found, strongest (highest score) first, joined by `+`; or `none`.
+    /// The effects of the final model that the rounds named, strongest (highest score)
+    /// first, then `unexplained` when the final residuals are not noise; joined by `+`, or
+    /// `none`.
     pub fn verdict(&self) -> String {
-        if self.rounds.is_empty() {
-            return "none".to_owned();
+        let mut named: Vec<&Round> = self
+            .rounds
+            .iter()
+            .filter(|r| self.final_spec.added.iter().any(|e| e.id() == r.found))
+            .collect();
+        named.sort_by(|a, b| b.score.total_cmp(&a.score));
+        named.dedup_by_key(|r| r.found);
+        let mut parts: Vec<&str> = named.iter().map(|r| r.found.as_str()).collect();
+        if !self.misfit.explained {
+            parts.push(UNEXPLAINED);
         }
-        let mut rounds: Vec<&Round> = self.rounds.iter().collect();
-        rounds.sort_by(|a, b| b.score.total_cmp(&a.score));
-        rounds.iter().map(|r| r.found).collect::<Vec<_>>().join("+")
+        if parts.is_empty() {
+            "none".to_owned()
+        } else {
+            parts.join("+")
+        }
+    }
+
+    /// The estimated parameters of the final calibration (name, unit, value, 1 sigma), e.g.
+    /// `albedo_gain`.
+    pub fn parameter_estimates(&self) -> &[pdcal_filter::ParameterEstimate] {
+        &self.final_run.calibration.parameters
     }
 
     /// `diagnosis.json`.
@@ -167,31 +262,26 @@ impl Diagnosis {
         DiagnosisSummary {
             format_version: DIAGNOSIS_FORMAT_VERSION,
             base_model: self.base_model.as_str(),
-            rounds: self
-                .rounds
-                .iter()
-                .map(|r| RoundSummary {
-                    found: r.found,
-                    evidence: r.evidence.clone(),
-                    score: r.score,
-                    gap_before: r.gap_before,
-                    gap_after: r.gap_after,
-                    parameters: r.effect.clone(),
-                    runner_up: r.candidates.get(1).map(|c| (c.id, c.score)),
-                })
-                .collect(),
+            initial_dropped: self.initial_dropped.clone(),
+            rounds: self.rounds.iter().map(RoundSummary::of).collect(),
             final_model: self.final_spec.effect_ids(),
             verdict: self.verdict(),
             final_check: FinalCheck {
                 best: best.map(|c| c.id),
                 score: best.map(|c| c.score),
                 threshold: self.threshold,
+                rejected: self.final_rejected.clone(),
             },
             final_gap: self.final_gap,
             final_parameters: self.final_spec.added.clone(),
+            parameter_estimates: self.parameter_estimates().to_vec(),
+            unexplained: self.misfit.clone(),
         }
     }
 }
+
+/// The verdict's entry for residuals the final model does not explain.
+pub const UNEXPLAINED: &str = "unexplained";
 
 /// `diagnosis.json` (cli-contract.md keys, plus detail).
 #[derive(Debug, Clone, Serialize)]
@@ -200,25 +290,34 @@ pub struct DiagnosisSummary {
     pub format_version: u32,
     /// `cosine` or `paper`.
     pub base_model: &'static str,
-    /// Rounds that found an effect.
+    /// Effects of the starting model removed before the first round.
+    pub initial_dropped: Vec<Dropped>,
+    /// Rounds that named an effect.
     pub rounds: Vec<RoundSummary>,
     /// Effect ids of the final model beyond the direct Sun.
-    pub final_model: Vec<String>,
-    /// Found effects, strongest first, joined by `+`, or `none`.
+    pub final_model: Vec<EffectId>,
+    /// Named effects, strongest first, then `unexplained` if so, joined by `+`, or `none`.
     pub verdict: String,
     /// The check that ended the diagnosis.
     pub final_check: FinalCheck,
     /// The gap with the final model.
     pub final_gap: Gap,
-    /// The added effects with their final values.
-    pub final_parameters: Vec<AddedEffect>,
+    /// The added effects with their final values (truth.ron's spelling).
+    pub final_parameters: Vec<Effect>,
+    /// The filter's estimates of the estimated effect parameters, with 1 sigma
+    /// (`albedo_gain`, `time_offset_s`, ...).
+    pub parameter_estimates: Vec<pdcal_filter::ParameterEstimate>,
+    /// The consistency check of the final residuals.
+    pub unexplained: Misfit,
 }
 
 /// One round in `diagnosis.json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct RoundSummary {
     /// Effect id.
-    pub found: &'static str,
+    pub found: EffectId,
+    /// `added` or `rescaled`.
+    pub action: Action,
     /// What gave it away.
     pub evidence: String,
     /// Score, nats.
@@ -227,21 +326,54 @@ pub struct RoundSummary {
     pub gap_before: Gap,
     /// Gap after.
     pub gap_after: Gap,
-    /// The effect's fitted values as added.
-    pub parameters: AddedEffect,
+    /// How much the refit shrank the residuals it targets.
+    pub shrink: Shrink,
+    /// The effect's values as kept (truth.ron's spelling).
+    pub parameters: Effect,
     /// The second-best candidate and its score.
-    pub runner_up: Option<(&'static str, f64)>,
+    pub runner_up: Option<(EffectId, f64)>,
+    /// Significant candidates tried first and not named.
+    pub rejected: Vec<Rejected>,
+    /// Earlier effects dropped after this round.
+    pub dropped: Vec<Dropped>,
+}
+
+impl RoundSummary {
+    fn of(r: &Round) -> Self {
+        RoundSummary {
+            found: r.found,
+            action: r.action,
+            evidence: r.evidence.clone(),
+            score: r.score,
+            gap_before: r.gap_before,
+            gap_after: r.gap_after,
+            shrink: r.shrink.clone(),
+            parameters: r.effect.clone(),
+            runner_up: r.candidates.get(1).map(|c| (c.id, c.score)),
+            rejected: r.rejected.clone(),
+            dropped: r.dropped.clone(),
+        }
+    }
 }
 
 /// The last check: the best remaining candidate and the threshold it failed.
 #[derive(Debug, Clone, Serialize)]
 pub struct FinalCheck {
     /// Best remaining candidate.
-    pub best: Option<&'static str>,
+    pub best: Option<EffectId>,
     /// Its score, nats.
     pub score: Option<f64>,
     /// Threshold, nats.
     pub threshold: f64,
+    /// Significant candidates whose refit was rejected.
+    pub rejected: Vec<Rejected>,
+}
+
+/// The model, its calibration and residuals at one point of the search.
+struct State {
+    spec: ModelSpec,
+    run: CalibrationRun,
+    res: Residuals,
 }
 
 /// Runs the diagnosis from `base`.
@@ -250,6 +382,76 @@ pub fn diagnose(
     base: BaseModel,
     config: &DiagnoseConfig,
 ) -> Result<Diagnosis, DiagnoseError> {
+    diagnose_from(inputs, ModelSpec::new(base), config)
+}
+
+/// Runs the diagnosis from a model that may already hold effects (a team's own model):
+/// each of them is first tested for removal with the same score as any candidate.
+pub fn diagnose_from(
+    inputs: &DiagnoseInputs<'_>,
+    mut spec: ModelSpec,
+    config: &DiagnoseConfig,
+) -> Result<Diagnosis, DiagnoseError> {
+    check_config(config)?;
+    let base = spec.base;
+    let (run, res) = calibrate_and_residuals(inputs, &mut spec, config)?;
+    let initial_residuals = res.clone();
+    let mut state = State { spec, run, res };
+    let initial_dropped = drop_unsupported(inputs, config, &mut state, None)?;
+    let mut rounds = Vec::new();
+    loop {
+        let candidates = candidates_of(inputs, config, &state)?;
+        let (accepted, rejected) = if rounds.len() < config.max_rounds {
+            try_candidates(inputs, config, &state, &candidates)?
+        } else {
+            (None, Vec::new())
+        };
+        let Some((best, shrink, next)) = accepted else {
+            let mut d = finish(
+                inputs,
+                base,
+                config,
+                state,
+                rounds,
+                candidates,
+                rejected,
+                initial_residuals,
+            );
+            d.initial_dropped = initial_dropped;
+            return Ok(d);
+        };
+        let before = state;
+        state = next;
+        let dropped = drop_unsupported(inputs, config, &mut state, Some(best.id))?;
+        rounds.push(Round {
+            found: best.id,
+            action: if before.spec.contains(EffectId::Albedo) && best.id == EffectId::AlbedoGain {
+                Action::Rescaled
+            } else {
+                Action::Added
+            },
+            effect: state
+                .spec
+                .added(best.id)
+                .cloned()
+                .unwrap_or(best.effect.clone()),
+            evidence: best.evidence.clone(),
+            score: best.score,
+            candidates,
+            rejected,
+            dropped,
+            shrink,
+            gap_before: gap(&before.res),
+            gap_after: gap(&state.res),
+            signature_before: signature(best.id, &before.res),
+            signature_after: signature(best.id, &state.res),
+            calibration_before: before.run.calibration,
+            calibration_after: state.run.calibration.clone(),
+        });
+    }
+}
+
+fn check_config(config: &DiagnoseConfig) -> Result<(), DiagnoseError> {
     if config.max_lag_rows == 0 {
         return Err(DiagnoseError::Config {
             field: "max_lag_rows",
@@ -257,59 +459,286 @@ pub fn diagnose(
             rule: "must be at least 1",
         });
     }
-    let n_pd = inputs.meta.photodiodes.len();
-    let mut spec = ModelSpec::new(base);
-    let (mut run, mut res) = calibrate_and_residuals(inputs, &mut spec, config)?;
-    let initial_residuals = res.clone();
-    let mut rounds = Vec::new();
-    loop {
-        let candidates = rescored_by_refit(
-            inputs,
-            &spec,
-            config,
-            &run,
-            &res,
-            score_candidates(&res, &spec, n_pd, config.max_lag_rows),
-        )?;
-        let best = candidates
-            .first()
-            .filter(|c| c.score > config.threshold)
-            .cloned();
-        let (Some(best), true) = (best, rounds.len() < config.max_rounds) else {
-            let final_gap = gap(&res, &run.calibration, inputs.truth);
-            return Ok(Diagnosis {
-                base_model: base,
-                rounds,
-                final_candidates: candidates,
-                final_spec: spec,
-                final_gap,
-                final_run: run,
-                initial_residuals,
-                final_residuals: res,
-                threshold: config.threshold,
-            });
-        };
-        let gap_before = gap(&res, &run.calibration, inputs.truth);
-        let signature_before = signature(best.id, &res);
-        spec.added.push(best.effect.clone());
-        if best.effect.changes_filter() {
-            (run, res) = calibrate_and_residuals(inputs, &mut spec, config)?;
-            (run, res) = refine(inputs, &mut spec, config, best.id, run, res)?;
-        } else {
-            let telemetry = spec.corrected_telemetry(inputs.telemetry);
-            res = residuals(&residual_inputs(inputs, &telemetry, config), &spec, &run)?;
-        }
-        rounds.push(Round {
-            found: best.id,
-            effect: spec.added.last().cloned().unwrap_or(best.effect),
-            evidence: best.evidence,
-            score: best.score,
-            candidates,
-            gap_before,
-            gap_after: gap(&res, &run.calibration, inputs.truth),
-            signature_before,
-            signature_after: signature(best.id, &res),
+    if !(0.0..1.0).contains(&config.min_shrink) {
+        return Err(DiagnoseError::Config {
+            field: "min_shrink",
+            value: config.min_shrink,
+            rule: "must be in 0 ..< 1",
         });
+    }
+    Ok(())
+}
+
+/// The model's factor on the albedo regressor: 0 without albedo, else its gain.
+fn albedo_gain(spec: &ModelSpec) -> f64 {
+    match spec.added(EffectId::AlbedoGain) {
+        _ if !spec.contains(EffectId::Albedo) => 0.0,
+        Some(Effect::AlbedoGain { gain }) => *gain,
+        _ => 1.0,
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn finish(
+    inputs: &DiagnoseInputs<'_>,
+    base: BaseModel,
+    config: &DiagnoseConfig,
+    state: State,
+    rounds: Vec<Round>,
+    final_candidates: Vec<CandidateFit>,
+    final_rejected: Vec<Rejected>,
+    initial_residuals: Residuals,
+) -> Diagnosis {
+    let misfit = misfit(&state.res, inputs.references, albedo_gain(&state.spec));
+    Diagnosis {
+        base_model: base,
+        initial_dropped: Vec::new(),
+        rounds,
+        final_candidates,
+        final_rejected,
+        final_gap: gap(&state.res),
+        final_spec: state.spec,
+        final_run: state.run,
+        initial_residuals,
+        final_residuals: state.res,
+        misfit,
+        threshold: config.threshold,
+    }
+}
+
+/// Every candidate of the current model, scored, best first (`time-offset` by refit).
+fn candidates_of(
+    inputs: &DiagnoseInputs<'_>,
+    config: &DiagnoseConfig,
+    state: &State,
+) -> Result<Vec<CandidateFit>, DiagnoseError> {
+    let n_pd = inputs.meta.photodiodes.len();
+    let scored = score_candidates(&state.res, &state.spec, n_pd, config.max_lag_rows);
+    rescored_by_refit(inputs, &state.spec, config, &state.run, &state.res, scored)
+}
+
+/// A candidate that passed, the shrink it achieved and the state with it.
+type Accepted = (CandidateFit, Shrink, State);
+
+/// Tries the significant candidates best first (at most [`DiagnoseConfig::max_tries`]):
+/// the first whose refit succeeds and shrinks the gap it targets is accepted; the others
+/// are reported with the reason.
+fn try_candidates(
+    inputs: &DiagnoseInputs<'_>,
+    config: &DiagnoseConfig,
+    state: &State,
+    candidates: &[CandidateFit],
+) -> Result<(Option<Accepted>, Vec<Rejected>), DiagnoseError> {
+    let mut rejected = Vec::new();
+    let significant = candidates.iter().filter(|c| c.score > config.threshold);
+    for c in significant.take(config.max_tries) {
+        let reason = match with_candidate(inputs, config, state, c) {
+            Ok(next) => {
+                let shrink = shrink(c, &state.res, &next.res, config);
+                if shrink.significant {
+                    return Ok((Some((c.clone(), shrink, next)), rejected));
+                }
+                format!(
+                    "its refit does not shrink the gap it targets: {} RMS {:.4} -> {:.4} over {} \
+                     samples, {:.0} % of the excess removed (at least {:.0} % needed), {:.1} nats",
+                    shrink.sensor,
+                    shrink.rms_before,
+                    shrink.rms_after,
+                    shrink.samples,
+                    100.0 * shrink.fraction_removed,
+                    100.0 * config.min_shrink,
+                    shrink.nats
+                )
+            }
+            Err(e) => format!("its refit failed: {e}"),
+        };
+        rejected.push(Rejected {
+            id: c.id,
+            score: c.score,
+            reason,
+        });
+    }
+    Ok((None, rejected))
+}
+
+/// The state with candidate `c` in the model: calibrated again (unless it does not change
+/// what the filter sees) with its constants refined.
+fn with_candidate(
+    inputs: &DiagnoseInputs<'_>,
+    config: &DiagnoseConfig,
+    state: &State,
+    c: &CandidateFit,
+) -> Result<State, DiagnoseError> {
+    let mut spec = state.spec.clone();
+    spec.added.push(c.effect.clone());
+    let (run, res) = if changes_filter(&c.effect) {
+        let (run, res) = calibrate_and_residuals(inputs, &mut spec, config)?;
+        refine(inputs, &mut spec, config, c.id, run, res)?
+    } else {
+        let telemetry = spec.corrected_telemetry(inputs.telemetry);
+        let res = residuals(
+            &residual_inputs(inputs, &telemetry, config),
+            &spec,
+            &state.run,
+        )?;
+        (state.run.clone(), res)
+    };
+    Ok(State { spec, run, res })
+}
+
+/// Drops every effect of the model but `newest` whose score on the residuals of the model
+/// without it no longer exceeds the threshold (the same evidence measure as for adding).
+fn drop_unsupported(
+    inputs: &DiagnoseInputs<'_>,
+    config: &DiagnoseConfig,
+    state: &mut State,
+    newest: Option<EffectId>,
+) -> Result<Vec<Dropped>, DiagnoseError> {
+    let n_pd = inputs.meta.photodiodes.len();
+    let earlier: Vec<EffectId> = state
+        .spec
+        .added
+        .iter()
+        .map(Effect::id)
+        .filter(|&id| Some(id) != newest)
+        .collect();
+    let mut dropped = Vec::new();
+    for id in earlier {
+        let mut spec = state.spec.without(id);
+        // A model that cannot be calibrated without the effect keeps it.
+        let Ok((run, res)) = calibrate_and_residuals(inputs, &mut spec, config) else {
+            continue;
+        };
+        let Some(fit) = score_one(id, &res, n_pd, config.max_lag_rows) else {
+            continue;
+        };
+        let score = if id == EffectId::TimeOffset {
+            scored(time_offset_refit(inputs, &spec, config, &run)?, &res).score
+        } else {
+            fit.score
+        };
+        if score <= config.threshold {
+            dropped.push(Dropped {
+                id,
+                score,
+                gap_after: gap(&res),
+            });
+            *state = State { spec, run, res };
+        }
+    }
+    Ok(dropped)
+}
+
+/// The shrink of the residuals candidate `c` targets from `before` to `after`: its
+/// photodiode support (or every sample of its sensor) matched by row.
+pub fn shrink(
+    c: &CandidateFit,
+    before: &Residuals,
+    after: &Residuals,
+    config: &DiagnoseConfig,
+) -> Shrink {
+    match c.id.sensor() {
+        Sensor::Photodiode => pd_shrink(c, before, after, config),
+        Sensor::Magnetometer => {
+            let squares = |r: &Residuals| -> HashMap<usize, f64> {
+                r.mag
+                    .iter()
+                    .map(|m| (m.row, m.residual_nt.norm_squared() / 3.0))
+                    .collect()
+            };
+            vector_shrink("magnetometer", squares(before), squares(after), config)
+        }
+        Sensor::Gyro => {
+            let squares = |r: &Residuals| -> HashMap<usize, f64> {
+                r.gyro
+                    .iter()
+                    .map(|g| (g.row, (g.residual_rad / g.dt_s).norm_squared() / 3.0))
+                    .collect()
+            };
+            vector_shrink("gyro", squares(before), squares(after), config)
+        }
+    }
+}
+
+fn pd_shrink(
+    c: &CandidateFit,
+    before: &Residuals,
+    after: &Residuals,
+    config: &DiagnoseConfig,
+) -> Shrink {
+    let after_by_key: HashMap<(usize, usize), f64> = after
+        .pd
+        .iter()
+        .map(|p| ((p.row, p.pd), p.residual_v))
+        .collect();
+    let support: std::collections::HashSet<(usize, usize)> = c.support.iter().copied().collect();
+    let (mut sb, mut sa, mut n) = (0.0, 0.0, 0usize);
+    for p in &before.pd {
+        let key = (p.row, p.pd);
+        if !support.is_empty() && !support.contains(&key) {
+            continue;
+        }
+        if let Some(r_after) = after_by_key.get(&key) {
+            sb += p.residual_v * p.residual_v;
+            sa += r_after * r_after;
+            n += 1;
+        }
+    }
+    let noise_var = before.sigma_pd_v * before.sigma_pd_v;
+    let nf = n.max(1) as f64;
+    let (ms_before, ms_after) = (sb / nf, sa / nf);
+    let excess = (ms_before - noise_var).max(f64::MIN_POSITIVE);
+    let fraction_removed = (ms_before - ms_after) / excess;
+    let nats = 0.5 * (sb - sa) / noise_var.max(f64::MIN_POSITIVE);
+    Shrink {
+        sensor: "photodiode",
+        samples: n,
+        rms_before: ms_before.sqrt(),
+        rms_after: ms_after.sqrt(),
+        fraction_removed,
+        nats,
+        significant: n > 0 && fraction_removed >= config.min_shrink && nats > config.threshold,
+    }
+}
+
+/// Magnetometer and gyro: the noise of these residuals is not a given sigma (the attitude's
+/// own error is in them), so the gain is the unknown-variance likelihood ratio
+/// `n/2 ln(ms_before/ms_after)` and the fraction is of the whole mean square.
+fn vector_shrink(
+    sensor: &'static str,
+    before: HashMap<usize, f64>,
+    after: HashMap<usize, f64>,
+    config: &DiagnoseConfig,
+) -> Shrink {
+    let (mut sb, mut sa, mut n) = (0.0, 0.0, 0usize);
+    for (row, b) in &before {
+        if let Some(a) = after.get(row) {
+            sb += b;
+            sa += a;
+            n += 1;
+        }
+    }
+    let nf = n.max(1) as f64;
+    let (ms_before, ms_after) = (sb / nf, sa / nf);
+    let nats = if ms_before > 0.0 && ms_after > 0.0 {
+        // Three components per sample.
+        1.5 * nf * (ms_before / ms_after).ln()
+    } else {
+        0.0
+    };
+    let fraction_removed = if ms_before > 0.0 {
+        1.0 - ms_after / ms_before
+    } else {
+        0.0
+    };
+    Shrink {
+        sensor,
+        samples: n,
+        rms_before: ms_before.sqrt(),
+        rms_after: ms_after.sqrt(),
+        fraction_removed,
+        nats,
+        significant: n > 0 && ms_after < ms_before && nats > config.threshold,
     }
 }
 
@@ -322,7 +751,7 @@ fn refine(
     inputs: &DiagnoseInputs<'_>,
     spec: &mut ModelSpec,
     config: &DiagnoseConfig,
-    id: &str,
+    id: EffectId,
     mut run: CalibrationRun,
     mut res: Residuals,
 ) -> Result<(CalibrationRun, Residuals), DiagnoseError> {
@@ -337,7 +766,7 @@ fn refine(
         let Some(last) = spec.added.last_mut() else {
             break;
         };
-        if !last.refine(&again.effect) {
+        if !last.compose(&again.effect) {
             break;
         }
         (run, res) = calibrate_and_residuals(inputs, spec, config)?;
@@ -355,6 +784,7 @@ fn residual_inputs<'a>(
         telemetry,
         references: inputs.references,
         albedo: inputs.albedo,
+        albedo_map: inputs.albedo_map,
         config: &config.filter,
     }
 }
@@ -370,11 +800,11 @@ fn rescored_by_refit(
     mut candidates: Vec<CandidateFit>,
 ) -> Result<Vec<CandidateFit>, DiagnoseError> {
     for c in candidates.iter_mut() {
-        if c.id == "time-offset" {
-            let refit = scored(time_offset_refit(inputs, spec, config, run)?, res);
-            let linear = format!("; residual regression: Wald {:.1}", c.wald);
+        if c.id == EffectId::TimeOffset {
+            let mut refit = scored(time_offset_refit(inputs, spec, config, run)?, res);
+            refit.evidence += &format!("; residual regression: Wald {:.1}", c.wald);
+            refit.support = std::mem::take(&mut c.support);
             *c = refit;
-            c.evidence += &linear;
         }
     }
     candidates.sort_by(|a, b| b.score.total_cmp(&a.score));
@@ -429,7 +859,7 @@ fn filter_run(
     let model = spec.measurement_model(nominal, filter)?;
     // Without albedo in the model, the filter's start (photodiode Sun vector) must not
     // remove it either.
-    let albedo = spec.contains("albedo").then_some(inputs.albedo);
+    let albedo = spec.contains(EffectId::Albedo).then_some(inputs.albedo);
     let run_inputs = RunInputs {
         meta: inputs.meta,
         telemetry,
@@ -446,7 +876,7 @@ fn filter_run(
 }
 
 /// The gap of one set of residuals.
-pub fn gap(res: &Residuals, calibration: &Calibration, truth: Option<&[TruePd]>) -> Gap {
+pub fn gap(res: &Residuals) -> Gap {
     let bound = 3.0 * res.sigma_pd_v;
     let inside = res
         .pd
@@ -468,47 +898,5 @@ pub fn gap(res: &Residuals, calibration: &Calibration, truth: Option<&[TruePd]>)
                 .copied()
                 .collect::<Vec<_>>()
         })),
-        calibration: truth.map(|t| calibration_errors(res, calibration, t)),
     }
-}
-
-/// Lit samples (inside 60 deg incidence, full Sun) a photodiode needs before its errors
-/// count: 5 minutes at 1 Hz, the calibration-filter issue's rule.
-const MIN_LIT_SAMPLES: usize = 300;
-
-/// Worst true normal and scale errors over the photodiodes lit long enough.
-pub fn calibration_errors(
-    res: &Residuals,
-    calibration: &Calibration,
-    truth: &[TruePd],
-) -> CalibrationErrors {
-    let cos60 = 60f64.to_radians().cos();
-    let mut lit = vec![0usize; calibration.photodiodes.len()];
-    for p in res
-        .pd
-        .iter()
-        .filter(|p| p.sun_fraction >= FULL_SUN && p.cos_incidence >= cos60)
-    {
-        if let Some(n) = lit.get_mut(p.pd) {
-            *n += 1;
-        }
-    }
-    let mut worst = CalibrationErrors {
-        worst_normal_error_deg: 0.0,
-        worst_scale_error_percent: 0.0,
-    };
-    for ((est, t), n) in calibration.photodiodes.iter().zip(truth).zip(&lit) {
-        if *n < MIN_LIT_SAMPLES {
-            continue;
-        }
-        let n_true = pdcal_attitude::normal_from_az_el(
-            t.azimuth_deg.to_radians(),
-            t.elevation_deg.to_radians(),
-        );
-        let angle = n_true.angle(&est.n_body()).to_degrees();
-        let scale = 100.0 * ((t.scale_v - est.scale_v) / t.scale_v).abs();
-        worst.worst_normal_error_deg = worst.worst_normal_error_deg.max(angle);
-        worst.worst_scale_error_percent = worst.worst_scale_error_percent.max(scale);
-    }
-    worst
 }

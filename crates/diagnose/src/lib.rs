@@ -47,6 +47,7 @@
 //! per-row summed scores used here.
 
 pub mod candidates;
+pub mod consistency;
 mod diagnose;
 mod error;
 pub mod model;
@@ -54,13 +55,17 @@ pub mod refit;
 pub mod residuals;
 pub mod stats;
 
-pub use candidates::{CANDIDATES, CandidateFit, Signature, score_candidates, score_one, signature};
+pub use candidates::{
+    CandidateFit, Signature, candidate_ids, score_candidates, score_one, signature,
+};
+pub use consistency::{Misfit, misfit};
 pub use diagnose::{
-    CalibrationErrors, DEFAULT_MAX_LAG, DEFAULT_THRESHOLD, DIAGNOSIS_FORMAT_VERSION,
-    DiagnoseConfig, DiagnoseInputs, Diagnosis, DiagnosisSummary, FinalCheck, Gap, Round,
-    RoundSummary, calibrate_and_residuals, calibration_errors, diagnose, gap,
+    Action, DEFAULT_MAX_LAG, DEFAULT_MIN_SHRINK, DEFAULT_THRESHOLD, DIAGNOSIS_FORMAT_VERSION,
+    DiagnoseConfig, DiagnoseInputs, Diagnosis, DiagnosisSummary, Dropped, FinalCheck, Gap,
+    Rejected, Round, RoundSummary, Shrink, UNEXPLAINED, calibrate_and_residuals, diagnose,
+    diagnose_from, gap, shrink,
 };
 pub use error::DiagnoseError;
-pub use model::{AddedEffect, BaseModel, ModelSpec};
+pub use model::{BaseModel, ModelSpec, changes_filter};
 pub use refit::innovation_log_likelihood_gain;
 pub use residuals::{Residuals, residuals};

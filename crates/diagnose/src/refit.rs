@@ -19,7 +19,8 @@ use pdcal_filter::{CalibrationRun, ResidualRecord, Sensor};
 use crate::DiagnoseError;
 use crate::candidates::CandidateFit;
 use crate::diagnose::{DiagnoseConfig, DiagnoseInputs, forward_run};
-use crate::model::{AddedEffect, ModelSpec};
+use crate::model::ModelSpec;
+use pdcal_dataset::Effect;
 
 /// Log-likelihood gain of the forward innovations of `with` over `base`, nats, over the
 /// scalar updates both runs accepted (an update one gate rejected is in neither sum, so an
@@ -69,10 +70,10 @@ pub(crate) fn time_offset_refit(
     base: &CalibrationRun,
 ) -> Result<CandidateFit, DiagnoseError> {
     let mut with = spec.clone();
-    with.added.push(AddedEffect::TimeOffset { seconds: 0.0 });
+    with.added.push(Effect::TimeOffset { seconds: 0.0 });
     let run = forward_run(inputs, &mut with, config)?;
     let seconds = match with.added.last() {
-        Some(AddedEffect::TimeOffset { seconds }) => *seconds,
+        Some(Effect::TimeOffset { seconds }) => *seconds,
         _ => 0.0,
     };
     let (gain, common) = innovation_log_likelihood_gain(&base.residuals, &run.residuals);
@@ -80,8 +81,9 @@ pub(crate) fn time_offset_refit(
     // evidence at all.
     let wald = 2.0 * gain.max(0.0);
     Ok(CandidateFit {
-        id: "time-offset",
-        effect: AddedEffect::TimeOffset { seconds },
+        id: pdcal_dataset::EffectId::TimeOffset,
+        effect: Effect::TimeOffset { seconds },
+        support: Vec::new(),
         wald,
         parameters: 1,
         samples: common,

@@ -6,11 +6,12 @@
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView};
+use pdcal_dataset::Effect;
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_filter::{CalibrationRun, FilterConfig, StepEstimate, StepReference};
 use pdcal_photodiode::{
-    MeasurementModel, Partials, Photodiode, Scene, ShadowMode, SunEstimate, SunVectorOptions,
-    estimate_sun_vector,
+    ComponentId, MeasurementModel, Partials, Photodiode, Scene, ShadowMode, SunEstimate,
+    SunVectorOptions, estimate_sun_vector,
 };
 use rayon::prelude::*;
 
@@ -54,6 +55,9 @@ pub struct PdSample {
     pub time_offset_v_s: f64,
     /// `C dI/dC`: the model output's sensitivity to a relative scale change, V.
     pub scale_v: f64,
+    /// The photodiode's temperature, degrees Celsius (held from its last sample; NaN
+    /// without temperature columns).
+    pub temperature_c: f64,
 }
 
 /// One magnetometer sample, body frame.
@@ -107,6 +111,8 @@ pub struct Residuals {
     pub sigma_gyro_rad_s: f64,
     /// Rows covered (from the filter's start).
     pub rows: usize,
+    /// The reflectivity map of the albedo regressor.
+    pub albedo_map: String,
 }
 
 /// What the residual pass reads.
@@ -119,6 +125,8 @@ pub struct ResidualInputs<'a> {
     pub references: &'a [StepReference],
     /// Albedo model.
     pub albedo: &'a AlbedoModel,
+    /// Its reflectivity map's id.
+    pub albedo_map: &'a str,
     /// Filter tuning (albedo partials).
     pub config: &'a FilterConfig,
 }
@@ -196,7 +204,7 @@ pub fn residuals(
         .added
         .iter()
         .find_map(|e| match e {
-            crate::model::AddedEffect::TimeOffset { seconds } => Some(*seconds),
+            Effect::TimeOffset { seconds } => Some(*seconds),
             _ => None,
         })
         .unwrap_or(0.0);
@@ -204,17 +212,19 @@ pub fn residuals(
     let rows: Vec<RowOut> = track
         .par_iter()
         .map_init(
-            || (AlbedoView::new(), Partials::default()),
-            |(view, partials), estimate| {
-                row_samples(
-                    inputs,
-                    &model,
-                    &photodiodes,
+            || {
+                let held = tel.held_temperatures(inputs.meta);
+                (AlbedoView::new(), Partials::default(), held)
+            },
+            |(view, partials, held), estimate| {
+                let temperatures = held.at(estimate.index);
+                let row = RowInputs {
+                    model: &model,
+                    photodiodes: &photodiodes,
                     offset_s,
-                    estimate,
-                    view,
-                    partials,
-                )
+                    temperatures,
+                };
+                row_samples(inputs, &row, estimate, view, partials)
             },
         )
         .collect::<Result<_, _>>()?;
@@ -223,6 +233,7 @@ pub fn residuals(
         sigma_mag_nt: run.sensor_sigmas.mag_nt,
         sigma_gyro_rad_s: run.sensor_sigmas.gyro_rad_s,
         rows: track.len(),
+        albedo_map: inputs.albedo_map.to_owned(),
         ..Residuals::default()
     };
     for row in rows {
@@ -260,15 +271,27 @@ fn sun_fraction_at(inputs: &ResidualInputs<'_>, k: usize, offset_s: f64) -> f64 
     refs[j - 1].sun_fraction * (1.0 - w) + refs[j].sun_fraction * w
 }
 
+/// What every row's residuals share, and the row's held temperatures.
+struct RowInputs<'a> {
+    model: &'a MeasurementModel,
+    photodiodes: &'a [Photodiode],
+    offset_s: f64,
+    temperatures: &'a [f64],
+}
+
 fn row_samples(
     inputs: &ResidualInputs<'_>,
-    model: &MeasurementModel,
-    photodiodes: &[Photodiode],
-    offset_s: f64,
+    row: &RowInputs<'_>,
     estimate: &StepEstimate,
     view: &mut AlbedoView,
     partials: &mut Partials,
 ) -> Result<RowOut, DiagnoseError> {
+    let RowInputs {
+        model,
+        photodiodes,
+        offset_s,
+        temperatures,
+    } = *row;
     let k = estimate.index;
     let tel = inputs.telemetry;
     let reference = &inputs.references[k];
@@ -317,6 +340,7 @@ fn row_samples(
         rate_body_rad_s: rate,
         t_s,
         albedo: Some(&*view as &dyn AlbedoIrradiance),
+        temperature_c: temperatures,
     };
     let hard = ShadowMode::Hard.factor(sun_fraction);
     let a_t = attitude.transpose();
@@ -352,6 +376,7 @@ fn row_samples(
             unshadowed_v: pd.scale_v * cos.max(0.0),
             time_offset_v_s: lit * pd.scale_v * pd.n_body.dot(&w_cross_s),
             scale_v: partials.d_scale * pd.scale_v,
+            temperature_c: temperatures.get(i).copied().unwrap_or(f64::NAN),
         });
     }
     if complete && sun_fraction >= FULL_SUN {
@@ -370,7 +395,7 @@ fn model_direct(model: &MeasurementModel, i: usize, scene: &Scene) -> Result<f64
     Ok(model
         .contributions(i, scene)?
         .iter()
-        .filter(|(id, _)| *id == pdcal_photodiode::effect::SUN)
+        .filter(|(id, _)| *id == ComponentId::Sun)
         .map(|(_, v)| v)
         .sum())
 }

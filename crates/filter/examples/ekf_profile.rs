@@ -22,6 +22,7 @@ fn steps(s: &mut Setup, albedo: &AlbedoExpansion, steps: usize) {
         let meas = Measurements {
             mag_nt: Some(s.mag),
             pd_v: &s.pd_v,
+            temperature_c: &[],
         };
         black_box(&mut s.filter)
             .update(0.0, &meas, &s.reference, Some(albedo))

@@ -175,12 +175,16 @@ fn default_parameter_sigmas() -> Vec<ParameterSigma> {
         walk_per_sqrt_h: 0.0,
     };
     // Volts: dark offsets of tens of mV; seconds: time tags off by a fraction of a sample;
-    // radians: roll-off angles; 1/h: scale drift of a few percent per hour.
+    // radians: roll-off angles; 1/h: scale drift of a few percent per hour; 1/K: scale
+    // factors changing by up to a percent per kelvin; dimensionless: the albedo gain, whose
+    // plausible range (0 to about 2) is one sigma wide.
     vec![
         entry("V", 0.1),
         entry("s", 0.5),
         entry("rad", 0.2),
         entry("1/h", 0.05),
+        entry("1/K", 0.01),
+        entry("1", 1.0),
     ]
 }
 

@@ -141,6 +141,9 @@ pub struct Measurements<'a> {
     pub mag_nt: Option<Vector3<f64>>,
     /// Photodiode outputs, V, one per photodiode (`None`: not sampled).
     pub pd_v: &'a [Option<f64>],
+    /// Photodiode temperatures, degrees Celsius, one per photodiode (empty: none in the
+    /// telemetry; NaN: none for that photodiode).
+    pub temperature_c: &'a [f64],
 }
 
 /// The 6x6 transition and process noise of one propagation, plus the diagonal process
@@ -426,7 +429,14 @@ impl Filter {
         if let Some(mag) = meas.mag_nt {
             self.mag_rows(&attitude, &mag, &reference.b_gcrf_nt);
         }
-        self.photodiode_rows(&attitude, t_s, meas.pd_v, reference, albedo)?;
+        self.photodiode_rows(
+            &attitude,
+            t_s,
+            meas.pd_v,
+            meas.temperature_c,
+            reference,
+            albedo,
+        )?;
         if self.apply_rows() {
             self.reset()?;
         }
@@ -499,6 +509,7 @@ impl Filter {
         attitude: &Matrix3<f64>,
         t_s: f64,
         pd_v: &[Option<f64>],
+        temperature_c: &[f64],
         reference: &StepReference,
         albedo: Option<&dyn AlbedoIrradiance>,
     ) -> Result<(), FilterError> {
@@ -522,6 +533,7 @@ impl Filter {
                 t_s,
                 albedo: albedo_used
                     .map(|_| &self.scratch.albedo.linear[k] as &dyn AlbedoIrradiance),
+                temperature_c,
             };
             self.model
                 .partials_into(i, &scene, &mut self.scratch.partials)?;

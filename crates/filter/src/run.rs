@@ -212,6 +212,7 @@ pub fn calibrate_with_model(
     let mut row = vec![None; m];
     let mut view = AlbedoView::new();
     let mut last_gyro: Option<Vector3<f64>> = None;
+    let mut temperatures = tel.held_temperatures(inputs.meta);
     for k in start.index..tel.len() {
         let t_s = tel.t_s[k];
         let reference = &inputs.references[k];
@@ -253,7 +254,11 @@ pub fn calibrate_with_model(
         };
         filter.update(
             t_s,
-            &Measurements { mag_nt, pd_v: &row },
+            &Measurements {
+                mag_nt,
+                pd_v: &row,
+                temperature_c: temperatures.at(k),
+            },
             reference,
             provider,
         )?;

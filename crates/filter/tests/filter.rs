@@ -87,7 +87,11 @@ fn drive(case: &Case, filter: &mut Filter, steps: usize, mut check: impl FnMut(u
         filter
             .update(
                 tel.t_s[k],
-                &Measurements { mag_nt, pd_v: &row },
+                &Measurements {
+                    mag_nt,
+                    pd_v: &row,
+                    temperature_c: &[],
+                },
                 &refs[k],
                 None,
             )

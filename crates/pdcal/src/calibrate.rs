@@ -97,9 +97,12 @@ pub struct Outcome {
     pub warnings: Vec<String>,
 }
 
-/// The albedo model the filter uses: the paper's TOMS reflectivity map.
+/// The reflectivity map the filter uses: the paper's TOMS map.
+pub const ALBEDO_MAP: MapChoice = MapChoice::TomsMean1p25x1;
+
+/// The albedo model the filter uses ([`ALBEDO_MAP`]).
 pub fn albedo_model() -> Result<AlbedoModel> {
-    Ok(AlbedoModel::from_choice(&MapChoice::TomsMean1p25x1)?)
+    Ok(AlbedoModel::from_choice(&ALBEDO_MAP)?)
 }
 
 /// Calibrates a dataset held in memory (never its truth).

@@ -26,23 +26,18 @@ pub struct DiagnoseOutcome {
     pub warnings: Vec<String>,
 }
 
-/// Diagnoses a dataset held in memory. `truth` (truth.ron's photodiodes) only adds the
-/// calibration errors to the report; no decision reads it.
-pub fn run(
-    meta: &DatasetMeta,
-    telemetry: &Telemetry,
-    truth: Option<&[pdcal_dataset::TruePd]>,
-    base: BaseModel,
-) -> Result<DiagnoseOutcome> {
+/// Diagnoses a dataset held in memory (its metadata and telemetry: never its truth).
+pub fn run(meta: &DatasetMeta, telemetry: &Telemetry, base: BaseModel) -> Result<DiagnoseOutcome> {
     let warnings = crate::checks::check_telemetry(telemetry)?;
     let references = pdcal_filter::step_references(meta, telemetry)?;
     let albedo = crate::calibrate::albedo_model()?;
+    let albedo_map = crate::calibrate::ALBEDO_MAP.to_string();
     let inputs = DiagnoseInputs {
         meta,
         telemetry,
         references: &references,
         albedo: &albedo,
-        truth,
+        albedo_map: &albedo_map,
     };
     let start = Instant::now();
     let diagnosis =
@@ -59,14 +54,7 @@ pub fn run_dir(dataset: &Path, out: &Path, base: BaseModel) -> Result<DiagnoseOu
     let dir = OutputDir::create(out, "diagnose")?;
     let meta = pdcal_dataset::read_meta(dataset)?;
     let telemetry = pdcal_dataset::read_telemetry(dataset, &meta)?;
-    // truth.* only for the report's calibration errors, when a simulator wrote it.
-    let truth = pdcal_dataset::read_truth(dataset, &meta)?;
-    let outcome = run(
-        &meta,
-        &telemetry,
-        truth.as_ref().map(|(_, c)| c.photodiodes.as_slice()),
-        base,
-    )?;
+    let outcome = run(&meta, &telemetry, base)?;
     write_outputs(dir, &meta, &outcome)?;
     Ok(outcome)
 }
@@ -193,13 +181,6 @@ fn gap_line(g: &Gap) -> String {
         ", attitude rate beyond gyro RMS {:.2e} rad/s",
         g.gyro_residual_rms_rad_s
     );
-    if let Some(c) = g.calibration {
-        let _ = write!(
-            s,
-            "; true errors: worst normal {:.2} deg, worst scale {:.2} %",
-            c.worst_normal_error_deg, c.worst_scale_error_percent
-        );
-    }
     s
 }
 
@@ -217,15 +198,11 @@ pub fn report_text(
         "Base model `{}`; verdict **{}**; final model: {}; {:.1} s.\n",
         d.base_model.as_str(),
         d.verdict(),
-        if d.final_spec.effect_ids().is_empty() {
-            "direct Sun only".to_owned()
-        } else {
-            format!("direct Sun + {}", d.final_spec.effect_ids().join(" + "))
-        },
+        final_model_text(d),
         outcome.runtime_s
     );
     for (n, r) in d.rounds.iter().enumerate() {
-        let _ = writeln!(s, "## Round {}: {}\n", n + 1, r.found);
+        let _ = writeln!(s, "## Round {}: {} ({:?})\n", n + 1, r.found, r.action);
         let _ = writeln!(s, "- evidence: {}", r.evidence);
         let _ = writeln!(
             s,
@@ -236,7 +213,22 @@ pub fn report_text(
                 .get(1)
                 .map_or("none".to_owned(), |c| format!("{} {:.1}", c.id, c.score))
         );
-        let _ = writeln!(s, "- added: {:?}", r.effect);
+        let _ = writeln!(s, "- kept: {}", effect_text(&r.effect));
+        let _ = writeln!(s, "- its refit: {}", shrink_line(&r.shrink));
+        for x in &r.rejected {
+            let _ = writeln!(
+                s,
+                "- not named: {} (score {:.1}): {}",
+                x.id, x.score, x.reason
+            );
+        }
+        for x in &r.dropped {
+            let _ = writeln!(
+                s,
+                "- dropped again: {} (score {:.1} without it, at most the threshold)",
+                x.id, x.score
+            );
+        }
         let _ = writeln!(s, "- before: {}", gap_line(&r.gap_before));
         let _ = writeln!(s, "- after:  {}\n", gap_line(&r.gap_after));
     }
@@ -244,15 +236,84 @@ pub fn report_text(
     for c in d.final_candidates.iter() {
         let _ = writeln!(s, "- {} {:.1}: {}", c.id, c.score, c.evidence);
     }
+    for x in &d.final_rejected {
+        let _ = writeln!(
+            s,
+            "- not named: {} (score {:.1}): {}",
+            x.id, x.score, x.reason
+        );
+    }
     let _ = writeln!(
         s,
-        "\nNothing above the threshold of {:.1} nats: the data support no further effect.\n",
+        "\nNo further candidate above the threshold of {:.1} nats shrinks the gap.\n",
         d.threshold
     );
-    let _ = writeln!(s, "Final gap: {}\n", gap_line(&d.final_gap));
+    for p in d.parameter_estimates() {
+        let _ = writeln!(
+            s,
+            "- estimated {} = {:.4} +- {:.4} {} (1 sigma)",
+            p.name, p.value, p.sigma, p.unit
+        );
+    }
+    let _ = writeln!(s, "\nFinal gap: {}\n", gap_line(&d.final_gap));
+    let _ = writeln!(s, "## Are the final residuals noise?\n");
+    let _ = writeln!(s, "{}\n", misfit_text(&d.misfit));
     let _ = writeln!(s, "## Figures\n");
     for (caption, stem) in figures {
         let _ = writeln!(s, "- {caption}: {stem}.png, {stem}.svg");
+    }
+    s
+}
+
+fn final_model_text(d: &Diagnosis) -> String {
+    let ids = d.final_spec.effect_ids();
+    if ids.is_empty() {
+        "direct Sun only".to_owned()
+    } else {
+        let names: Vec<&str> = ids.iter().map(|id| id.as_str()).collect();
+        format!("direct Sun + {}", names.join(" + "))
+    }
+}
+
+/// An effect in truth.ron's spelling (degrees, %/K), as a user compares it with a scenario.
+fn effect_text(effect: &pdcal_dataset::Effect) -> String {
+    ron::to_string(effect).unwrap_or_else(|_| effect.id().to_string())
+}
+
+fn shrink_line(x: &pdcal_diagnose::Shrink) -> String {
+    format!(
+        "{} RMS {:.4} -> {:.4} over {} samples it targets, {:.0} % of the excess removed, {:.1} nats",
+        x.sensor,
+        x.rms_before,
+        x.rms_after,
+        x.samples,
+        100.0 * x.fraction_removed,
+        x.nats
+    )
+}
+
+/// The consistency check in words: consistent, or the misfit's size and where it is.
+fn misfit_text(m: &pdcal_diagnose::Misfit) -> String {
+    if m.explained {
+        return format!(
+            "Yes: photodiode RMS {:.4} V is {:.2} times the noise, {:.1} % inside 3 sigma, every \
+             photodiode consistent.",
+            m.photodiode_rms_v,
+            m.rms_ratio,
+            100.0 * m.fraction_within_3sigma
+        );
+    }
+    let mut s = format!(
+        "No (`unexplained`): photodiode RMS {:.4} V is {:.2} times the noise ({:.4} V), {:.1} % \
+         inside 3 sigma. Concentrated in: {}.",
+        m.photodiode_rms_v,
+        m.rms_ratio,
+        m.photodiode_noise_v,
+        100.0 * m.fraction_within_3sigma,
+        m.concentrated_in
+    );
+    for f in &m.failed {
+        let _ = write!(s, "\n- {f}");
     }
     s
 }
@@ -286,14 +347,28 @@ pub fn console_summary(outcome: &DiagnoseOutcome) -> String {
     for (n, r) in d.rounds.iter().enumerate() {
         let _ = writeln!(s, "  round {}: {} (score {:.1})", n + 1, r.found, r.score);
         let _ = writeln!(s, "    {}", r.evidence);
+        let _ = writeln!(s, "    refit: {}", shrink_line(&r.shrink));
+        for x in &r.rejected {
+            let _ = writeln!(s, "    not named: {} ({:.1}): {}", x.id, x.score, x.reason);
+        }
+        for x in &r.dropped {
+            let _ = writeln!(s, "    dropped again: {} ({:.1} without it)", x.id, x.score);
+        }
         let _ = writeln!(s, "    before: {}", gap_line(&r.gap_before));
         let _ = writeln!(s, "    after:  {}", gap_line(&r.gap_after));
+    }
+    for p in d.parameter_estimates() {
+        let _ = writeln!(
+            s,
+            "  estimated {} = {:.4} +- {:.4} {}",
+            p.name, p.value, p.sigma, p.unit
+        );
     }
     match d.final_candidates.first() {
         Some(c) => {
             let _ = writeln!(
                 s,
-                "  then none: best remaining {} at {:.1} <= threshold {:.1}",
+                "  then none: best remaining {} at {:.1} (threshold {:.1})",
                 c.id, c.score, d.threshold
             );
         }
@@ -301,5 +376,13 @@ pub fn console_summary(outcome: &DiagnoseOutcome) -> String {
             let _ = writeln!(s, "  then none: no candidate left");
         }
     }
+    for x in &d.final_rejected {
+        let _ = writeln!(s, "  not named: {} ({:.1}): {}", x.id, x.score, x.reason);
+    }
+    let _ = writeln!(
+        s,
+        "  residuals: {}",
+        misfit_text(&d.misfit).replace('\n', "\n  ")
+    );
     s
 }

@@ -144,6 +144,46 @@ pub fn evaluate(
         );
     }
     let truth_row = |t: f64| truth.t_s.binary_search_by(|x| x.total_cmp(&t)).ok();
+    let (photodiodes, worst_normal_error_deg, worst_scale_error_percent) =
+        photodiode_errors(final_cal, truth, constants);
+    let attitude = attitude_stats(estimates, truth, &truth_row)?;
+    let consistency = consistency(
+        estimates,
+        final_cal,
+        truth,
+        constants,
+        &truth_row,
+        &attitude.1,
+    );
+    let truth_coverage = TruthCoverage {
+        matched_rows: estimates
+            .iter()
+            .filter(|e| truth_row(e.t_s).is_some())
+            .count(),
+        estimate_rows: estimates.len(),
+    };
+    let mut evaluation = Evaluation {
+        format_version: crate::files::OUTPUT_FORMAT_VERSION,
+        worst_normal_error_deg,
+        worst_scale_error_percent,
+        photodiodes,
+        attitude: attitude.0,
+        consistency,
+        truth_coverage,
+        not_evaluable: Vec::new(),
+    };
+    mark_not_evaluable(&mut evaluation);
+    Ok(evaluation)
+}
+
+/// Each photodiode's true errors, and the worst normal (deg) and scale (%) errors over the
+/// photodiodes lit at least 5 minutes (NaN when none was). The calibration must have truth.ron's photodiode
+/// count (checked by [`evaluate`]).
+pub fn photodiode_errors(
+    final_cal: &Calibration,
+    truth: &TruthSeries,
+    constants: &TruthConstants,
+) -> (Vec<PdError>, f64, f64) {
     let lit_minutes = lit_minutes(truth, constants);
     let photodiodes: Vec<PdError> = constants
         .photodiodes
@@ -167,38 +207,14 @@ pub fn evaluate(
             .iter()
             .filter(|p| p.lit_minutes >= WELL_LIT_MINUTES)
     };
-    let attitude = attitude_stats(estimates, truth, &truth_row)?;
-    let consistency = consistency(
-        estimates,
-        final_cal,
-        truth,
-        constants,
-        &truth_row,
-        &attitude.1,
-    );
-    let truth_coverage = TruthCoverage {
-        matched_rows: estimates
-            .iter()
-            .filter(|e| truth_row(e.t_s).is_some())
-            .count(),
-        estimate_rows: estimates.len(),
-    };
-    let mut evaluation = Evaluation {
-        format_version: crate::files::OUTPUT_FORMAT_VERSION,
-        worst_normal_error_deg: well_lit()
-            .map(|p| p.normal_error_deg)
-            .fold(f64::NAN, f64::max),
-        worst_scale_error_percent: well_lit()
-            .map(|p| p.scale_error_percent.abs())
-            .fold(f64::NAN, f64::max),
-        photodiodes,
-        attitude: attitude.0,
-        consistency,
-        truth_coverage,
-        not_evaluable: Vec::new(),
-    };
-    mark_not_evaluable(&mut evaluation);
-    Ok(evaluation)
+    // NaN, not 0, when no photodiode was lit long enough: there is no worst case.
+    let normal = well_lit()
+        .map(|p| p.normal_error_deg)
+        .fold(f64::NAN, f64::max);
+    let scale = well_lit()
+        .map(|p| p.scale_error_percent.abs())
+        .fold(f64::NAN, f64::max);
+    (photodiodes, normal, scale)
 }
 
 /// Sets to NaN, and lists with the reason, every figure the data cannot support: all

@@ -200,7 +200,7 @@ fn a_hand_written_dataset_diagnoses() {
         pdcal_diagnose::BaseModel::Cosine,
     )
     .unwrap();
-    let first = cosine.diagnosis.rounds.first().map(|r| r.found);
+    let first = cosine.diagnosis.rounds.first().map(|r| r.found.as_str());
     assert_eq!(
         first,
         Some("albedo"),

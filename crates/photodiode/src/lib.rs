@@ -84,6 +84,7 @@
 //! Why hand-written: no crate models coarse Sun sensors; the least squares is a 3x3 normal
 //! equation solved with nalgebra's Cholesky and symmetric eigen-decomposition.
 
+mod components;
 mod error;
 mod model;
 pub mod paper;
@@ -92,18 +93,21 @@ mod sun_vector;
 mod term;
 pub mod terms;
 
+pub use components::{EffectModelOptions, add_effect, estimated_values_mut};
 pub use error::PhotodiodeError;
 pub use model::{MeasurementModel, Part, Partials};
 pub use pdcal_albedo::AlbedoIrradiance;
+pub use pdcal_effects::{Effect, EffectId};
 pub use sensor::{Photodiode, Scene, ShadowMode};
 pub use sun_vector::{
     LitThreshold, NotObservableReason, SunEstimate, SunVector, SunVectorOptions,
     estimate_sun_vector,
 };
 pub use term::{
-    Component, OutputStage, Parameter, ParameterRole, ScaleGain, Sensitivity, Term, parameter_for,
+    Component, ComponentId, OutputStage, Parameter, ParameterRole, ScaleGain, Sensitivity, Term,
+    parameter_for,
 };
 pub use terms::{
-    Albedo, AlbedoPartials, DarkOffset, DirectSun, FovRolloff, Penumbra, Saturation, ScaleDrift,
-    TimeOffset, effect,
+    Albedo, AlbedoGain, AlbedoPartials, DarkOffset, DirectSun, FovRolloff, Penumbra, Saturation,
+    ScaleDrift, Temperature, TimeOffset,
 };

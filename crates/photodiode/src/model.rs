@@ -3,7 +3,7 @@
 use nalgebra::Vector3;
 use pdcal_attitude::normal_partials;
 
-use crate::term::{Component, OutputStage, Parameter, ScaleGain, Sensitivity, Term};
+use crate::term::{Component, ComponentId, OutputStage, Parameter, ScaleGain, Sensitivity, Term};
 use crate::terms::{Albedo, AlbedoPartials, DirectSun};
 use crate::{Photodiode, PhotodiodeError, Scene};
 
@@ -167,12 +167,13 @@ impl MeasurementModel {
     }
 
     /// Effect ids of the components in order.
-    pub fn ids(&self) -> Vec<&str> {
+    pub fn ids(&self) -> Vec<ComponentId> {
         self.parts.iter().map(|p| p.component().id()).collect()
     }
 
     /// Whether a component with this id is present.
-    pub fn contains(&self, id: &str) -> bool {
+    pub fn contains(&self, id: impl Into<ComponentId>) -> bool {
+        let id = id.into();
         self.parts.iter().any(|p| p.component().id() == id)
     }
 
@@ -186,7 +187,7 @@ impl MeasurementModel {
         let component = part.component();
         if self.contains(component.id()) {
             return Err(PhotodiodeError::DuplicateComponent {
-                id: component.id().to_owned(),
+                id: component.id().to_string(),
             });
         }
         let count = self.photodiodes.len();
@@ -220,12 +221,13 @@ impl MeasurementModel {
     }
 
     /// Removes and returns the component with this id.
-    pub fn remove(&mut self, id: &str) -> Result<Part, PhotodiodeError> {
+    pub fn remove(&mut self, id: impl Into<ComponentId>) -> Result<Part, PhotodiodeError> {
+        let id = id.into();
         let at = self
             .parts
             .iter()
             .position(|p| p.component().id() == id)
-            .ok_or_else(|| PhotodiodeError::UnknownComponent { id: id.to_owned() })?;
+            .ok_or_else(|| PhotodiodeError::UnknownComponent { id: id.to_string() })?;
         self.known.remove(at);
         Ok(self.parts.remove(at))
     }
@@ -239,7 +241,7 @@ impl MeasurementModel {
     }
 
     /// Every parameter with its component's id, in layout order.
-    pub fn parameters(&self) -> impl Iterator<Item = (&str, &Parameter)> {
+    pub fn parameters(&self) -> impl Iterator<Item = (ComponentId, &Parameter)> {
         self.parts.iter().flat_map(|p| {
             let c = p.component();
             c.parameters().iter().map(move |q| (c.id(), q))
@@ -247,7 +249,8 @@ impl MeasurementModel {
     }
 
     /// Layout index of the parameter `name` of component `id`.
-    pub fn parameter_index(&self, id: &str, name: &str) -> Option<usize> {
+    pub fn parameter_index(&self, id: impl Into<ComponentId>, name: &str) -> Option<usize> {
+        let id = id.into();
         self.parameters()
             .position(|(c, p)| c == id && p.name == name)
     }
@@ -307,7 +310,7 @@ impl MeasurementModel {
         &self,
         index: usize,
         scene: &Scene,
-    ) -> Result<Vec<(&str, f64)>, PhotodiodeError> {
+    ) -> Result<Vec<(ComponentId, f64)>, PhotodiodeError> {
         let (pd, _) = self.effective(index, scene)?;
         Ok(self
             .parts

@@ -133,6 +133,9 @@ pub struct Scene<'a> {
     /// Albedo irradiance provider for this sample (GCRF); `None` means no albedo reaches the
     /// sensors at this sample (the `albedo` term then contributes zero).
     pub albedo: Option<&'a dyn AlbedoIrradiance>,
+    /// Temperature of each photodiode, degrees Celsius, in photodiode order (for
+    /// `temperature`); empty when the telemetry has none, NaN for a photodiode without one.
+    pub temperature_c: &'a [f64],
 }
 
 impl std::fmt::Debug for Scene<'_> {
@@ -144,6 +147,7 @@ impl std::fmt::Debug for Scene<'_> {
             .field("rate_body_rad_s", &self.rate_body_rad_s)
             .field("t_s", &self.t_s)
             .field("albedo", &self.albedo.is_some())
+            .field("temperature_c", &self.temperature_c)
             .finish()
     }
 }
@@ -160,6 +164,7 @@ impl<'a> Scene<'a> {
             rate_body_rad_s: Vector3::zeros(),
             t_s: 0.0,
             albedo: None,
+            temperature_c: &[],
         })
     }
 
@@ -178,6 +183,12 @@ impl<'a> Scene<'a> {
     /// The same scene at time `t_s`, s.
     pub fn with_time(mut self, t_s: f64) -> Self {
         self.t_s = t_s;
+        self
+    }
+
+    /// The same scene with per-photodiode temperatures, degrees Celsius.
+    pub fn with_temperatures(mut self, temperature_c: &'a [f64]) -> Self {
+        self.temperature_c = temperature_c;
         self
     }
 

@@ -1,7 +1,10 @@
 //! The interfaces of the measurement model: additive [`Term`]s, multiplicative
 //! [`ScaleGain`]s on the scale factor, and [`OutputStage`]s applied to the sum.
 
+use std::fmt;
+
 use nalgebra::Vector3;
+use pdcal_effects::EffectId;
 use serde::{Deserialize, Serialize};
 
 use crate::{Photodiode, Scene};
@@ -98,10 +101,34 @@ impl Sensitivity {
     }
 }
 
+/// Which component a model part is: the direct Sun, or one effect of the catalogue.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ComponentId {
+    /// The direct Sun, paper Eqs. (11), (15); spelled `sun`.
+    Sun,
+    /// An effect of the catalogue.
+    Effect(EffectId),
+}
+
+impl From<EffectId> for ComponentId {
+    fn from(id: EffectId) -> Self {
+        ComponentId::Effect(id)
+    }
+}
+
+impl fmt::Display for ComponentId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ComponentId::Sun => f.write_str("sun"),
+            ComponentId::Effect(e) => f.write_str(e.as_str()),
+        }
+    }
+}
+
 /// What every model component has: an effect id and, optionally, parameters.
 pub trait Component: Send + Sync {
-    /// Effect id of `cli-contract.md` (`albedo`, `fov-rolloff`, ...; the direct Sun is `sun`).
-    fn id(&self) -> &str;
+    /// The component's id: the direct Sun or an effect of the catalogue.
+    fn id(&self) -> ComponentId;
 
     /// The component's parameters, in a fixed order. Default: none.
     fn parameters(&self) -> &[Parameter] {

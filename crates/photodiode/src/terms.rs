@@ -7,28 +7,12 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
 use crate::sensor::{SunView, sun_view};
-use crate::term::{Component, OutputStage, Parameter, ScaleGain, Sensitivity, Term, parameter_for};
-use crate::{Photodiode, PhotodiodeError, Scene, ShadowMode};
+use pdcal_effects::EffectId;
 
-/// The fixed effect ids (`cli-contract.md`), plus `sun` for the direct Sun.
-pub mod effect {
-    /// Direct sunlight, paper Eqs. (11), (15).
-    pub const SUN: &str = "sun";
-    /// Earth albedo, paper Eqs. (13), (15).
-    pub const ALBEDO: &str = "albedo";
-    /// Response below the cosine law at high incidence.
-    pub const FOV_ROLLOFF: &str = "fov-rolloff";
-    /// Constant additive output per photodiode.
-    pub const DARK_OFFSET: &str = "dark-offset";
-    /// Output clipped at a maximum.
-    pub const SATURATION: &str = "saturation";
-    /// Partial sunlight in Earth's penumbra.
-    pub const PENUMBRA: &str = "penumbra";
-    /// Photodiode samples time-tagged late.
-    pub const TIME_OFFSET: &str = "time-offset";
-    /// Scale factor changing during the data set.
-    pub const SCALE_DRIFT: &str = "scale-drift";
-}
+use crate::term::{
+    Component, ComponentId, OutputStage, Parameter, ScaleGain, Sensitivity, Term, parameter_for,
+};
+use crate::{Photodiode, PhotodiodeError, Scene, ShadowMode};
 
 /// A term of the form `f C g(c)` with `c = n^T s`, `f` the shadow factor: value and partials.
 /// With `s(a) = (I - [a x]) s`, `ds/da = [s x]`, so `dc/da = n^T [s x]`, gradient `n x s`
@@ -52,8 +36,8 @@ pub struct DirectSun {
 }
 
 impl Component for DirectSun {
-    fn id(&self) -> &str {
-        effect::SUN
+    fn id(&self) -> ComponentId {
+        ComponentId::Sun
     }
 }
 
@@ -92,8 +76,8 @@ pub struct Albedo {
 }
 
 impl Component for Albedo {
-    fn id(&self) -> &str {
-        effect::ALBEDO
+    fn id(&self) -> ComponentId {
+        EffectId::Albedo.into()
     }
 }
 
@@ -150,8 +134,8 @@ impl Penumbra {
 }
 
 impl Component for Penumbra {
-    fn id(&self) -> &str {
-        effect::PENUMBRA
+    fn id(&self) -> ComponentId {
+        EffectId::Penumbra.into()
     }
 }
 
@@ -243,8 +227,8 @@ impl FovRolloff {
 }
 
 impl Component for FovRolloff {
-    fn id(&self) -> &str {
-        effect::FOV_ROLLOFF
+    fn id(&self) -> ComponentId {
+        EffectId::FovRolloff.into()
     }
     fn parameters(&self) -> &[Parameter] {
         &self.params
@@ -309,8 +293,8 @@ impl DarkOffset {
 }
 
 impl Component for DarkOffset {
-    fn id(&self) -> &str {
-        effect::DARK_OFFSET
+    fn id(&self) -> ComponentId {
+        EffectId::DarkOffset.into()
     }
     fn parameters(&self) -> &[Parameter] {
         &self.params
@@ -368,8 +352,8 @@ impl TimeOffset {
 }
 
 impl Component for TimeOffset {
-    fn id(&self) -> &str {
-        effect::TIME_OFFSET
+    fn id(&self) -> ComponentId {
+        EffectId::TimeOffset.into()
     }
     fn parameters(&self) -> &[Parameter] {
         &self.params
@@ -444,8 +428,8 @@ impl ScaleDrift {
 }
 
 impl Component for ScaleDrift {
-    fn id(&self) -> &str {
-        effect::SCALE_DRIFT
+    fn id(&self) -> ComponentId {
+        EffectId::ScaleDrift.into()
     }
     fn parameters(&self) -> &[Parameter] {
         &self.params
@@ -501,8 +485,8 @@ impl Saturation {
 }
 
 impl Component for Saturation {
-    fn id(&self) -> &str {
-        effect::SATURATION
+    fn id(&self) -> ComponentId {
+        EffectId::Saturation.into()
     }
     fn parameters(&self) -> &[Parameter] {
         &self.params
@@ -528,5 +512,122 @@ impl OutputStage for Saturation {
             }
             None => (input_v, 1.0),
         }
+    }
+}
+
+/// The albedo term rescaled: adds `(g - 1) C E_a/E_AM0`, so that with an [`Albedo`] term the
+/// model's albedo is `g C E_a/E_AM0` (paper Eq. 15's second term times `g`): `g = 1` as
+/// modelled, `g = 0` no albedo. Id `albedo-gain`; parameter `albedo_gain` (shared,
+/// dimensionless). A separate term rather than a parameter of [`Albedo`], so that the
+/// paper's model keeps its parameter-free direct path.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AlbedoGain {
+    albedo: Albedo,
+    params: [Parameter; 1],
+}
+
+impl AlbedoGain {
+    /// A gain `gain` on an albedo term with these partials.
+    pub fn new(gain: f64, partials: AlbedoPartials) -> Self {
+        AlbedoGain {
+            albedo: Albedo { partials },
+            params: [Parameter::shared("albedo_gain", "1", gain)],
+        }
+    }
+}
+
+impl Component for AlbedoGain {
+    fn id(&self) -> ComponentId {
+        EffectId::AlbedoGain.into()
+    }
+    fn parameters(&self) -> &[Parameter] {
+        &self.params
+    }
+    fn parameters_mut(&mut self) -> &mut [Parameter] {
+        &mut self.params
+    }
+}
+
+impl Term for AlbedoGain {
+    fn value(&self, pd: &Photodiode, index: usize, scene: &Scene) -> f64 {
+        (self.params[0].value - 1.0) * self.albedo.value(pd, index, scene)
+    }
+
+    fn partials(
+        &self,
+        pd: &Photodiode,
+        index: usize,
+        scene: &Scene,
+        d_params: &mut [f64],
+    ) -> Sensitivity {
+        let unit = self.albedo.partials(pd, index, scene, &mut []);
+        if let Some(d) = d_params.first_mut() {
+            *d = unit.value_v;
+        }
+        let k = self.params[0].value - 1.0;
+        Sensitivity {
+            value_v: k * unit.value_v,
+            d_attitude: unit.d_attitude * k,
+            d_scale: k * unit.d_scale,
+            d_normal: unit.d_normal * k,
+        }
+    }
+}
+
+/// Scale factors depending on temperature: `C_i(T) = C_i (1 + k_i (T_i - T_ref))`, a
+/// [`ScaleGain`], with `T_i` the scene's temperature of photodiode `i`. Id `temperature`;
+/// parameters `pdNN_temperature_per_K`, unit 1/K. Where the scene has no temperature for the
+/// photodiode the gain is 1 (the scale factor at `T_ref`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Temperature {
+    params: Vec<Parameter>,
+    reference_c: f64,
+}
+
+impl Temperature {
+    /// One coefficient per photodiode, 1/K, about `reference_c` (degrees Celsius).
+    pub fn per_photodiode(coefficient_per_k: &[f64], reference_c: f64) -> Self {
+        Temperature {
+            params: Parameter::per_photodiode_list("temperature_per_K", "1/K", coefficient_per_k),
+            reference_c,
+        }
+    }
+
+    fn excess_k(&self, index: usize, scene: &Scene) -> f64 {
+        scene
+            .temperature_c
+            .get(index)
+            .filter(|t| t.is_finite())
+            .map_or(0.0, |t| t - self.reference_c)
+    }
+}
+
+impl Component for Temperature {
+    fn id(&self) -> ComponentId {
+        EffectId::Temperature.into()
+    }
+    fn parameters(&self) -> &[Parameter] {
+        &self.params
+    }
+    fn parameters_mut(&mut self) -> &mut [Parameter] {
+        &mut self.params
+    }
+}
+
+impl ScaleGain for Temperature {
+    fn gain(&self, index: usize, scene: &Scene) -> f64 {
+        parameter_for(&self.params, index)
+            .map_or(1.0, |(_, k)| 1.0 + k * self.excess_k(index, scene))
+    }
+
+    fn gain_partials(&self, index: usize, scene: &Scene, d_params: &mut [f64]) -> f64 {
+        let Some((at, k)) = parameter_for(&self.params, index) else {
+            return 1.0;
+        };
+        let dt = self.excess_k(index, scene);
+        if let Some(d) = d_params.get_mut(at) {
+            *d = dt;
+        }
+        1.0 + k * dt
     }
 }

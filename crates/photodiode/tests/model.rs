@@ -145,7 +145,11 @@ fn components_are_added_and_removed_by_id() {
     let pds = vec![Photodiode::from_az_el_deg(3.6, 0.0, 0.0, 0.015); 2];
     let mut model = everything(pds);
     assert_eq!(
-        model.ids(),
+        model
+            .ids()
+            .iter()
+            .map(|id| id.to_string())
+            .collect::<Vec<_>>(),
         [
             "sun",
             "albedo",
@@ -156,6 +160,7 @@ fn components_are_added_and_removed_by_id() {
             "scale-drift"
         ]
     );
+    assert_eq!(model.ids()[0], ComponentId::Sun);
     assert_eq!(
         model.add_term(Penumbra),
         Err(PhotodiodeError::DuplicateComponent {
@@ -179,18 +184,18 @@ fn components_are_added_and_removed_by_id() {
         ]
     );
     assert_eq!(
-        model.parameter_index("dark-offset", "pd02_dark_offset_V"),
+        model.parameter_index(EffectId::DarkOffset, "pd02_dark_offset_V"),
         Some(3)
     );
     model.set_parameter(3, 0.5).unwrap();
     assert_eq!(model.parameters().nth(3).unwrap().1.value, 0.5);
-    assert!(model.remove("dark-offset").is_ok());
+    assert!(model.remove(EffectId::DarkOffset).is_ok());
     assert_eq!(
-        model.parameter_index("time-offset", "time_offset_s"),
+        model.parameter_index(EffectId::TimeOffset, "time_offset_s"),
         Some(2)
     );
     assert!(matches!(
-        model.remove("dark-offset"),
+        model.remove(EffectId::DarkOffset),
         Err(PhotodiodeError::UnknownComponent { .. })
     ));
     assert!(matches!(

@@ -214,6 +214,75 @@ fn time_offset_is_first_order_of_the_delayed_sun() {
 }
 
 #[test]
+fn albedo_gain_partials_match_finite_differences() {
+    let mut stats = Stats::default();
+    for gain in [0.0, 0.6, 1.3] {
+        let mut term = AlbedoGain::new(gain, AlbedoPartials::Included);
+        for_states(5, STATES, State::away_from_kinks, |s| {
+            check_term(&mut term, s, &mut stats, "albedo-gain");
+        });
+    }
+    stats.report("albedo-gain");
+    assert!(
+        stats.checked > STATES,
+        "albedo-gain states should see cells"
+    );
+}
+
+/// With gain `g`, albedo plus albedo-gain is `g` times the albedo alone.
+#[test]
+fn albedo_gain_rescales_the_albedo_term() {
+    for_states(6, 50, State::away_from_kinks, |s| {
+        let scene = s.scene();
+        let albedo = Albedo {
+            partials: AlbedoPartials::Included,
+        };
+        let mut with = MeasurementModel::new(vec![s.pd]);
+        with.add_term(albedo).unwrap();
+        with.add_term(AlbedoGain::new(0.25, AlbedoPartials::Included))
+            .unwrap();
+        let alone = albedo.value(&s.pd, 0, &scene);
+        let both = with.evaluate(0, &scene).unwrap();
+        assert!((both - 0.25 * alone).abs() <= 1e-12 * alone.abs().max(1.0));
+    });
+}
+
+#[test]
+fn temperature_gain_partials_match_finite_differences() {
+    let mut stats = Stats::default();
+    let temperatures = [35.0, -12.5];
+    for_states(13, STATES, State::away_from_kinks, |s| {
+        let scene = Scene {
+            temperature_c: &temperatures,
+            ..s.scene()
+        };
+        let mut gain = Temperature::per_photodiode(&[0.002, -0.004], 20.0);
+        let mut d = [0.0; 2];
+        let g = gain.gain_partials(1, &scene, &mut d);
+        assert_eq!(g, gain.gain(1, &scene));
+        assert_eq!(g, 1.0 - 0.004 * (-12.5 - 20.0));
+        assert_eq!(d[0], 0.0);
+        let k0 = gain.parameters()[1].value;
+        let mut at = |k: f64| {
+            gain.parameters_mut()[1].value = k;
+            gain.gain(1, &scene)
+        };
+        let fd = (at(k0 + H) - at(k0 - H)) / (2.0 * H);
+        stats.check("temperature dg/dk", d[1], fd);
+        let unknown = Scene {
+            temperature_c: &[f64::NAN, f64::NAN],
+            ..s.scene()
+        };
+        assert_eq!(
+            gain.gain(1, &unknown),
+            1.0,
+            "no temperature: the scale at 20 C"
+        );
+    });
+    stats.report("temperature gain");
+}
+
+#[test]
 fn scale_drift_gain_partials_match_finite_differences() {
     let mut stats = Stats::default();
     for_states(12, STATES, State::away_from_kinks, |s| {

@@ -41,10 +41,15 @@
 //! - Gyro: `(1 + e) w + beta + noise`; `beta` starts from a seeded draw and random-walks
 //!   at the gyro's sample times.
 //! - Magnetometer: `A B_ref + bias + noise`, `B_ref` from IGRF-14.
+//! - Temperatures (only with the scenario's `temperature`): a first-order thermal model per
+//!   photodiode driven by its sunlight ([`scenario::Thermal`]); its true value enters the
+//!   photodiode scenes (the `temperature` effect), its noisy samples the `temp_pdNN_C`
+//!   columns.
 //!
 //! # Randomness
 //! One seed; independent ChaCha8 streams per purpose (true parameters, initial state,
-//! gyro bias, gyro noise, bias walk, magnetometer noise, photodiode noise), so changing one
+//! gyro bias, gyro noise, bias walk, magnetometer noise, photodiode noise, temperature
+//! noise), so changing one
 //! sensor's rate does not change another sensor's noise.
 //!
 //! # Performance
@@ -65,5 +70,5 @@ mod random;
 pub mod scenario;
 mod simulate;
 
-pub use scenario::{BUILTIN_NAMES, Scenario, ScenarioError};
+pub use scenario::{BUILTIN_NAMES, Scenario, ScenarioError, Thermal};
 pub use simulate::{SimError, SimOutput, simulate, truth_model};

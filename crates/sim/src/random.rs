@@ -30,6 +30,8 @@ pub(crate) enum Stream {
     MagNoise = 6,
     /// Photodiode output noise.
     PhotodiodeNoise = 7,
+    /// Temperature sensor noise.
+    TemperatureNoise = 8,
 }
 
 /// The generator of one stream.

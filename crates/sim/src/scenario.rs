@@ -9,7 +9,7 @@ use std::str::FromStr;
 
 use nalgebra::{Matrix3, Vector3};
 use pdcal_albedo::MapChoice;
-use pdcal_dataset::{Effect, NominalMount};
+use pdcal_dataset::{Effect, EffectId, NominalMount};
 use serde::{Deserialize, Serialize};
 
 use crate::dynamics::{DEFAULT_MAX_STEP_S, RigidBody};
@@ -83,6 +83,127 @@ pub struct Scenario {
     /// Effects beyond the base model, each at most once (truth.ron spelling).
     #[serde(default)]
     pub effects: Vec<Effect>,
+    /// Photodiode temperatures: a thermal model whose samples become `temp_pdNN_C` columns
+    /// and whose true values drive the `temperature` effect. Absent: no temperature columns.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub temperature: Option<Thermal>,
+}
+
+/// A first-order thermal model of each photodiode's mount, driven by sunlight:
+/// `dT/dt = (T_eq - T) / tau` with `T_eq = T_cold + (T_hot - T_cold) max(0, n.s) nu`
+/// (`n` the true normal, `s` the body Sun direction, `nu` the lit fraction of the solar disc).
+/// Albedo and Earth infrared are left out: next to direct sunlight they shift `T_eq` by a few
+/// kelvin, less than the spread between spacecraft. Sampled into `temp_pdNN_C` with white noise.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Thermal {
+    /// Equilibrium in the dark, degrees Celsius (file name `cold_C`).
+    #[serde(rename = "cold_C", default = "default_cold_c")]
+    pub cold_c: f64,
+    /// Equilibrium facing the full Sun, degrees Celsius (file name `hot_C`).
+    #[serde(rename = "hot_C", default = "default_hot_c")]
+    pub hot_c: f64,
+    /// Thermal time constant, s.
+    #[serde(default = "default_tau_s")]
+    pub tau_s: f64,
+    /// Temperature of every photodiode at `t_s = 0`, degrees Celsius (file name
+    /// `initial_C`); absent: see [`Thermal::initial_c`].
+    #[serde(rename = "initial_C", default, skip_serializing_if = "Option::is_none")]
+    pub initial_c: Option<f64>,
+    /// Sample period of the temperature columns, s.
+    #[serde(default = "default_thermal_period_s")]
+    pub sample_period_s: f64,
+    /// Sensor noise, 1-sigma, degrees Celsius (file name `noise_C`).
+    #[serde(rename = "noise_C", default = "default_thermal_noise_c")]
+    pub noise_c: f64,
+}
+
+fn default_cold_c() -> f64 {
+    -20.0
+}
+
+fn default_hot_c() -> f64 {
+    60.0
+}
+
+fn default_tau_s() -> f64 {
+    600.0
+}
+
+fn default_thermal_period_s() -> f64 {
+    10.0
+}
+
+fn default_thermal_noise_c() -> f64 {
+    0.1
+}
+
+impl Default for Thermal {
+    fn default() -> Self {
+        Thermal {
+            cold_c: default_cold_c(),
+            hot_c: default_hot_c(),
+            tau_s: default_tau_s(),
+            initial_c: None,
+            sample_period_s: default_thermal_period_s(),
+            noise_c: default_thermal_noise_c(),
+        }
+    }
+}
+
+impl Thermal {
+    /// Largest magnitude of `cold_C`, `hot_C`, `initial_C`, degrees Celsius: with the noise
+    /// bound below, samples stay inside the dataset reader's plausible range.
+    pub const MAX_ABS_C: f64 = 120.0;
+    /// Largest `noise_C`, degrees Celsius.
+    pub const MAX_NOISE_C: f64 = 2.0;
+
+    /// The temperature at the first sample, degrees Celsius: `initial_C`, or the middle of
+    /// the cold and hot equilibria (a tumbling spacecraft's faces average near there).
+    pub fn initial_c(&self) -> f64 {
+        self.initial_c.unwrap_or(0.5 * (self.cold_c + self.hot_c))
+    }
+
+    /// The equilibrium temperature for illumination `lit` (`max(0, n.s) nu`, 0..1), C.
+    pub fn equilibrium_c(&self, lit: f64) -> f64 {
+        self.cold_c + (self.hot_c - self.cold_c) * lit
+    }
+
+    fn validate(&self, duration_s: f64) -> Result<(), ScenarioError> {
+        for (field, v) in [
+            ("temperature.cold_C", Some(self.cold_c)),
+            ("temperature.hot_C", Some(self.hot_c)),
+            ("temperature.initial_C", self.initial_c),
+        ] {
+            if let Some(v) = v
+                && !(v.is_finite() && v.abs() <= Self::MAX_ABS_C)
+            {
+                return Err(invalid(
+                    field,
+                    format!("{v} is not within -{0} .. {0} C", Self::MAX_ABS_C),
+                ));
+            }
+        }
+        if self.hot_c < self.cold_c {
+            return Err(invalid(
+                "temperature.hot_C",
+                format!("{} is below cold_C = {}", self.hot_c, self.cold_c),
+            ));
+        }
+        check_positive("temperature.tau_s", self.tau_s)?;
+        check_non_negative("temperature.noise_C", self.noise_c)?;
+        if self.noise_c > Self::MAX_NOISE_C {
+            return Err(invalid(
+                "temperature.noise_C",
+                format!("{} C is above {} C", self.noise_c, Self::MAX_NOISE_C),
+            ));
+        }
+        check_period(
+            "temperature.sample_period_s",
+            self.sample_period_s,
+            duration_s,
+        )
+    }
 }
 
 /// The orbit of a scenario.
@@ -313,8 +434,8 @@ impl Scenario {
         Vector3::from(self.spacecraft.dipole_a_m2)
     }
 
-    /// The effect with this contract id (`albedo`, `dark-offset`, ...), if it is on.
-    pub fn effect(&self, id: &str) -> Option<&Effect> {
+    /// The effect with this id, if it is on.
+    pub fn effect(&self, id: EffectId) -> Option<&Effect> {
         self.effects.iter().find(|e| e.id() == id)
     }
 
@@ -381,6 +502,14 @@ impl Scenario {
                     "azimuth must be finite and elevation within [-90, 90] deg",
                 ));
             }
+            if let Some(panel) = &m.panel
+                && !pdcal_dataset::is_panel_name(panel)
+            {
+                return Err(invalid(
+                    &format!("photodiodes.nominal[{i}].panel"),
+                    format!("{panel:?} is not a panel name (a-z, 0-9, _; not pd and a digit)"),
+                ));
+            }
         }
         if let Some(fov) = pd.fov_half_angle_deg
             && !(fov > 0.0 && fov <= 90.0)
@@ -422,16 +551,10 @@ impl Scenario {
                 self.magnetometer.sample_period_s,
             ),
         ] {
-            // Times are kept in whole microseconds.
-            if !(period >= 1e-6 && period.is_finite()) {
-                return Err(invalid(
-                    field,
-                    format!("{period} s is not a period of at least 1 us"),
-                ));
-            }
-            if self.duration_s / period > MAX_ROWS {
-                return Err(invalid(field, format!("more than {MAX_ROWS} samples")));
-            }
+            check_period(field, period, self.duration_s)?;
+        }
+        if let Some(thermal) = &self.temperature {
+            thermal.validate(self.duration_s)?;
         }
         Ok(())
     }
@@ -443,53 +566,26 @@ impl Scenario {
             if self.effects[..i].iter().any(|e| e.id() == effect.id()) {
                 return Err(invalid(&field, "effect listed twice"));
             }
-            let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
-            let per_pd = |v: &[f64]| {
-                if v.len() != n {
-                    Err(invalid(
-                        &field,
-                        format!("needs one value per photodiode ({n}), has {}", v.len()),
-                    ))
-                } else if !finite(v) {
-                    Err(invalid(&field, "values must be finite"))
-                } else {
-                    Ok(())
-                }
-            };
-            match effect {
-                Effect::Albedo { map } => {
-                    MapChoice::from_str(map).map_err(|e| invalid(&field, e.to_string()))?;
-                }
-                Effect::FovRolloff {
-                    start_deg,
-                    cutoff_deg,
-                } => {
-                    if !(*start_deg >= 0.0 && start_deg < cutoff_deg && *cutoff_deg <= 90.0) {
-                        return Err(invalid(&field, "needs 0 <= start_deg < cutoff_deg <= 90"));
-                    }
-                }
-                Effect::DarkOffset { volts } => per_pd(volts)?,
-                Effect::ScaleDrift { fraction_per_hour } => per_pd(fraction_per_hour)?,
-                Effect::Saturation { volts } => check_positive(&field, *volts)?,
-                Effect::TimeOffset { seconds } => {
-                    if !(seconds.is_finite() && seconds.abs() <= 60.0) {
-                        return Err(invalid(
-                            &field,
-                            "seconds must be finite and at most 60 in size",
-                        ));
-                    }
-                }
-                Effect::MagBias { bias_nt } => {
-                    if !finite(bias_nt) {
-                        return Err(invalid(&field, "must be finite"));
-                    }
-                }
-                Effect::GyroScale { scale_error } => {
-                    if !finite(scale_error) || scale_error.iter().any(|e| e.abs() >= 0.5) {
-                        return Err(invalid(&field, "scale errors must be finite and below 0.5"));
-                    }
-                }
-                Effect::Penumbra => {}
+            effect
+                .check(n)
+                .map_err(|bad| invalid(&field, bad.to_string()))?;
+            if let Effect::Albedo { map } = effect {
+                MapChoice::from_str(map).map_err(|e| invalid(&field, e.to_string()))?;
+            }
+            // Without these the effect would be written to truth.ron as "on" while changing
+            // nothing in the data.
+            if effect.id() == EffectId::AlbedoGain && self.effect(EffectId::Albedo).is_none() {
+                return Err(invalid(
+                    &field,
+                    "scales the albedo term, so the scenario's effects need `albedo` as well",
+                ));
+            }
+            if effect.id() == EffectId::Temperature && self.temperature.is_none() {
+                return Err(invalid(
+                    &field,
+                    "needs photodiode temperatures: add the scenario field \
+                     `temperature: Thermal()`",
+                ));
             }
         }
         Ok(())
@@ -499,6 +595,20 @@ impl Scenario {
 /// `implicit_some` lets optional fields be written bare (`fov_half_angle_deg: 70.0`).
 fn ron_options() -> ron::Options {
     ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+}
+
+fn check_period(field: &str, period: f64, duration_s: f64) -> Result<(), ScenarioError> {
+    // Times are kept in whole microseconds.
+    if !(period >= 1e-6 && period.is_finite()) {
+        return Err(invalid(
+            field,
+            format!("{period} s is not a period of at least 1 us"),
+        ));
+    }
+    if duration_s / period > MAX_ROWS {
+        return Err(invalid(field, format!("more than {MAX_ROWS} samples")));
+    }
+    Ok(())
 }
 
 fn check_positive(field: &str, v: f64) -> Result<(), ScenarioError> {
@@ -667,8 +777,8 @@ mod tests {
                 fraction_per_hour: vec![0.0; 18],
             },
             Effect::FovRolloff {
-                start_deg: 80.0,
-                cutoff_deg: 70.0,
+                start_rad: 80f64.to_radians(),
+                cutoff_rad: 70f64.to_radians(),
             },
             Effect::Saturation { volts: 0.0 },
             Effect::Albedo {

@@ -5,13 +5,13 @@ use pdcal_albedo::{AlbedoError, AlbedoModel, AlbedoView, MapChoice, MapError};
 use pdcal_attitude::Quat;
 use pdcal_dataset::{
     Dataset, DatasetMeta, Effect, EpochUtc, FORMAT_VERSION, NoiseHints, OrbitSpec, Telemetry,
-    TruePd, TruthConstants, TruthSeries,
+    TemperatureColumn, TruePd, TruthConstants, TruthSeries, photodiode_temperature_column,
 };
 use pdcal_ephem::igrf::IgrfError;
 use pdcal_ephem::{OrbitError, ReferenceError, ReferenceModel, TimeError, TleOrbit};
 use pdcal_photodiode::{
-    Albedo, DarkOffset, FovRolloff, MeasurementModel, Penumbra, Photodiode, PhotodiodeError,
-    Saturation, ScaleDrift, Scene, ShadowMode,
+    EffectId, EffectModelOptions, MeasurementModel, Photodiode, PhotodiodeError, Scene, ShadowMode,
+    add_effect,
 };
 use rand::rngs::ChaCha8Rng;
 use rayon::prelude::*;
@@ -20,7 +20,9 @@ use crate::dynamics::{
     AttitudeState, Disturbances, DynamicsError, RigidBody, TorqueEnvironment, propagate,
 };
 use crate::random::{self, Stream};
-use crate::scenario::{InitialAttitude, InitialRate, Scenario, ScenarioError, ScenarioOrbit};
+use crate::scenario::{
+    InitialAttitude, InitialRate, Scenario, ScenarioError, ScenarioOrbit, Thermal,
+};
 
 /// Why a simulation failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -89,6 +91,9 @@ pub struct SimOutput {
     pub pd_noise_free_v: Vec<Vec<Option<f64>>>,
     /// The true photodiodes as the measurement model holds them (radians inside).
     pub true_photodiodes: Vec<Photodiode>,
+    /// True temperature of each photodiode, degrees Celsius: `temperature_true_c[i][k]` for
+    /// photodiode `i + 1` at row `k`; empty without the scenario's thermal model.
+    pub temperature_true_c: Vec<Vec<f64>>,
     /// The seed of the run.
     pub seed: u64,
 }
@@ -129,6 +134,7 @@ fn to_s(t_us: i64) -> f64 {
 struct Grid {
     rows_us: Vec<i64>,
     periods_us: [i64; 3],
+    thermal_us: Option<i64>,
 }
 
 const GYRO: usize = 0;
@@ -143,8 +149,10 @@ impl Grid {
             to_us(scenario.magnetometer.sample_period_s),
             to_us(scenario.photodiodes.sample_period_s),
         ];
+        let thermal_us = (scenario.temperature.as_ref()).map(|th| to_us(th.sample_period_s));
         let mut rows_us: Vec<i64> = periods_us
             .iter()
+            .chain(&thermal_us)
             .flat_map(|&p| (0..=duration_us / p).map(move |k| k * p))
             .collect();
         rows_us.sort_unstable();
@@ -152,11 +160,16 @@ impl Grid {
         Grid {
             rows_us,
             periods_us,
+            thermal_us,
         }
     }
 
     fn samples(&self, sensor: usize, t_us: i64) -> bool {
         t_us % self.periods_us[sensor] == 0
+    }
+
+    fn samples_temperature(&self, t_us: i64) -> bool {
+        self.thermal_us.is_some_and(|p| t_us % p == 0)
     }
 }
 
@@ -246,21 +259,9 @@ pub fn truth_model(
     photodiodes: Vec<Photodiode>,
 ) -> Result<MeasurementModel, SimError> {
     let mut model = MeasurementModel::cosine(photodiodes);
+    let options = EffectModelOptions::default();
     for effect in &scenario.effects {
-        match effect {
-            Effect::Albedo { .. } => model.add_term(Albedo::default())?,
-            Effect::Penumbra => model.add_term(Penumbra)?,
-            Effect::FovRolloff {
-                start_deg,
-                cutoff_deg,
-            } => model.add_term(FovRolloff::from_deg(*start_deg, *cutoff_deg)?)?,
-            Effect::DarkOffset { volts } => model.add_term(DarkOffset::new(volts))?,
-            Effect::ScaleDrift { fraction_per_hour } => {
-                model.add_gain(ScaleDrift::per_photodiode(fraction_per_hour))?
-            }
-            Effect::Saturation { volts } => model.add_stage(Saturation::shared(*volts))?,
-            Effect::TimeOffset { .. } | Effect::MagBias { .. } | Effect::GyroScale { .. } => {}
-        }
+        add_effect(&mut model, effect, options)?;
     }
     Ok(model)
 }
@@ -343,6 +344,35 @@ fn propagate_events(
     Ok((states, envs))
 }
 
+/// True temperatures at every event, degrees Celsius, `[j * n_pd + i]` for photodiode `i`
+/// at event `j`: `dT/dt = (T_eq - T) / tau` stepped exactly with `T_eq` taken as the mean of
+/// the step's end values, from `initial_c` at `t = 0`. Events before `t = 0` (a positive
+/// time-offset, seconds at most) keep the initial value rather than integrating backwards.
+fn thermal_truth(
+    thermal: &Thermal,
+    photodiodes: &[Photodiode],
+    events_us: &[i64],
+    states: &[AttitudeState],
+    envs: &[Environment],
+) -> Vec<f64> {
+    let n = photodiodes.len();
+    let equilibrium = |j: usize, i: usize| {
+        let sun_body = states[j].q.attitude_matrix() * envs[j].sun_gcrf;
+        let lit = photodiodes[i].n_body.dot(&sun_body).max(0.0) * envs[j].nu;
+        thermal.equilibrium_c(lit)
+    };
+    let mut t_c = vec![thermal.initial_c(); events_us.len() * n];
+    let k0 = events_us.binary_search(&0).unwrap_or(0);
+    for j in k0 + 1..events_us.len() {
+        let decay = (-to_s(events_us[j] - events_us[j - 1]) / thermal.tau_s).exp();
+        for i in 0..n {
+            let t_eq = 0.5 * (equilibrium(j - 1, i) + equilibrium(j, i));
+            t_c[j * n + i] = t_eq + (t_c[(j - 1) * n + i] - t_eq) * decay;
+        }
+    }
+    t_c
+}
+
 /// Output buffers, filled row by row.
 struct Series {
     telemetry: Telemetry,
@@ -361,6 +391,7 @@ impl Series {
                 mag_nt: Some(Vec::with_capacity(rows)),
                 pd_v: vec![Vec::with_capacity(rows); n_pd],
                 r_gcrf_km: None,
+                temperature_c: Vec::new(),
             },
             truth: TruthSeries::default(),
             sun_gcrf: Vec::with_capacity(rows),
@@ -376,10 +407,11 @@ struct Sensors {
     gyro_walk: ChaCha8Rng,
     mag_noise: ChaCha8Rng,
     pd_noise: ChaCha8Rng,
+    temperature_noise: ChaCha8Rng,
     gyro_bias_rad_s: Vector3<f64>,
     last_gyro_us: Option<i64>,
-    gyro_scale: Vector3<f64>,
-    mag_bias_nt: Vector3<f64>,
+    /// The scenario's effects, for the sensor corruptions (`gyro-scale`, `mag-bias`).
+    effects: Vec<Effect>,
     gyro_sigma_rad_s: f64,
     walk_rad_s_sqrt_s: f64,
     mag_sigma_nt: f64,
@@ -391,23 +423,15 @@ impl Sensors {
         let mut bias_rng = random::stream(seed, Stream::GyroBias);
         let mut bias = || random::draw(&scenario.gyro.bias_rad_s, &mut bias_rng);
         let gyro_bias_rad_s = Vector3::new(bias(), bias(), bias());
-        let gyro_scale = match scenario.effect("gyro-scale") {
-            Some(Effect::GyroScale { scale_error }) => Vector3::from(*scale_error),
-            _ => Vector3::zeros(),
-        };
-        let mag_bias_nt = match scenario.effect("mag-bias") {
-            Some(Effect::MagBias { bias_nt }) => Vector3::from(*bias_nt),
-            _ => Vector3::zeros(),
-        };
         Sensors {
             gyro_noise: random::stream(seed, Stream::GyroNoise),
             gyro_walk: random::stream(seed, Stream::GyroWalk),
             mag_noise: random::stream(seed, Stream::MagNoise),
             pd_noise: random::stream(seed, Stream::PhotodiodeNoise),
+            temperature_noise: random::stream(seed, Stream::TemperatureNoise),
             gyro_bias_rad_s,
             last_gyro_us: None,
-            gyro_scale,
-            mag_bias_nt,
+            effects: scenario.effects.clone(),
             gyro_sigma_rad_s: scenario.gyro.noise_rad_s,
             walk_rad_s_sqrt_s: scenario.gyro.bias_walk_rad_s_sqrt_s,
             mag_sigma_nt: scenario.magnetometer.noise_nt,
@@ -424,15 +448,21 @@ impl Sensors {
                 random::normal3(&mut self.gyro_walk) * (self.walk_rad_s_sqrt_s * dt_s.sqrt());
         }
         self.last_gyro_us = Some(t_us);
-        w_body_rad_s
-            + w_body_rad_s.component_mul(&self.gyro_scale)
+        let scaled = (self.effects.iter()).fold(*w_body_rad_s, |w, e| e.corrupt_gyro(w));
+        scaled
             + self.gyro_bias_rad_s
             + random::normal3(&mut self.gyro_noise) * self.gyro_sigma_rad_s
     }
 
     /// A magnetometer sample: `A B_ref + bias + noise`.
     fn magnetometer(&mut self, mag_body_nt: &Vector3<f64>) -> Vector3<f64> {
-        mag_body_nt + self.mag_bias_nt + random::normal3(&mut self.mag_noise) * self.mag_sigma_nt
+        let biased = (self.effects.iter()).fold(*mag_body_nt, |b, e| e.corrupt_mag(b));
+        biased + random::normal3(&mut self.mag_noise) * self.mag_sigma_nt
+    }
+
+    /// A temperature sample: the true value plus noise, degrees Celsius.
+    fn temperature(&mut self, true_c: f64, sigma_c: f64) -> f64 {
+        true_c + sigma_c * random::normal(&mut self.temperature_noise)
     }
 
     /// Photodiode outputs from noise-free pre-stage values: noise, then the output stages
@@ -501,7 +531,7 @@ pub fn simulate(scenario: &Scenario, seed: u64) -> Result<SimOutput, SimError> {
         EpochUtc::parse(&scenario.epoch_utc).map_err(|e| SimError::Epoch(e.to_string()))?;
     let ephemeris = Ephemeris::new(scenario)?;
     let grid = Grid::new(scenario);
-    let pd_offset_us = match scenario.effect("time-offset") {
+    let pd_offset_us = match scenario.effect(EffectId::TimeOffset) {
         Some(Effect::TimeOffset { seconds }) => to_us(*seconds),
         _ => 0,
     };
@@ -518,22 +548,27 @@ pub fn simulate(scenario: &Scenario, seed: u64) -> Result<SimOutput, SimError> {
         draw_true_photodiodes(scenario, &mut random::stream(seed, Stream::TruePhotodiodes));
     let photodiodes = model_photodiodes(scenario, &true_pds);
     let model = truth_model(scenario, photodiodes.clone())?;
-    let albedo = match scenario.effect("albedo") {
+    let albedo = match scenario.effect(EffectId::Albedo) {
         Some(Effect::Albedo { map }) => Some(AlbedoModel::from_choice(&map.parse::<MapChoice>()?)?),
         _ => None,
     };
-    let shadow = if scenario.effect("penumbra").is_some() {
+    let shadow = if scenario.effect(EffectId::Penumbra).is_some() {
         ShadowMode::Penumbra
     } else {
         ShadowMode::Hard
     };
 
     let n_pd = scenario.n_photodiodes();
+    let thermal = scenario.temperature.as_ref();
+    let true_temperature_c = thermal
+        .map(|th| thermal_truth(th, &photodiodes, &events_us, &states, &envs))
+        .unwrap_or_default();
     let truth_scenes = TruthScenes {
         model: &model,
         albedo: albedo.as_ref(),
         states: &states,
         envs: &envs,
+        temperature_c: &true_temperature_c,
     };
     // Noise-free outputs first, in parallel (albedo dominates the run time); each row is a
     // pure function of the truth, so the result does not depend on the thread count.
@@ -552,6 +587,16 @@ pub fn simulate(scenario: &Scenario, seed: u64) -> Result<SimOutput, SimError> {
     let mut clean_rows = clean_rows.into_iter();
 
     let mut out = Series::with_capacity(grid.rows_us.len(), n_pd);
+    let mut temperature_true_c = Vec::new();
+    if thermal.is_some() {
+        out.telemetry.temperature_c = (1..=n_pd)
+            .map(|i| TemperatureColumn {
+                name: photodiode_temperature_column(i),
+                values: Vec::with_capacity(grid.rows_us.len()),
+            })
+            .collect();
+        temperature_true_c = vec![Vec::with_capacity(grid.rows_us.len()); n_pd];
+    }
     let mut sensors = Sensors::new(scenario, seed);
     for &t_us in &grid.rows_us {
         let k = event(t_us);
@@ -579,6 +624,19 @@ pub fn simulate(scenario: &Scenario, seed: u64) -> Result<SimOutput, SimError> {
             out.telemetry.pd_v[i].push(pd.get(i).map(|p| p.0));
             out.pd_noise_free_v[i].push(pd.get(i).map(|p| p.1));
         }
+        if let Some(th) = thermal {
+            let sampled = grid.samples_temperature(t_us);
+            for (i, (column, truth)) in (out.telemetry.temperature_c.iter_mut())
+                .zip(&mut temperature_true_c)
+                .enumerate()
+            {
+                let true_c = true_temperature_c[k * n_pd + i];
+                truth.push(true_c);
+                column
+                    .values
+                    .push(sampled.then(|| sensors.temperature(true_c, th.noise_c)));
+            }
+        }
 
         let q = state.q;
         out.truth.t_s.push(t_s);
@@ -605,6 +663,7 @@ pub fn simulate(scenario: &Scenario, seed: u64) -> Result<SimOutput, SimError> {
         mag_gcrf_nt: out.mag_gcrf_nt,
         pd_noise_free_v: out.pd_noise_free_v,
         true_photodiodes: photodiodes,
+        temperature_true_c,
         seed,
     })
 }
@@ -615,6 +674,8 @@ struct TruthScenes<'a> {
     albedo: Option<&'a AlbedoModel>,
     states: &'a [AttitudeState],
     envs: &'a [Environment],
+    /// [`thermal_truth`], empty without a thermal model.
+    temperature_c: &'a [f64],
 }
 
 impl TruthScenes<'_> {
@@ -636,8 +697,11 @@ impl TruthScenes<'_> {
             }
             None => None,
         };
-        let scene = scene_for(&self.states[j], env, t_s, albedo_view)?;
-        (0..self.model.photodiodes().len())
+        let n = self.model.photodiodes().len();
+        let temperature_c = self.temperature_c.get(j * n..(j + 1) * n).unwrap_or(&[]);
+        let scene =
+            scene_for(&self.states[j], env, t_s, albedo_view)?.with_temperatures(temperature_c);
+        (0..n)
             .map(|i| Ok(self.model.pre_stage_output(i, &scene)?))
             .collect()
     }

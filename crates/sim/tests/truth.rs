@@ -63,10 +63,10 @@ fn model_from_truth(constants: &TruthConstants) -> MeasurementModel {
             Effect::Albedo { .. } => model.add_term(Albedo::default()).unwrap(),
             Effect::Penumbra => model.add_term(Penumbra).unwrap(),
             Effect::FovRolloff {
-                start_deg,
-                cutoff_deg,
+                start_rad,
+                cutoff_rad,
             } => model
-                .add_term(FovRolloff::from_deg(*start_deg, *cutoff_deg).unwrap())
+                .add_term(FovRolloff::new(*start_rad, *cutoff_rad).unwrap())
                 .unwrap(),
             Effect::DarkOffset { volts } => model.add_term(DarkOffset::new(volts)).unwrap(),
             Effect::ScaleDrift { fraction_per_hour } => model
@@ -125,8 +125,8 @@ fn noise_free_outputs_equal_the_measurement_model_at_truth() {
         },
         Effect::Penumbra,
         Effect::FovRolloff {
-            start_deg: 65.0,
-            cutoff_deg: 88.0,
+            start_rad: 65f64.to_radians(),
+            cutoff_rad: 88f64.to_radians(),
         },
         Effect::DarkOffset {
             volts: (0..17).map(|i| 0.005 * i as f64).collect(),
@@ -437,7 +437,7 @@ fn gyro_scale_and_mag_bias_appear_exactly() {
 fn hard_shadow_without_penumbra() {
     let mut s = rax2_short(3000.0);
     s.photodiodes.sample_period_s = 10.0;
-    s.effects.retain(|e| e.id() != "penumbra");
+    s.effects.retain(|e| e.id().as_str() != "penumbra");
     let out = simulate(&s, 1).unwrap();
     assert!(out.truth.eclipse.iter().all(|&nu| nu == 0.0 || nu == 1.0));
     assert!(out.truth.eclipse.contains(&0.0));
@@ -448,7 +448,7 @@ fn hard_field_of_view_cuts_sun_and_albedo() {
     let mut s = rax2_short(600.0);
     s.photodiodes.fov_half_angle_deg = Some(50.0);
     s.photodiodes.noise_v = 0.0;
-    s.effects.retain(|e| e.id() != "albedo");
+    s.effects.retain(|e| e.id().as_str() != "albedo");
     let out = simulate(&s, 6).unwrap();
     let cos_fov = 50f64.to_radians().cos();
     let mut cut = 0;

@@ -27,6 +27,7 @@ pub fn rax2_mounts() -> Vec<NominalMount> {
         .map(|(&azimuth_deg, elevation_deg)| NominalMount {
             azimuth_deg,
             elevation_deg,
+            panel: None,
         })
         .collect()
 }
@@ -152,8 +153,8 @@ pub fn truth_constants(n: usize) -> TruthConstants {
                 map: "toms-mean-1p25x1".into(),
             },
             Effect::FovRolloff {
-                start_deg: 60.0,
-                cutoff_deg: 85.0,
+                start_rad: 60f64.to_radians(),
+                cutoff_rad: 85f64.to_radians(),
             },
             Effect::DarkOffset {
                 volts: (0..n).map(|i| 0.001 * i as f64).collect(),

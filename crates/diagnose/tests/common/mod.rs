@@ -43,25 +43,33 @@ pub fn run(scenario: &Scenario, seed: u64, base: BaseModel) -> (SimOutput, Diagn
     let sim = simulate(scenario, seed).expect("simulation");
     let refs = references(&sim);
     let albedo = albedo_model();
-    let inputs = inputs(&sim, &refs, &albedo, true);
+    let inputs = inputs(&sim, &refs, &albedo);
     let d = diagnose(&inputs, base, &DiagnoseConfig::default()).expect("diagnosis");
     (sim, d)
 }
 
-/// The diagnosis inputs of a simulation; its truth only when `with_truth`.
+/// The diagnosis inputs of a simulation (never its truth), with the TOMS map.
 pub fn inputs<'a>(
     sim: &'a SimOutput,
     references: &'a [StepReference],
     albedo: &'a AlbedoModel,
-    with_truth: bool,
 ) -> DiagnoseInputs<'a> {
     DiagnoseInputs {
         meta: &sim.meta,
         telemetry: &sim.telemetry,
         references,
         albedo,
-        truth: with_truth.then_some(&sim.constants.photodiodes[..]),
+        albedo_map: "toms-mean-1p25x1",
     }
+}
+
+/// Worst true normal (deg) and scale (%) errors of a calibration over the photodiodes lit
+/// at least 5 minutes, from the simulation's truth (the tests' view; the diagnosis never
+/// sees it).
+pub fn true_errors(sim: &SimOutput, calibration: &pdcal_filter::Calibration) -> (f64, f64) {
+    let (_, normal, scale) =
+        pdcal::evaluate::photodiode_errors(calibration, &sim.truth, &sim.constants);
+    (normal, scale)
 }
 
 /// One line per round and the final check, for the test log.
@@ -69,7 +77,7 @@ pub fn describe(d: &Diagnosis) -> String {
     let mut s = format!("verdict {}\n", d.verdict());
     for r in &d.rounds {
         s += &format!(
-            "  {} score {:.1}: {}\n    pd rms {:.4} -> {:.4} V, inside {:.3} -> {:.3}, |s| std {:.4} -> {:.4}, mag {:.0} -> {:.0} nT, gyro {:.2e} -> {:.2e}, cal {:?} -> {:?}\n",
+            "  {} score {:.1}: {}\n    pd rms {:.4} -> {:.4} V, inside {:.3} -> {:.3}, |s| std {:.4} -> {:.4}, mag {:.0} -> {:.0} nT, gyro {:.2e} -> {:.2e}, shrink {:.2} ({:.0} nats), rejected {:?}, dropped {:?}\n",
             r.found,
             r.score,
             r.evidence,
@@ -83,17 +91,34 @@ pub fn describe(d: &Diagnosis) -> String {
             r.gap_after.magnetometer_rms_nt,
             r.gap_before.gyro_residual_rms_rad_s,
             r.gap_after.gyro_residual_rms_rad_s,
-            r.gap_before
-                .calibration
-                .map(|c| (c.worst_normal_error_deg, c.worst_scale_error_percent)),
-            r.gap_after
-                .calibration
-                .map(|c| (c.worst_normal_error_deg, c.worst_scale_error_percent)),
+            r.shrink.fraction_removed,
+            r.shrink.nats,
+            r.rejected,
+            r.dropped.iter().map(|x| x.id).collect::<Vec<_>>(),
         );
     }
     s += "  final check:";
-    for c in d.final_candidates.iter().take(9) {
+    for c in d.final_candidates.iter().take(11) {
         s += &format!(" {} {:.1} (W {:.1});", c.id, c.score, c.wald);
     }
+    s += &format!("\n  final rejected: {:?}", d.final_rejected);
+    let m = &d.misfit;
+    s += &format!(
+        "\n  misfit: explained {} rms ratio {:.3} inside {:.4}; {}; failed {:?}; worst pd {:?}",
+        m.explained,
+        m.rms_ratio,
+        m.fraction_within_3sigma,
+        m.concentrated_in,
+        m.failed,
+        m.photodiodes
+            .iter()
+            .take(3)
+            .map(|p| (
+                p.photodiode,
+                (100.0 * p.rms_ratio).round() / 100.0,
+                (100.0 * p.lag1_autocorrelation).round() / 100.0
+            ))
+            .collect::<Vec<_>>()
+    );
     s
 }

@@ -100,6 +100,7 @@ pub fn step(s: &mut Setup, albedo: &AlbedoExpansion) {
     let meas = Measurements {
         mag_nt: Some(s.mag),
         pd_v: &s.pd_v,
+        temperature_c: &[],
     };
     s.filter
         .update(0.0, &meas, &s.reference, Some(albedo))
