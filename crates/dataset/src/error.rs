@@ -44,7 +44,10 @@ pub enum ErrorKind {
     #[error("no data rows after the header")]
     NoRows,
     /// The first CSV row looks like data, not column names.
-    #[error("missing header row: the first row must name the columns, found {value:?}")]
+    #[error(
+        "missing header row: the first row must name the columns, found {}",
+        quote(value)
+    )]
     MissingHeader {
         /// The first cell of the first row.
         value: String,
@@ -78,7 +81,10 @@ pub enum ErrorKind {
         known: u32,
     },
     /// `epoch_utc` is not ISO 8601 UTC.
-    #[error("{value:?} is not an ISO 8601 UTC time like \"2011-11-04T18:29:45Z\": {reason}")]
+    #[error(
+        "{} is not an ISO 8601 UTC time like \"2011-11-04T18:29:45Z\": {reason}",
+        quote(value)
+    )]
     BadEpoch {
         /// The text found.
         value: String,
@@ -153,13 +159,13 @@ pub enum ErrorKind {
         found: usize,
     },
     /// Text that does not parse as a number.
-    #[error("{value:?} is not a number")]
+    #[error("{} is not a number", quote(value))]
     NotANumber {
         /// The cell text.
         value: String,
     },
     /// `NaN` or an infinity.
-    #[error("{value:?} is not a finite number")]
+    #[error("{} is not a finite number", quote(value))]
     NotFinite {
         /// The cell text (or the value's text when it came from RON or memory).
         value: String,
@@ -184,7 +190,7 @@ pub enum ErrorKind {
         value: f64,
     },
     /// A value outside its allowed range (negative noise hint, eclipse above 1, ...).
-    #[error("{value} is out of range: {rule}")]
+    #[error("{value:?} is out of range: {rule}")]
     OutOfRange {
         /// The value.
         value: f64,
@@ -213,6 +219,13 @@ pub enum ErrorKind {
     NotADatasetDir {
         /// What is there instead.
         reason: String,
+    },
+    /// The output directory cannot be written (locked by another run, a dangling symlink,
+    /// not a directory).
+    #[error("{message}")]
+    Output {
+        /// What is wrong with it.
+        message: String,
     },
     /// A CSV reader failure that is none of the above.
     #[error("{message}")]
@@ -325,6 +338,19 @@ impl fmt::Display for DatasetError {
 // The kind's text is part of Display, so it is not also returned as `source` (that would
 // print it twice in an `anyhow` chain).
 impl std::error::Error for DatasetError {}
+
+/// Characters of an offending value quoted in a message; longer values are cut, so that a
+/// 50 MB cell does not become a 50 MB error message.
+pub const QUOTE_MAX_CHARS: usize = 80;
+
+/// `text` quoted for a message: Rust string syntax, at most [`QUOTE_MAX_CHARS`] characters
+/// of it, and the full length when cut (`"aaaa..."... (52428800 bytes)`).
+pub fn quote(text: &str) -> String {
+    match text.char_indices().nth(QUOTE_MAX_CHARS) {
+        None => format!("{text:?}"),
+        Some((cut, _)) => format!("{:?}... ({} bytes)", &text[..cut], text.len()),
+    }
+}
 
 /// 1-based line and character column of byte offset `offset` in `text`.
 pub(crate) fn line_col(text: &str, offset: usize) -> (usize, usize) {

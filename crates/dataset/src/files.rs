@@ -2,10 +2,11 @@
 
 use std::fs;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use crate::error::{DatasetError, ErrorKind, text_of};
 use crate::meta::{DatasetMeta, parse_meta, render_meta};
+use crate::publish::{Publication, PublishError, PublishErrorKind};
 use crate::telemetry::{Telemetry, parse_telemetry, render_telemetry};
 use crate::truth::{
     TruthConstants, TruthSeries, parse_truth_constants, parse_truth_series, render_truth_constants,
@@ -120,54 +121,60 @@ pub fn render_dataset(ds: &Dataset) -> Result<Vec<(&'static str, String)>, Datas
     Ok(files)
 }
 
-/// Writes `ds` into the directory `dir`, whole or not at all.
-///
-/// The files are written into a fresh hidden sibling directory (`.NAME.pdcal-tmp-PID-N`),
-/// flushed to disk, and only then renamed to `dir`. If `dir` exists it is replaced, but only
-/// when it is empty or a pdcal dataset directory (`dataset.ron`, plus at most
-/// `telemetry.csv`, `truth.csv`, `truth.ron`, nothing else); anything else is refused with
-/// [`ErrorKind::NotADatasetDir`] and left untouched. Missing parent directories are created.
-/// On any failure the temporary directory is removed and an existing `dir` is kept (or put
-/// back, if the failure came between the two renames of the swap).
+/// Writes `ds` into the directory `dir`, whole or not at all: [`begin_dataset`] then
+/// [`DatasetWriter::write`].
 pub fn write_dataset(dir: &Path, ds: &Dataset) -> Result<(), DatasetError> {
     let files = render_dataset(ds)?;
-    let replacing = check_replaceable(dir)?;
-    let parent = match dir.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    fs::create_dir_all(&parent).map_err(|e| io_error(&parent, "cannot create", e))?;
-    let staging = Scratch::new(&parent, dir)?;
-    for (name, text) in &files {
-        write_synced(&staging.path.join(name), text)?;
+    begin_dataset(dir)?.write_rendered(&files)
+}
+
+/// A dataset directory being written (see [`crate::publish`]): its target checked and
+/// locked, its staging directory ready.
+#[derive(Debug)]
+pub struct DatasetWriter(Publication);
+
+/// Starts writing a dataset into `dir`, before the dataset exists: an existing `dir` is
+/// replaced only when it is empty or a pdcal dataset directory (`dataset.ron`, plus at most
+/// `telemetry.csv`, `truth.csv`, `truth.ron`, nothing else); anything else is refused with
+/// [`ErrorKind::NotADatasetDir`] and left untouched. Missing parent directories are created.
+/// Call it before simulating, so a bad `--out` costs nothing.
+pub fn begin_dataset(dir: &Path) -> Result<DatasetWriter, DatasetError> {
+    Publication::begin(dir, &dataset_rule)
+        .map(DatasetWriter)
+        .map_err(publish_error)
+}
+
+impl DatasetWriter {
+    /// Writes `ds` (after checking that the reader accepts every file) and publishes it in
+    /// one step; on any failure an existing `dir` is kept as it was.
+    pub fn write(self, ds: &Dataset) -> Result<(), DatasetError> {
+        let files = render_dataset(ds)?;
+        self.write_rendered(&files)
     }
-    if replacing {
-        let old = Scratch::new(&parent, dir)?;
-        let old_copy = old.path.join("old");
-        fs::rename(dir, &old_copy).map_err(|e| io_error(dir, "cannot move aside", e))?;
-        if let Err(e) = fs::rename(&staging.path, dir) {
-            // Put the previous dataset back; if even that fails, keep it where it is so
-            // nothing is lost, and say where.
-            let action = match fs::rename(&old_copy, dir) {
-                Ok(()) => "cannot move the new dataset into place".to_owned(),
-                Err(_) => {
-                    let action = format!(
-                        "cannot move the new dataset into place (the previous one is in {})",
-                        old_copy.display()
-                    );
-                    old.keep();
-                    action
-                }
-            };
-            return Err(io_error(dir, &action, e));
+
+    fn write_rendered(self, files: &[(&'static str, String)]) -> Result<(), DatasetError> {
+        for (name, text) in files {
+            write_synced(&self.0.path().join(name), text)?;
         }
-        // `old` is dropped here and removes the previous dataset.
-    } else {
-        fs::rename(&staging.path, dir)
-            .map_err(|e| io_error(dir, "cannot move the new dataset into place", e))?;
+        self.0.publish(&dataset_rule).map_err(publish_error)
     }
-    staging.keep();
-    Ok(())
+}
+
+fn publish_error(e: PublishError) -> DatasetError {
+    let kind = match e.kind {
+        PublishErrorKind::Io { action, cause } => ErrorKind::Io {
+            action: format!("cannot {action}"),
+            source: cause,
+        },
+        PublishErrorKind::Refused { reason } => ErrorKind::NotADatasetDir { reason },
+        PublishErrorKind::NotADirectory => ErrorKind::NotADatasetDir {
+            reason: "it is not a directory".into(),
+        },
+        other => ErrorKind::Output {
+            message: other.to_string(),
+        },
+    };
+    DatasetError::whole_file(&e.path, kind)
 }
 
 fn write_synced(file: &Path, text: &str) -> Result<(), DatasetError> {
@@ -177,78 +184,22 @@ fn write_synced(file: &Path, text: &str) -> Result<(), DatasetError> {
         .map_err(|e| io_error(file, "cannot write", e))
 }
 
-/// Whether `dir` exists and may be replaced; errors when it exists and may not.
-fn check_replaceable(dir: &Path) -> Result<bool, DatasetError> {
-    let refuse =
-        |reason: String| DatasetError::whole_file(dir, ErrorKind::NotADatasetDir { reason });
-    let meta = match fs::symlink_metadata(dir) {
-        Ok(m) => m,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(false),
-        Err(e) => return Err(io_error(dir, "cannot inspect", e)),
-    };
-    if !meta.is_dir() {
-        return Err(refuse("it is not a directory".into()));
-    }
-    let entries = fs::read_dir(dir).map_err(|e| io_error(dir, "cannot list", e))?;
+/// The rule of [`begin_dataset`] for an existing directory.
+fn dataset_rule(dir: &Path) -> Result<(), String> {
+    let entries = fs::read_dir(dir).map_err(|e| format!("cannot list it: {e}"))?;
     let mut names = Vec::new();
     for entry in entries {
-        let entry = entry.map_err(|e| io_error(dir, "cannot list", e))?;
+        let entry = entry.map_err(|e| format!("cannot list it: {e}"))?;
         let name = entry.file_name().to_string_lossy().into_owned();
         let is_file = entry.file_type().is_ok_and(|t| t.is_file());
         let known = [DATASET_RON, TELEMETRY_CSV, TRUTH_CSV, TRUTH_RON].contains(&name.as_str());
         if !(is_file && known) {
-            return Err(refuse(format!("it holds {name:?}")));
+            return Err(format!("it holds {}", crate::error::quote(&name)));
         }
         names.push(name);
     }
     if !names.is_empty() && !names.iter().any(|n| n == DATASET_RON) {
-        return Err(refuse("it has no dataset.ron".into()));
+        return Err("it has no dataset.ron".into());
     }
-    Ok(true)
-}
-
-/// A hidden directory next to the target, removed on drop unless kept.
-///
-/// Hand-made rather than `tempfile::TempDir`, which creates directories with mode 0700 that
-/// would become the dataset's own permissions after the rename.
-struct Scratch {
-    path: PathBuf,
-    keep: bool,
-}
-
-impl Scratch {
-    fn new(parent: &Path, target: &Path) -> Result<Self, DatasetError> {
-        let stem = target
-            .file_name()
-            .map_or_else(|| "dataset".into(), |n| n.to_string_lossy().into_owned());
-        let pid = std::process::id();
-        let mut last_error = None;
-        for n in 0..1000 {
-            let path = parent.join(format!(".{stem}.pdcal-tmp-{pid}-{n}"));
-            match fs::create_dir(&path) {
-                Ok(()) => return Ok(Self { path, keep: false }),
-                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => last_error = Some(e),
-                Err(e) => return Err(io_error(&path, "cannot create", e)),
-            }
-        }
-        let e = last_error.unwrap_or_else(|| std::io::Error::other("no free name"));
-        Err(io_error(
-            parent,
-            "cannot create a temporary directory in",
-            e,
-        ))
-    }
-
-    /// The directory was renamed into place: nothing to remove.
-    fn keep(mut self) {
-        self.keep = true;
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        if !self.keep {
-            let _ = fs::remove_dir_all(&self.path);
-        }
-    }
+    Ok(())
 }

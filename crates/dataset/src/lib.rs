@@ -32,8 +32,8 @@
 //!
 //! # Writing
 //! [`write_dataset`] renders all files in memory, re-reads them with the reader (nothing is
-//! written that cannot be read back), then writes into a temporary sibling directory and
-//! renames it into place. Floats are written in Rust's shortest round-trip form, so
+//! written that cannot be read back), then writes into a staging sibling directory and
+//! swaps it into place in one step ([`publish`]). Floats are written in Rust's shortest round-trip form, so
 //! `read(write(x)) == x` bit for bit; output is deterministic (fixed column order, no maps).
 //!
 //! # Units and names
@@ -51,21 +51,23 @@
 //! The CSV grammar is the `csv` crate and RON is `ron`; only the column semantics are
 //! hand-written. The ISO 8601 epoch is parsed by hand into
 //! `hifitime::Epoch::maybe_from_gregorian_utc` because hifitime's string parser accepts other
-//! time scales and can panic on some malformed text. The temporary output directory is
-//! hand-made because `tempfile` creates it with mode 0700.
+//! time scales and can panic on some malformed text. The staging output directory is
+//! hand-made ([`publish`]) because `tempfile` creates it with mode 0700.
 
 mod error;
 mod files;
 mod meta;
+pub mod publish;
 mod ron_text;
 mod table;
 mod telemetry;
 mod temperature;
 mod truth;
 
-pub use error::{DatasetError, ErrorKind};
+pub use error::{DatasetError, ErrorKind, QUOTE_MAX_CHARS, quote};
 pub use files::{
-    Dataset, read_dataset, read_meta, read_telemetry, read_truth, render_dataset, write_dataset,
+    Dataset, DatasetWriter, begin_dataset, read_dataset, read_meta, read_telemetry, read_truth,
+    render_dataset, write_dataset,
 };
 pub use meta::{
     DatasetMeta, EpochUtc, FORMAT_VERSION, NoiseHints, NominalMount, OrbitSpec, meta_from_str,

@@ -258,6 +258,78 @@ fn check_orbit(file: &Path, text: &str, orbit: &OrbitSpec) -> Result<(), Dataset
             return Err(err.named(format!("orbit.{key}")));
         }
     }
+    check_tle_elements(file, text, line2)
+}
+
+/// Earth's gravitational parameter, km^3/s^2, and equatorial radius, km (WGS-72, as SGP4).
+const MU_KM3_S2: f64 = 398_600.8;
+const EARTH_RADIUS_KM: f64 = 6378.135;
+/// Perigee altitude below which an orbit has decayed (the atmosphere ends it within hours).
+pub const DECAYED_PERIGEE_KM: f64 = 100.0;
+/// Mean motion range of an Earth orbit SGP4 handles, rev/day (beyond the Moon below).
+pub const MEAN_MOTION_REV_DAY: (f64, f64) = (0.05, 17.0);
+
+/// The orbital elements of TLE line 2 within their physical ranges: inclination 0-180 deg,
+/// eccentricity below 1, a plausible mean motion, and a perigee above the atmosphere.
+fn check_tle_elements(file: &Path, text: &str, line2: &str) -> Result<(), DatasetError> {
+    let fail = |field: &str, columns: &str, kind: ErrorKind| {
+        let err = match locate_str(text, line2) {
+            Some((l, c)) => DatasetError::at(file, l, Some(c), kind),
+            None => DatasetError::whole_file(file, kind),
+        };
+        Err(err.named(format!("orbit.line2 {field}, columns {columns}")))
+    };
+    // Fixed columns (1-based, inclusive) of the TLE format; eccentricity has an implied
+    // leading "0.".
+    let field = |from: usize, to: usize| line2.get(from - 1..to).map(str::trim).unwrap_or("");
+    let number = |from: usize, to: usize, implied: &str| {
+        let t = field(from, to);
+        format!("{implied}{t}")
+            .parse::<f64>()
+            .map_err(|_| ErrorKind::NotANumber {
+                value: t.to_owned(),
+            })
+    };
+    let inclination = match number(9, 16, "") {
+        Ok(v) => v,
+        Err(kind) => return fail("inclination", "9-16", kind),
+    };
+    if !(0.0..=180.0).contains(&inclination) {
+        let kind = ErrorKind::OutOfRange {
+            value: inclination,
+            rule: "inclination must be in [0, 180] deg".into(),
+        };
+        return fail("inclination", "9-16", kind);
+    }
+    let eccentricity = match number(27, 33, "0.") {
+        Ok(v) => v,
+        Err(kind) => return fail("eccentricity", "27-33", kind),
+    };
+    let mean_motion = match number(53, 63, "") {
+        Ok(v) => v,
+        Err(kind) => return fail("mean motion", "53-63", kind),
+    };
+    let (lo, hi) = MEAN_MOTION_REV_DAY;
+    if !(lo..=hi).contains(&mean_motion) {
+        let kind = ErrorKind::OutOfRange {
+            value: mean_motion,
+            rule: format!("mean motion must be in [{lo}, {hi}] rev/day for an Earth orbit"),
+        };
+        return fail("mean motion", "53-63", kind);
+    }
+    let n_rad_s = mean_motion * std::f64::consts::TAU / 86_400.0;
+    let semi_major_km = (MU_KM3_S2 / (n_rad_s * n_rad_s)).cbrt();
+    let perigee_km = semi_major_km * (1.0 - eccentricity) - EARTH_RADIUS_KM;
+    if perigee_km < DECAYED_PERIGEE_KM {
+        let kind = ErrorKind::OutOfRange {
+            value: perigee_km,
+            rule: format!(
+                "perigee altitude (km, from mean motion {mean_motion} rev/day and eccentricity \
+                 {eccentricity}) is below {DECAYED_PERIGEE_KM} km: the orbit has decayed"
+            ),
+        };
+        return fail("mean motion", "53-63", kind);
+    }
     Ok(())
 }
 
@@ -268,6 +340,27 @@ fn check_mounts(file: &Path, text: &str, mounts: &[NominalMount]) -> Result<(), 
             ("elevation_deg", m.elevation_deg),
         ] {
             check_finite(file, v, || format!("photodiodes[{i}].{name}"))?;
+        }
+        let out_of_range = |name: &str, value: f64, rule: &str| {
+            let kind = ErrorKind::OutOfRange {
+                value,
+                rule: rule.into(),
+            };
+            Err(DatasetError::whole_file(file, kind).named(format!("photodiodes[{i}].{name}")))
+        };
+        if !(-90.0..=90.0).contains(&m.elevation_deg) {
+            return out_of_range(
+                "elevation_deg",
+                m.elevation_deg,
+                "elevation must be in [-90, 90] deg",
+            );
+        }
+        if !(-360.0..=360.0).contains(&m.azimuth_deg) {
+            return out_of_range(
+                "azimuth_deg",
+                m.azimuth_deg,
+                "azimuth must be in [-360, 360] deg",
+            );
         }
         if let Some(panel) = &m.panel
             && !crate::is_panel_name(panel)
@@ -290,6 +383,15 @@ fn check_mounts(file: &Path, text: &str, mounts: &[NominalMount]) -> Result<(), 
     Ok(())
 }
 
+/// Upper bounds of the noise hints: beyond these a 1-sigma is not a noise but a unit
+/// mistake (57 deg/s of gyro noise, more than the geomagnetic field, more than any
+/// photodiode's full scale), and it would only surface deep inside the filter.
+pub const NOISE_HINT_MAX: [(&str, f64, &str); 3] = [
+    ("gyro_rad_s", 1.0, "rad/s"),
+    ("mag_nT", 1.0e5, "nT"),
+    ("photodiode_V", 100.0, "V"),
+];
+
 fn check_noise(file: &Path, noise: &NoiseHints) -> Result<(), DatasetError> {
     let hints = [
         ("gyro_rad_s", noise.gyro_rad_s),
@@ -299,13 +401,16 @@ fn check_noise(file: &Path, noise: &NoiseHints) -> Result<(), DatasetError> {
     for (name, value) in hints {
         let Some(v) = value else { continue };
         check_finite(file, v, || format!("noise.{name}"))?;
-        if v <= 0.0 {
-            let kind = ErrorKind::OutOfRange {
-                value: v,
-                rule: "a 1-sigma noise must be positive".into(),
-            };
-            return Err(DatasetError::whole_file(file, kind).named(format!("noise.{name}")));
-        }
+        let max = NOISE_HINT_MAX.iter().find(|(n, _, _)| *n == name);
+        let rule = match max {
+            Some((_, max, unit)) if v > *max => {
+                format!("a 1-sigma noise must be positive and at most {max:e} {unit}")
+            }
+            _ if v <= 0.0 => "a 1-sigma noise must be positive".into(),
+            _ => continue,
+        };
+        let kind = ErrorKind::OutOfRange { value: v, rule };
+        return Err(DatasetError::whole_file(file, kind).named(format!("noise.{name}")));
     }
     Ok(())
 }

@@ -129,11 +129,11 @@ fn replaces_a_dataset_dir_but_nothing_else() {
         "{err}"
     );
 
-    // No temporary directories left behind.
+    // No staging directories or locks left behind.
     let leftovers: Vec<_> = fs::read_dir(dir.path())
         .unwrap()
         .filter_map(|e| e.ok())
-        .filter(|e| e.file_name().to_string_lossy().contains("pdcal-tmp"))
+        .filter(|e| e.file_name().to_string_lossy().contains(".pdcal-"))
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
 }

@@ -14,17 +14,38 @@ use crate::time::{self, TimeError};
 use crate::{OrbitError, OrbitSource, eclipse, frames};
 
 /// Failure to build a reference sample.
+///
+/// The inner error's text is part of the message, so it is not also a `source` (an
+/// `anyhow` chain would print it twice); hence the hand-written `From`s.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ReferenceError {
     /// The sample time could not be formed from the epoch and `t_s`.
     #[error("reference time: {0}")]
-    Time(#[from] TimeError),
+    Time(TimeError),
     /// The orbit source could not give a position.
     #[error("reference orbit: {0}")]
-    Orbit(#[from] OrbitError),
+    Orbit(OrbitError),
     /// The field model could not be evaluated (outside 1900-2030, bad position).
     #[error("reference field: {0}")]
-    Field(#[from] IgrfError),
+    Field(IgrfError),
+}
+
+impl From<TimeError> for ReferenceError {
+    fn from(e: TimeError) -> Self {
+        Self::Time(e)
+    }
+}
+
+impl From<OrbitError> for ReferenceError {
+    fn from(e: OrbitError) -> Self {
+        Self::Orbit(e)
+    }
+}
+
+impl From<IgrfError> for ReferenceError {
+    fn from(e: IgrfError) -> Self {
+        Self::Field(e)
+    }
 }
 
 /// Reference quantities at one sample, all inertial vectors in GCRF.

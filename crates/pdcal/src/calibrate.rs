@@ -3,7 +3,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use pdcal_albedo::{AlbedoModel, MapChoice};
 
 /// The albedo model type, re-exported for callers that hold one (xtask).
@@ -11,6 +11,7 @@ pub type AlbedoModelType = AlbedoModel;
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_filter::{Calibration, CalibrationRun, FilterConfig, Mode, RunInputs, StepReference};
 
+use crate::output::OutputDir;
 use crate::sunvec::SunVectorMetrics;
 
 /// The resolved run configuration: filter tuning and mode.
@@ -42,12 +43,44 @@ pub fn load_config(path: &Path) -> Result<RunConfig> {
             mode: Mode::ScaleOnly { prior },
         });
     }
+    if let Some(kind) = other_kind_of_file(&text) {
+        bail!(
+            "{}: this is {kind}, not a --config file; --config expects a filter configuration \
+             (RON with fields such as photodiode_sigma_v, gate_sigmas) or the calibration.ron \
+             of an earlier pdcal calibrate",
+            path.display()
+        );
+    }
     let filter =
         FilterConfig::from_ron_str(&text).with_context(|| format!("{}", path.display()))?;
     Ok(RunConfig {
         filter,
         mode: Mode::Full,
     })
+}
+
+/// What a file passed as `--config` is when it is another pdcal file, recognised by the
+/// fields only that kind has (so the message names it instead of an unexpected field).
+fn other_kind_of_file(text: &str) -> Option<&'static str> {
+    let has = |field: &str| {
+        text.match_indices(field).any(|(i, _)| {
+            let before = text[..i].chars().next_back();
+            let after = text[i + field.len()..].trim_start().chars().next();
+            !before.is_some_and(|c| c.is_alphanumeric() || c == '_') && after == Some(':')
+        })
+    };
+    let first_line = text.lines().next().unwrap_or("");
+    if first_line.split(',').any(|c| c.trim() == "t_s") {
+        Some("a CSV table (telemetry.csv or truth.csv)")
+    } else if has("epoch_utc") && has("orbit") && !has("spacecraft") {
+        Some("a dataset.ron (dataset metadata)")
+    } else if has("duration_s") && has("spacecraft") {
+        Some("a scenario (simulate --scenario)")
+    } else if has("effects") && has("photodiodes") {
+        Some("a truth.ron (simulated truth constants)")
+    } else {
+        None
+    }
 }
 
 /// Everything a calibration produces, in memory.
@@ -60,6 +93,8 @@ pub struct Outcome {
     pub sun_vector: SunVectorMetrics,
     /// Wall-clock time of the filter run, s.
     pub runtime_s: f64,
+    /// Physical-plausibility warnings on the input ([`crate::checks`]), one line each.
+    pub warnings: Vec<String>,
 }
 
 /// The reflectivity map the filter uses: the paper's TOMS map.
@@ -77,6 +112,7 @@ pub fn run(
     config: &RunConfig,
     albedo: &AlbedoModel,
 ) -> Result<Outcome> {
+    let warnings = crate::checks::check_telemetry(telemetry)?;
     let references = pdcal_filter::step_references(meta, telemetry)?;
     let inputs = RunInputs {
         meta,
@@ -95,16 +131,18 @@ pub fn run(
         references,
         sun_vector,
         runtime_s,
+        warnings,
     })
 }
 
 /// `pdcal calibrate DATASET_DIR --out OUT_DIR [--config FILE.ron]`.
 pub fn run_dir(dataset: &Path, out: &Path, config: &RunConfig) -> Result<Outcome> {
+    let dir = OutputDir::create(out, "calibrate")?;
     // Only meta and telemetry: calibrate never reads truth.*.
     let meta = pdcal_dataset::read_meta(dataset)?;
     let telemetry = pdcal_dataset::read_telemetry(dataset, &meta)?;
     let albedo = albedo_model()?;
     let outcome = run(&meta, &telemetry, config, &albedo)?;
-    crate::files::write_calibration_outputs(out, &meta, &telemetry, &outcome)?;
+    crate::files::write_calibration_outputs(dir, &meta, &telemetry, &outcome, None)?;
     Ok(outcome)
 }

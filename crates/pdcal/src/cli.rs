@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 
 /// On-orbit photodiode calibration. With no command: simulate the RAX-2-like scenario,
@@ -81,9 +81,12 @@ pub fn run(cli: Cli) -> Result<()> {
             plots,
         }) => {
             let scenario = crate::simulate::load_scenario(&scenario)?;
+            let plots = plots
+                .map(|dir| crate::output::OutputDir::create(&dir, "simulate --plots"))
+                .transpose()?;
             let output = crate::simulate::run_to_dir(&scenario, seed, &out)?;
             if let Some(dir) = plots {
-                crate::simulate::write_plots(&output, &dir)?;
+                crate::simulate::write_plots(&output, dir)?;
             }
             println!(
                 "simulated {} (seed {seed}): {} samples, {} photodiodes -> {}",
@@ -104,7 +107,10 @@ pub fn run(cli: Cli) -> Result<()> {
                 None => crate::calibrate::RunConfig::default(),
             };
             let outcome = crate::calibrate::run_dir(&dataset, &out, &config)?;
-            let summary = std::fs::read_to_string(out.join("summary.json"))?;
+            print_warnings(&outcome.warnings);
+            let summary_path = out.join("summary.json");
+            let summary = std::fs::read_to_string(&summary_path)
+                .with_context(|| format!("cannot read {}", summary_path.display()))?;
             println!("{summary}");
             eprintln!(
                 "calibrated in {:.2} s -> {}",
@@ -120,6 +126,7 @@ pub fn run(cli: Cli) -> Result<()> {
         }) => {
             let base: pdcal_diagnose::BaseModel = base_model.parse()?;
             let outcome = crate::diagnose::run_dir(&dataset, &out, base)?;
+            print_warnings(&outcome.warnings);
             print!("{}", crate::diagnose::console_summary(&outcome));
             eprintln!("diagnosis -> {}", out.display());
             Ok(())
@@ -130,4 +137,29 @@ pub fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// Warnings on stderr, one line each, after the run (they are also in the output files).
+fn print_warnings(warnings: &[String]) {
+    for w in warnings {
+        eprintln!("pdcal: warning: {w}");
+    }
+}
+
+/// The one-line message of an error: its causes joined by `: `, each said once. Library
+/// errors that both print their inner error and return it as `source` (`"filter: {0}"`
+/// with `#[from]`) would otherwise repeat it in the chain.
+pub fn error_text(error: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in error.chain() {
+        let cause = cause.to_string();
+        if text.contains(&cause) {
+            continue;
+        }
+        if !text.is_empty() {
+            text.push_str(": ");
+        }
+        text.push_str(&cause);
+    }
+    text
 }

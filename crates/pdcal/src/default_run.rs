@@ -3,49 +3,49 @@
 
 use std::path::Path;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 
 use crate::evaluate::Evaluation;
 use crate::files::Summary;
+use crate::output::OutputDir;
 
 /// The seed of the embedded default run.
 pub const DEFAULT_SEED: u64 = 1;
 
-/// Runs the default into `root` (`dataset/` and `calibration/` below it).
+/// Runs the default into `root` (`dataset/` and `calibration/` below it): both output
+/// directories are checked and locked first, the evaluation is written with the calibration
+/// in one publication.
 pub fn run(root: &Path) -> Result<()> {
     let scenario = pdcal_sim::Scenario::rax2_like()?;
     let dataset = root.join("dataset");
     let out = root.join("calibration");
-    crate::simulate::run_to_dir(&scenario, DEFAULT_SEED, &dataset)?;
-    let outcome =
-        crate::calibrate::run_dir(&dataset, &out, &crate::calibrate::RunConfig::default())?;
-    let evaluation = crate::evaluate::run_dir(&dataset, &out)?;
-    let meta = pdcal_dataset::read_meta(&dataset)?;
-    let summary = crate::files::summary(&meta, &outcome);
-    let rows = crate::evaluate::index_rows(&evaluation);
-    crate::figures::write_index(&out, &summary, Some(&rows), &index_figures(&out))?;
+    let dir = OutputDir::create(&out, "default")?;
+    let sim = crate::simulate::run_to_dir(&scenario, DEFAULT_SEED, &dataset)?;
+    let albedo = crate::calibrate::albedo_model()?;
+    let outcome = crate::calibrate::run(
+        &sim.meta,
+        &sim.telemetry,
+        &crate::calibrate::RunConfig::default(),
+        &albedo,
+    )?;
+    let ds = sim.to_dataset();
+    let (truth, constants) = ds.truth.as_ref().context("the simulator wrote no truth")?;
+    let evaluation = crate::evaluate::evaluate(
+        &outcome.run.forward,
+        &outcome.run.calibration,
+        truth,
+        constants,
+    )?;
+    let summary = crate::files::summary(&sim.meta, &outcome);
+    crate::files::write_calibration_outputs(
+        dir,
+        &sim.meta,
+        &sim.telemetry,
+        &outcome,
+        Some(&evaluation),
+    )?;
     print!("{}", report(&summary, &evaluation, &out));
     Ok(())
-}
-
-/// The figures already in `out` (calibrate wrote them), in name order.
-fn index_figures(out: &Path) -> Vec<(String, String)> {
-    let mut stems: Vec<String> = std::fs::read_dir(out)
-        .into_iter()
-        .flatten()
-        .filter_map(|e| e.ok())
-        .filter_map(|e| {
-            e.file_name()
-                .to_str()
-                .and_then(|n| n.strip_suffix(".png"))
-                .map(String::from)
-        })
-        .collect();
-    stems.sort();
-    stems
-        .into_iter()
-        .map(|s| (s.replace('_', " "), s))
-        .collect()
 }
 
 /// The short text report of the default run.

@@ -11,7 +11,7 @@ use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_diagnose::{BaseModel, DiagnoseConfig, DiagnoseInputs, Diagnosis, Gap, Signature};
 use pdcal_report::{BinRange, Figure, HistogramPanel, LineAxes, Mark, Series, histograms, lines};
 
-use crate::output::{OutputDir, write_file_atomic};
+use crate::output::{OutputDir, write_file};
 
 /// Bins of the binned residual-signature figures.
 const SIGNATURE_BINS: usize = 40;
@@ -22,10 +22,13 @@ pub struct DiagnoseOutcome {
     pub diagnosis: Diagnosis,
     /// Wall-clock time of the diagnosis (all calibrations and fits), s.
     pub runtime_s: f64,
+    /// Physical-plausibility warnings on the input ([`crate::checks`]), one line each.
+    pub warnings: Vec<String>,
 }
 
 /// Diagnoses a dataset held in memory (its metadata and telemetry: never its truth).
 pub fn run(meta: &DatasetMeta, telemetry: &Telemetry, base: BaseModel) -> Result<DiagnoseOutcome> {
+    let warnings = crate::checks::check_telemetry(telemetry)?;
     let references = pdcal_filter::step_references(meta, telemetry)?;
     let albedo = crate::calibrate::albedo_model()?;
     let albedo_map = crate::calibrate::ALBEDO_MAP.to_string();
@@ -42,28 +45,29 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry, base: BaseModel) -> Result
     Ok(DiagnoseOutcome {
         diagnosis,
         runtime_s: start.elapsed().as_secs_f64(),
+        warnings,
     })
 }
 
 /// `pdcal diagnose DATASET_DIR --out OUT_DIR [--base-model ...]`.
 pub fn run_dir(dataset: &Path, out: &Path, base: BaseModel) -> Result<DiagnoseOutcome> {
+    let dir = OutputDir::create(out, "diagnose")?;
     let meta = pdcal_dataset::read_meta(dataset)?;
     let telemetry = pdcal_dataset::read_telemetry(dataset, &meta)?;
     let outcome = run(&meta, &telemetry, base)?;
-    write_outputs(out, &meta, &outcome)?;
+    write_outputs(dir, &meta, &outcome)?;
     Ok(outcome)
 }
 
-/// Writes diagnosis.json, report.md, the figures and index.html into `out`, whole or not
-/// at all.
-pub fn write_outputs(out: &Path, meta: &DatasetMeta, outcome: &DiagnoseOutcome) -> Result<()> {
-    let dir = OutputDir::create(out)?;
+/// Writes diagnosis.json, report.md, the figures and index.html into `dir` (created before
+/// the computation) and publishes it in one step.
+pub fn write_outputs(dir: OutputDir, meta: &DatasetMeta, outcome: &DiagnoseOutcome) -> Result<()> {
     let d = &outcome.diagnosis;
     let json = serde_json::to_string_pretty(&d.summary())?;
-    write_file_atomic(&dir.file("diagnosis.json"), json.as_bytes())?;
+    write_file(&dir.file("diagnosis.json"), json.as_bytes())?;
     let figures = round_figures(dir.path(), d)?;
     let report = report_text(meta, outcome, &figures);
-    write_file_atomic(&dir.file("report.md"), report.as_bytes())?;
+    write_file(&dir.file("report.md"), report.as_bytes())?;
     let rows = index_rows(d);
     pdcal_report::index_html(
         dir.path(),

@@ -16,7 +16,13 @@ pub const CONVERGENCE_SUNLIT_S: f64 = 600.0;
 /// field of view), deg.
 pub const LIT_FOV_DEG: f64 = 60.0;
 
-/// `evaluation.json`.
+/// Share of the estimate rows that truth.csv must cover for the time-series figures.
+pub const MIN_TRUTH_COVERAGE: f64 = 0.99;
+/// Minutes a photodiode must be lit to count in the worst-case figures.
+pub const WELL_LIT_MINUTES: f64 = 5.0;
+
+/// `evaluation.json`. A figure that cannot be computed is NaN here, `null` in the JSON, and
+/// listed in `not_evaluable` with the reason; it is never reported as 0.
 #[derive(Debug, Clone, Serialize)]
 pub struct Evaluation {
     /// Layout version.
@@ -31,6 +37,28 @@ pub struct Evaluation {
     pub attitude: AttitudeStats,
     /// NEES-style consistency.
     pub consistency: Consistency,
+    /// Estimate rows whose time truth.csv has, and all estimate rows.
+    pub truth_coverage: TruthCoverage,
+    /// The figures that are `null`, and why.
+    pub not_evaluable: Vec<NotEvaluable>,
+}
+
+/// How many estimate rows truth.csv covers.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct TruthCoverage {
+    /// Estimate rows with a truth row at the same time.
+    pub matched_rows: usize,
+    /// Estimate rows.
+    pub estimate_rows: usize,
+}
+
+/// A figure left `null` in `evaluation.json`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NotEvaluable {
+    /// Its JSON path (`attitude.rms_deg`).
+    pub figure: &'static str,
+    /// Why it cannot be computed.
+    pub reason: String,
 }
 
 /// One photodiode's true errors.
@@ -85,6 +113,18 @@ fn quat_of(v: &nalgebra::Vector4<f64>) -> Option<Quat> {
     Quat::new_normalized(v.x, v.y, v.z, v.w)
 }
 
+/// What is wrong with four numbers that do not normalise to a quaternion: a NaN or an
+/// infinity is not a zero quaternion.
+fn quaternion_fault(q: &[f64; 4]) -> String {
+    if !q.iter().all(|x| x.is_finite()) {
+        format!("{q:?} (not finite)")
+    } else if q.iter().all(|x| *x == 0.0) {
+        format!("{q:?} (all zero)")
+    } else {
+        format!("{q:?} (its norm overflows)")
+    }
+}
+
 fn wrap_deg(a: f64) -> f64 {
     (a + 180.0).rem_euclid(360.0) - 180.0
 }
@@ -115,18 +155,29 @@ pub fn evaluate(
         &truth_row,
         &attitude.1,
     );
-    Ok(Evaluation {
+    let truth_coverage = TruthCoverage {
+        matched_rows: estimates
+            .iter()
+            .filter(|e| truth_row(e.t_s).is_some())
+            .count(),
+        estimate_rows: estimates.len(),
+    };
+    let mut evaluation = Evaluation {
         format_version: crate::files::OUTPUT_FORMAT_VERSION,
         worst_normal_error_deg,
         worst_scale_error_percent,
         photodiodes,
         attitude: attitude.0,
         consistency,
-    })
+        truth_coverage,
+        not_evaluable: Vec::new(),
+    };
+    mark_not_evaluable(&mut evaluation);
+    Ok(evaluation)
 }
 
 /// Each photodiode's true errors, and the worst normal (deg) and scale (%) errors over the
-/// photodiodes lit at least 5 minutes. The calibration must have truth.ron's photodiode
+/// photodiodes lit at least 5 minutes (NaN when none was). The calibration must have truth.ron's photodiode
 /// count (checked by [`evaluate`]).
 pub fn photodiode_errors(
     final_cal: &Calibration,
@@ -151,12 +202,96 @@ pub fn photodiode_errors(
             }
         })
         .collect();
-    let well_lit = || photodiodes.iter().filter(|p| p.lit_minutes >= 5.0);
-    let normal = well_lit().map(|p| p.normal_error_deg).fold(0.0, f64::max);
+    let well_lit = || {
+        photodiodes
+            .iter()
+            .filter(|p| p.lit_minutes >= WELL_LIT_MINUTES)
+    };
+    // NaN, not 0, when no photodiode was lit long enough: there is no worst case.
+    let normal = well_lit()
+        .map(|p| p.normal_error_deg)
+        .fold(f64::NAN, f64::max);
     let scale = well_lit()
         .map(|p| p.scale_error_percent.abs())
-        .fold(0.0, f64::max);
+        .fold(f64::NAN, f64::max);
     (photodiodes, normal, scale)
+}
+
+/// Sets to NaN, and lists with the reason, every figure the data cannot support: all
+/// time-series figures when truth.csv covers too few estimate rows, the worst-case figures
+/// when no photodiode was lit long enough, and statistics over no samples.
+fn mark_not_evaluable(e: &mut Evaluation) {
+    let mut out = Vec::new();
+    let c = e.truth_coverage;
+    let covered =
+        c.estimate_rows > 0 && c.matched_rows as f64 >= MIN_TRUTH_COVERAGE * c.estimate_rows as f64;
+    if !covered {
+        let reason = format!(
+            "truth.csv covers {} of {} estimate rows (needs {:.0} %)",
+            c.matched_rows,
+            c.estimate_rows,
+            100.0 * MIN_TRUTH_COVERAGE
+        );
+        let a = &mut e.attitude;
+        let k = &mut e.consistency;
+        for (figure, value) in [
+            ("worst_normal_error_deg", &mut e.worst_normal_error_deg),
+            (
+                "worst_scale_error_percent",
+                &mut e.worst_scale_error_percent,
+            ),
+            ("attitude.mean_deg", &mut a.mean_deg),
+            ("attitude.rms_deg", &mut a.rms_deg),
+            ("attitude.p99_deg", &mut a.p99_deg),
+            (
+                "consistency.attitude_within_3sigma",
+                &mut k.attitude_within_3sigma,
+            ),
+            (
+                "consistency.converged_within_3sigma_of_final",
+                &mut k.converged_within_3sigma_of_final,
+            ),
+        ] {
+            *value = f64::NAN;
+            out.push(NotEvaluable {
+                figure,
+                reason: reason.clone(),
+            });
+        }
+        a.axis_rms_deg = [f64::NAN; 3];
+        a.axis_filter_sigma_deg = [f64::NAN; 3];
+    }
+    if covered && e.worst_normal_error_deg.is_nan() {
+        let most = e
+            .photodiodes
+            .iter()
+            .max_by(|a, b| a.lit_minutes.total_cmp(&b.lit_minutes));
+        let reason = match most {
+            Some(p) => format!(
+                "no photodiode was lit (full Sun, within {LIT_FOV_DEG:.0} deg) for \
+                 {WELL_LIT_MINUTES:.0} minutes; the most was pd{:02} with {:.1} min",
+                p.index, p.lit_minutes
+            ),
+            None => "no photodiodes".to_owned(),
+        };
+        for figure in ["worst_normal_error_deg", "worst_scale_error_percent"] {
+            out.push(NotEvaluable {
+                figure,
+                reason: reason.clone(),
+            });
+        }
+    }
+    if covered && e.attitude.samples == 0 {
+        for figure in ["attitude.mean_deg", "attitude.rms_deg", "attitude.p99_deg"] {
+            out.push(NotEvaluable {
+                figure,
+                reason: format!(
+                    "no sunlit samples after the first {CONVERGENCE_SUNLIT_S:.0} sunlit seconds"
+                ),
+            });
+        }
+    }
+    e.not_evaluable = out;
 }
 
 /// Minutes each photodiode spent in full Sun with the Sun inside its field of view (truth).
@@ -216,13 +351,21 @@ fn attitude_stats(
     let mut angles = Vec::with_capacity(samples.len());
     let (mut sq, mut sig) = (Vector3::zeros(), Vector3::zeros());
     for &(k, row) in &samples {
-        let q_true = quat_of(&truth.q[row]).context("truth.csv quaternion is zero")?;
+        let q = &truth.q[row];
+        let q_true = quat_of(q).with_context(|| {
+            format!(
+                "truth.csv at t_s = {} (q_x, q_y, q_z, q_w): {} is not a quaternion",
+                truth.t_s[row],
+                quaternion_fault(&[q.x, q.y, q.z, q.w])
+            )
+        })?;
         let a = error_vector(&q_true, &estimates[k].q).map(f64::to_degrees);
         angles.push(a.norm());
         sq += a.component_mul(&a);
         sig += Vector3::from(estimates[k].attitude_sigma_deg);
     }
-    let n = samples.len().max(1) as f64;
+    // No samples gives NaN statistics, which evaluate lists as not evaluable.
+    let n = samples.len() as f64;
     angles.sort_by(f64::total_cmp);
     let p99 = angles
         .get(((angles.len() as f64 * 0.99) as usize).min(angles.len().saturating_sub(1)))
@@ -300,8 +443,9 @@ fn converged_to_final(
     fraction(&inside)
 }
 
+/// The share of true flags; NaN for none (not 0: nothing was checked).
 fn fraction(flags: &[bool]) -> f64 {
-    flags.iter().filter(|b| **b).count() as f64 / flags.len().max(1) as f64
+    flags.iter().filter(|b| **b).count() as f64 / flags.len() as f64
 }
 
 /// Rows for index.html.
@@ -334,7 +478,10 @@ pub fn index_rows(e: &Evaluation) -> Vec<(String, String)> {
 pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
     let mut reader =
         csv::Reader::from_path(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let header = reader.headers()?.clone();
+    let header = reader
+        .headers()
+        .with_context(|| format!("{}: cannot read the header row", path.display()))?
+        .clone();
     let col = |name: &str| {
         header
             .iter()
@@ -371,15 +518,17 @@ pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
         .collect::<Result<_>>()?;
     let mut out = Vec::new();
     for (line, record) in reader.records().enumerate() {
-        let record = record?;
+        let record = record.with_context(|| format!("{}:{}", path.display(), line + 2))?;
         let num = |c: usize| -> Result<f64> {
             let text = record.get(c).unwrap_or("");
-            text.parse::<f64>().with_context(|| {
-                format!(
-                    "{}:{}:{}: {text:?} is not a number",
+            text.parse::<f64>().map_err(|_| {
+                anyhow::anyhow!(
+                    "{}:{}:{} ({}): {} is not a number",
                     path.display(),
                     line + 2,
-                    c + 1
+                    c + 1,
+                    header.get(c).unwrap_or("?"),
+                    pdcal_dataset::quote(text)
                 )
             })
         };
@@ -389,8 +538,15 @@ pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
                 .filter(|s| !s.is_empty())
                 .and_then(|s| s.parse::<f64>().ok())
         };
-        let q = Quat::new_normalized(num(base[1])?, num(base[2])?, num(base[3])?, num(base[4])?)
-            .with_context(|| format!("{}:{}: zero quaternion", path.display(), line + 2))?;
+        let q = [num(base[1])?, num(base[2])?, num(base[3])?, num(base[4])?];
+        let q = Quat::new_normalized(q[0], q[1], q[2], q[3]).with_context(|| {
+            format!(
+                "{}:{} (q_x, q_y, q_z, q_w): {} is not a quaternion",
+                path.display(),
+                line + 2,
+                quaternion_fault(&q)
+            )
+        })?;
         let photodiodes = pd_cols
             .iter()
             .map(|c| {
@@ -442,8 +598,9 @@ pub fn run_dir(dataset: &Path, out: &Path) -> Result<Evaluation> {
         Calibration::from_ron_str(&text).with_context(|| format!("{}", cal_path.display()))?;
     let estimates = read_estimates(&out.join("estimates.csv"))?;
     let evaluation = evaluate(&estimates, &final_cal, &truth, &constants)?;
-    crate::output::write_file_atomic(
-        &out.join("evaluation.json"),
+    crate::output::add_file(
+        out,
+        "evaluation.json",
         serde_json::to_string_pretty(&evaluation)?.as_bytes(),
     )?;
     Ok(evaluation)

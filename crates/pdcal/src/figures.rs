@@ -286,7 +286,7 @@ pub fn write_index(
 ) -> Result<()> {
     let mut rows: Vec<(String, String)> = vec![
         ("dataset".into(), summary.dataset.clone()),
-        ("mode".into(), summary.mode.clone()),
+        ("mode".into(), summary.mode.to_owned()),
         (
             "Sun-vector magnitude, initial (mean / std)".into(),
             format!(

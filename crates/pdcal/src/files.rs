@@ -1,15 +1,13 @@
 //! The output files of `docs/cli-contract.md`: summary.json, calibration.ron, estimates.csv,
 //! residuals.csv, the figures and index.html, written whole or not at all.
 
-use std::path::Path;
-
 use anyhow::{Context, Result};
 use pdcal_dataset::{DatasetMeta, Telemetry};
-use pdcal_filter::{CalibrationRun, ResidualRecord, Sensor, StepEstimate};
+use pdcal_filter::{CalibrationRun, ModeUsed, ResidualRecord, Sensor, StepEstimate};
 use serde::Serialize;
 
 use crate::calibrate::Outcome;
-use crate::output::OutputDir;
+use crate::output::{OutputDir, write_file};
 
 /// Version of the output files' layout (cli-contract.md).
 pub const OUTPUT_FORMAT_VERSION: u32 = 1;
@@ -21,8 +19,10 @@ pub struct Summary {
     pub format_version: u32,
     /// Dataset name from dataset.ron.
     pub dataset: String,
-    /// Mode the filter ran in.
-    pub mode: String,
+    /// Mode the filter ran in: `full`, `photodiode-only` or `scale-only` ([`mode_name`]).
+    pub mode: &'static str,
+    /// Whether magnetometer updates were made.
+    pub magnetometer_used: bool,
     /// Per photodiode, in pdNN order.
     pub photodiodes: Vec<PdSummary>,
     /// Final gyro bias, rad/s, body.
@@ -37,6 +37,8 @@ pub struct Summary {
     pub updates: serde_json::Value,
     /// Wall-clock time of the filter run, s.
     pub runtime_s: f64,
+    /// Physical-plausibility warnings on the input, one line each (also on stderr).
+    pub warnings: Vec<String>,
 }
 
 /// One photodiode in `summary.json`.
@@ -75,13 +77,27 @@ pub struct PdInitial {
     pub elevation_deg: f64,
 }
 
-/// Mean and standard deviation.
+/// Serde's test for statistics that do not exist (NaN): they are left out of the JSON,
+/// and the object's `count` and `reason` say why, instead of a bare `null`.
+fn undefined(x: &f64) -> bool {
+    !x.is_finite()
+}
+
+/// Mean and standard deviation; in JSON, `mean` is left out when `count` is 0 and `std`
+/// when `count` is below 2, with `reason` saying so.
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct MeanStd {
-    /// Mean.
+    /// Mean (NaN without samples).
+    #[serde(skip_serializing_if = "undefined")]
     pub mean: f64,
-    /// Sample standard deviation.
+    /// Sample standard deviation (NaN with fewer than 2 samples).
+    #[serde(skip_serializing_if = "undefined")]
     pub std: f64,
+    /// Finite samples counted.
+    pub count: usize,
+    /// Why `mean` or `std` is absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<&'static str>,
 }
 
 /// Sun-vector magnitude, initial and calibrated.
@@ -95,26 +111,48 @@ pub struct MagnitudeSummary {
     pub samples: usize,
 }
 
-/// A mean only.
+/// A mean only; in JSON, `mean` is left out when `count` is 0, with `reason`.
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct MeanOnly {
-    /// Mean.
+    /// Mean (NaN without samples).
+    #[serde(skip_serializing_if = "undefined")]
     pub mean: f64,
+    /// Finite samples counted.
+    pub count: usize,
+    /// Why `mean` is absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<&'static str>,
 }
 
-/// Photodiode residuals.
+/// Photodiode residuals; in JSON, the RMS and fraction are left out when `count` is 0,
+/// with `reason`.
 #[derive(Debug, Clone, Copy, Serialize)]
 #[allow(non_snake_case)]
 pub struct ResidualSummary {
-    /// RMS of the photodiode residuals, V.
+    /// RMS of the photodiode residuals, V (NaN without residuals).
+    #[serde(skip_serializing_if = "undefined")]
     pub photodiode_rms_V: f64,
-    /// Fraction of photodiode residuals inside their 3-sigma bound.
+    /// Fraction of photodiode residuals inside their 3-sigma bound (NaN without residuals).
+    #[serde(skip_serializing_if = "undefined")]
     pub fraction_within_3sigma: f64,
     /// Photodiode residuals counted.
     pub count: usize,
+    /// Why the statistics are absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<&'static str>,
 }
 
-/// Mean and sample standard deviation of finite values (NaN for fewer than 2).
+/// The `reason` of a statistic over `count` samples that needs at least `needed`.
+fn too_few(count: usize, needed: usize) -> Option<&'static str> {
+    match (count, needed) {
+        (0, _) => Some("no samples"),
+        (1, 2) => Some("one sample: no standard deviation"),
+        _ => None,
+    }
+}
+
+/// Mean and sample standard deviation of finite values (NaN, and a reason, for fewer than
+/// 1 and 2 values).
 pub fn mean_std(values: &[f64]) -> MeanStd {
     let v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
     let n = v.len() as f64;
@@ -122,7 +160,9 @@ pub fn mean_std(values: &[f64]) -> MeanStd {
     let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
     MeanStd {
         mean,
-        std: var.sqrt(),
+        std: if v.len() < 2 { f64::NAN } else { var.sqrt() },
+        count: v.len(),
+        reason: too_few(v.len(), 2),
     }
 }
 
@@ -132,7 +172,7 @@ pub fn residual_summary(residuals: &[ResidualRecord]) -> ResidualSummary {
         .iter()
         .filter(|r| matches!(r.sensor, Sensor::Photodiode(_)))
         .collect();
-    let n = pd.len().max(1) as f64;
+    let n = pd.len() as f64;
     let rms = (pd.iter().map(|r| r.residual * r.residual).sum::<f64>() / n).sqrt();
     let inside = pd
         .iter()
@@ -142,6 +182,16 @@ pub fn residual_summary(residuals: &[ResidualRecord]) -> ResidualSummary {
         photodiode_rms_V: rms,
         fraction_within_3sigma: inside / n,
         count: pd.len(),
+        reason: too_few(pd.len(), 1),
+    }
+}
+
+/// The stable name of a mode in `summary.json`: `full`, `photodiode-only`, `scale-only`.
+pub fn mode_name(mode: ModeUsed) -> &'static str {
+    match mode {
+        ModeUsed::Full => "full",
+        ModeUsed::PhotodiodeOnly => "photodiode-only",
+        ModeUsed::ScaleOnly { .. } => "scale-only",
     }
 }
 
@@ -175,7 +225,14 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
     Summary {
         format_version: OUTPUT_FORMAT_VERSION,
         dataset: meta.name.clone(),
-        mode: format!("{:?}", run.mode),
+        mode: mode_name(run.mode),
+        magnetometer_used: matches!(
+            run.mode,
+            ModeUsed::Full
+                | ModeUsed::ScaleOnly {
+                    with_magnetometer: true
+                }
+        ),
         photodiodes,
         gyro_bias_rad_s: run.calibration.gyro_bias_rad_s,
         sun_vector_magnitude: MagnitudeSummary {
@@ -183,12 +240,18 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
             calibrated: mean_std(&sv.magnitude_calibrated),
             samples: sv.t_s.len(),
         },
-        sun_direction_change_deg: MeanOnly {
-            mean: mean_std(&sv.direction_change_deg).mean,
+        sun_direction_change_deg: {
+            let m = mean_std(&sv.direction_change_deg);
+            MeanOnly {
+                mean: m.mean,
+                count: m.count,
+                reason: too_few(m.count, 1),
+            }
         },
         residuals: residual_summary(&run.residuals),
         updates: counts_json(run),
         runtime_s: outcome.runtime_s,
+        warnings: outcome.warnings.clone(),
     }
 }
 
@@ -316,39 +379,48 @@ pub fn residuals_csv(residuals: &[ResidualRecord]) -> Result<Vec<u8>> {
     w.into_inner().context("residuals.csv")
 }
 
-/// Writes every output of a calibration into `out` (whole or not at all).
+/// Writes every output of a calibration into `dir` (created before the computation) and
+/// publishes it in one step; with `evaluation` (the default run), also `evaluation.json` and
+/// its rows in index.html.
 pub fn write_calibration_outputs(
-    out: &Path,
+    dir: OutputDir,
     meta: &DatasetMeta,
     telemetry: &Telemetry,
     outcome: &Outcome,
+    evaluation: Option<&crate::evaluate::Evaluation>,
 ) -> Result<()> {
-    let dir = OutputDir::create(out)?;
     let summary = summary(meta, outcome);
     let m = meta.photodiodes.len();
-    std::fs::write(
-        dir.file("summary.json"),
-        serde_json::to_string_pretty(&summary)?,
+    write_file(
+        &dir.file("summary.json"),
+        serde_json::to_string_pretty(&summary)?.as_bytes(),
     )?;
-    std::fs::write(
-        dir.file("calibration.ron"),
-        outcome.run.calibration.to_ron_string()?,
+    write_file(
+        &dir.file("calibration.ron"),
+        outcome.run.calibration.to_ron_string()?.as_bytes(),
     )?;
-    std::fs::write(
-        dir.file("estimates.csv"),
-        estimates_csv(&outcome.run.forward, m)?,
+    write_file(
+        &dir.file("estimates.csv"),
+        &estimates_csv(&outcome.run.forward, m)?,
     )?;
     if let Some(smoothed) = &outcome.run.smoothed {
-        std::fs::write(
-            dir.file("estimates_smoothed.csv"),
-            estimates_csv(smoothed, m)?,
+        write_file(
+            &dir.file("estimates_smoothed.csv"),
+            &estimates_csv(smoothed, m)?,
         )?;
     }
-    std::fs::write(
-        dir.file("residuals.csv"),
-        residuals_csv(&outcome.run.residuals)?,
+    write_file(
+        &dir.file("residuals.csv"),
+        &residuals_csv(&outcome.run.residuals)?,
     )?;
     let figures = crate::figures::calibration_figures(dir.path(), telemetry, outcome)?;
-    crate::figures::write_index(dir.path(), &summary, None, &figures)?;
+    let rows = evaluation.map(crate::evaluate::index_rows);
+    if let Some(e) = evaluation {
+        write_file(
+            &dir.file("evaluation.json"),
+            serde_json::to_string_pretty(e)?.as_bytes(),
+        )?;
+    }
+    crate::figures::write_index(dir.path(), &summary, rows.as_deref(), &figures)?;
     dir.commit()
 }

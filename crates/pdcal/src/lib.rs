@@ -6,6 +6,7 @@
 //! ([`output::OutputDir`]).
 
 pub mod calibrate;
+pub mod checks;
 pub mod cli;
 pub mod default_run;
 pub mod diagnose;

@@ -10,7 +10,7 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
             // One line with the whole cause chain, as the CLI contract asks.
-            eprintln!("pdcal: error: {error:#}");
+            eprintln!("pdcal: error: {}", pdcal::cli::error_text(&error));
             ExitCode::FAILURE
         }
     }

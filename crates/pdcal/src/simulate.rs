@@ -22,18 +22,19 @@ pub fn run(scenario: &Scenario, seed: u64) -> Result<SimOutput> {
     pdcal_sim::simulate(scenario, seed).with_context(|| format!("simulating {}", scenario.name))
 }
 
-/// Simulates and writes the dataset directory (whole or not at all).
+/// Simulates and writes the dataset directory (whole or not at all); `out` is checked and
+/// locked before the simulation.
 pub fn run_to_dir(scenario: &Scenario, seed: u64, out: &Path) -> Result<SimOutput> {
+    let writer = pdcal_dataset::begin_dataset(out)?;
     let output = run(scenario, seed)?;
-    pdcal_dataset::write_dataset(out, &output.to_dataset())?;
+    writer.write(&output.to_dataset())?;
     Ok(output)
 }
 
 /// Figures of a simulated set, after the paper's Figs. 2 and 3: the raw photodiode outputs
 /// over time and the true Sun directions in the body frame (sunlit samples), written whole
-/// into `dir` (a directory of its own, so the dataset directory stays a pure dataset).
-pub fn write_plots(output: &SimOutput, dir: &Path) -> Result<()> {
-    let staging = crate::output::OutputDir::create(dir)?;
+/// into `staging` (a directory of its own, so the dataset directory stays a pure dataset).
+pub fn write_plots(output: &SimOutput, staging: crate::output::OutputDir) -> Result<()> {
     let telemetry = &output.telemetry;
     let title = format!(
         "Raw photodiode outputs, {} (seed {})",

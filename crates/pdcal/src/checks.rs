@@ -1,0 +1,132 @@
+//! Physical plausibility of telemetry that the reader accepts as numbers: what cannot come
+//! from working sensors on an orbiting spacecraft.
+//!
+//! Errors where calibrating would produce confident nonsense: a gyro that reads exactly 0
+//! throughout (the attitude would be propagated as if the spacecraft did not rotate), a
+//! gyro or magnetometer axis stuck at one value, a photodiode stuck at a nonzero value, a
+//! photodiode column mostly above any plausible full scale (ADC counts written as volts).
+//! Warnings where the run stays meaningful but the user should look: a photodiode that
+//! reads 0 throughout (a dead channel: it is reported unused), a few photodiode samples
+//! above the full scale (outliers), a field magnitude outside 10-70 uT on some rows (the
+//! geomagnetic field in low Earth orbit stays inside; a magnetometer bias or units).
+
+use anyhow::{Result, bail};
+use nalgebra::Vector3;
+use pdcal_dataset::{TELEMETRY_CSV, Telemetry, photodiode_column};
+
+/// Sampled rows below which a constant column is not called stuck.
+pub const MIN_ROWS_FOR_STUCK: usize = 10;
+/// Field magnitude range of low Earth orbit, nT.
+pub const FIELD_RANGE_NT: (f64, f64) = (10_000.0, 70_000.0);
+/// Photodiode output above any plausible full scale, V.
+pub const PHOTODIODE_MAX_V: f64 = 50.0;
+/// Share of a photodiode's samples above [`PHOTODIODE_MAX_V`] from which the column is
+/// taken for a unit mistake (an error) rather than outliers (a warning).
+pub const UNIT_MISTAKE_SHARE: f64 = 0.1;
+
+/// The value every sample of a column holds, if at least [`MIN_ROWS_FOR_STUCK`] are sampled
+/// and all are equal.
+fn stuck_value(values: impl Iterator<Item = f64>) -> Option<(f64, usize)> {
+    let mut first = None;
+    let mut n = 0;
+    for v in values {
+        n += 1;
+        match first {
+            None => first = Some(v),
+            Some(f) if f != v => return None,
+            Some(_) => {}
+        }
+    }
+    first.filter(|_| n >= MIN_ROWS_FOR_STUCK).map(|f| (f, n))
+}
+
+fn axis<'a>(column: &'a [Option<Vector3<f64>>], i: usize) -> impl Iterator<Item = f64> + 'a {
+    column.iter().flatten().map(move |v| v[i])
+}
+
+/// Checks `telemetry` (see the module documentation): `Err` for the first fault that makes
+/// a calibration meaningless, otherwise the warnings, one line each, naming the column.
+pub fn check_telemetry(telemetry: &Telemetry) -> Result<Vec<String>> {
+    let f = TELEMETRY_CSV;
+    let mut warnings = Vec::new();
+    let gyro = &telemetry.gyro_rad_s;
+    let sampled = gyro.iter().flatten().count();
+    if sampled >= MIN_ROWS_FOR_STUCK && gyro.iter().flatten().all(|w| *w == Vector3::zeros()) {
+        bail!(
+            "{f} (gyro_x_rad_s, gyro_y_rad_s, gyro_z_rad_s): the gyro reads exactly 0 on all \
+             {sampled} sampled rows; a dead or disconnected gyro makes the attitude, and so the \
+             calibration, meaningless"
+        );
+    }
+    for (i, name) in ["x", "y", "z"].iter().enumerate() {
+        if let Some((v, n)) = stuck_value(axis(gyro, i)) {
+            bail!(
+                "{f} (gyro_{name}_rad_s): stuck at {v:?} on all {n} sampled rows; a working \
+                 gyro's noise never repeats exactly"
+            );
+        }
+    }
+    if let Some(mag) = &telemetry.mag_nt {
+        for (i, name) in ["x", "y", "z"].iter().enumerate() {
+            if let Some((v, n)) = stuck_value(axis(mag, i)) {
+                bail!(
+                    "{f} (mag_{name}_nT): stuck at {v:?} on all {n} sampled rows; a working \
+                     magnetometer on a rotating spacecraft never reads the same twice throughout"
+                );
+            }
+        }
+        let (lo, hi) = FIELD_RANGE_NT;
+        let outside: Vec<(usize, f64)> = mag
+            .iter()
+            .enumerate()
+            .filter_map(|(k, b)| b.map(|b| (k, b.norm())))
+            .filter(|(_, n)| !(lo..=hi).contains(n))
+            .collect();
+        if let Some(&(k, norm)) = outside.first() {
+            warnings.push(format!(
+                "{f} (mag_x_nT, mag_y_nT, mag_z_nT): field magnitude outside {:.0}-{:.0} uT on \
+                 {} of {} sampled rows (first at t_s = {:?}: {norm:.0} nT); check the units \
+                 (nT) and the magnetometer's bias",
+                lo / 1000.0,
+                hi / 1000.0,
+                outside.len(),
+                mag.iter().flatten().count(),
+                telemetry.t_s[k]
+            ));
+        }
+    }
+    for (i, column) in telemetry.pd_v.iter().enumerate() {
+        let name = photodiode_column(i + 1);
+        let sampled = column.iter().flatten().count();
+        match stuck_value(column.iter().flatten().copied()) {
+            Some((0.0, n)) => warnings.push(format!(
+                "{f} ({name}): 0 on all {n} sampled rows, a dead channel; it is not calibrated"
+            )),
+            Some((v, n)) => bail!(
+                "{f} ({name}): stuck at {v:?} V on all {n} sampled rows; a photodiode on a \
+                 rotating spacecraft cannot read one value throughout (leave its cells empty to \
+                 calibrate the others)"
+            ),
+            None => {}
+        }
+        let above: Vec<(usize, f64)> = column
+            .iter()
+            .enumerate()
+            .filter_map(|(k, v)| v.filter(|v| *v > PHOTODIODE_MAX_V).map(|v| (k, v)))
+            .collect();
+        let Some(&(k, v)) = above.first() else {
+            continue;
+        };
+        let what = format!(
+            "{f} ({name}): {} of {sampled} samples above {PHOTODIODE_MAX_V} V, beyond any \
+             photodiode's full scale (first at t_s = {:?}: {v:?} V)",
+            above.len(),
+            telemetry.t_s[k]
+        );
+        if above.len() as f64 > UNIT_MISTAKE_SHARE * sampled as f64 {
+            bail!("{what}; are these ADC counts rather than volts?");
+        }
+        warnings.push(format!("{what}; they are outliers"));
+    }
+    Ok(warnings)
+}
