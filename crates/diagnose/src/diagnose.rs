@@ -238,8 +238,13 @@ impl Diagnosis {
             .filter(|r| self.final_spec.added.iter().any(|e| e.id() == r.found))
             .collect();
         named.sort_by(|a, b| b.score.total_cmp(&a.score));
-        named.dedup_by_key(|r| r.found);
-        let mut parts: Vec<&str> = named.iter().map(|r| r.found.as_str()).collect();
+        let mut parts: Vec<&str> = Vec::new();
+        for r in named {
+            // An effect dropped and found again counts once, at its best score.
+            if !parts.contains(&r.found.as_str()) {
+                parts.push(r.found.as_str());
+            }
+        }
         if !self.misfit.explained {
             parts.push(UNEXPLAINED);
         }

@@ -33,13 +33,16 @@
 //!   `P` are recomputed.
 //! - Updates (Eqs. 4-7): sequential scalar updates, every row of a step linearised at the
 //!   prior (rows, predictions and variances built first, then one tight loop in
-//!   `sequential`); `P -= w w^T`, `w = P H^T / sqrt(s)` (the optimal-gain Joseph form),
+//!   `sequential`); `P -= w w^T`, `w = P H^T / sqrt(s)`: the standard form
+//!   `P - K s K^T = (I - K H) P`, not the Joseph form, which equals it only for the optimal
+//!   gain and in exact arithmetic (symmetry is kept by updating one triangle and
+//!   mirroring; the dense reference filter, `dense`, uses the Joseph form);
 //!   deferred within a step: `P H^T` of a later update is `P_0 H^T - W (W^T H^T)`, and at the
 //!   end of the step one rank-k downdate of the lower triangle, mirrored so that `P` stays
 //!   exactly symmetric (the kernels in `algebra`: run-time dispatched AVX2/AVX-512 through
-//!   `pulp`, since the workspace builds for the SSE2 baseline). (Until issue 7 the attitude
-//!   was relinearised after each accepted update; the 20-seed validation tables agree
-//!   without it to 0.004 deg and 0.003 %, and it cost 0.9 us of an 11 us step.) The
+//!   `pulp`, since the workspace builds for the SSE2 baseline). The attitude is not
+//!   relinearised between the updates of one step (docs/validation.md measures the
+//!   difference). The
 //!   measurement variance adds the second-order (curvature) term of the measurement
 //!   function under the prior covariance (see [`FilterConfig::second_order_noise`]). Photodiode rows (Eq. 15 with
 //!   albedo; Eqs. 20-24 through the photodiode crate's partials, albedo partials as
