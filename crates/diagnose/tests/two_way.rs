@@ -245,3 +245,28 @@ fn a_hot_photodiode_dropping_is_unexplained_and_located() {
         );
     }
 }
+
+/// A dead channel (photodiode 1 reads 0 throughout, as on real flight frames): the
+/// diagnosis completes; a candidate whose refit leaves the physical range (a negative or
+/// zero scale factor) is rejected with the reason, never fatal; the dead photodiode is
+/// where the misfit sits.
+#[test]
+fn a_dead_channel_never_ends_the_diagnosis() {
+    let mut sim = simulate(&scenario(vec![albedo()], SHORT_S), 7).expect("simulation");
+    for v in sim.telemetry.pd_v[0].iter_mut().flatten() {
+        *v = 0.0;
+    }
+    let d = diagnose_with_map(&sim, MapChoice::TomsMean1p25x1, BaseModel::Paper);
+    println!("dead channel: {}", describe(&d));
+    for r in d
+        .rounds
+        .iter()
+        .flat_map(|r| &r.rejected)
+        .chain(&d.final_rejected)
+    {
+        assert!(!r.reason.is_empty(), "{r:?}");
+    }
+    if !d.misfit.explained {
+        assert_eq!(d.misfit.photodiodes[0].photodiode, 1, "{}", describe(&d));
+    }
+}
