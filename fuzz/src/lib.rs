@@ -128,6 +128,9 @@ impl Verdict {
 pub fn exercise(target: Target, input: &[u8], scratch: &Path) -> Verdict {
     let write = |name: &str, bytes: &[u8]| -> PathBuf {
         let path = scratch.join(name);
+        // A fresh file rather than a truncated one: ext4 flushes a file that is truncated and
+        // rewritten when it is closed, which cost milliseconds per input on a disk.
+        let _ = fs::remove_file(&path);
         if let Err(e) = fs::write(&path, bytes) {
             panic!("fuzz harness: cannot write {}: {e}", path.display());
         }
@@ -222,10 +225,17 @@ pub struct Scratch {
 }
 
 impl Scratch {
-    /// Creates `PARENT/pdcal-fuzz-TAG-PID` afresh (`PARENT` is the system's temporary
-    /// directory unless given); `tag` keeps concurrent users of one process apart.
+    /// Creates `PARENT/pdcal-fuzz-TAG-PID` afresh; `tag` keeps concurrent users of one
+    /// process apart. `PARENT` is, unless given, `/dev/shm` where it exists (every input is
+    /// written to a file, and memory keeps that off the disk), else the system's temporary
+    /// directory.
     pub fn new(parent: Option<&Path>, tag: &str) -> std::io::Result<Self> {
-        let parent = parent.map_or_else(std::env::temp_dir, Path::to_path_buf);
+        let shm = Path::new("/dev/shm");
+        let parent = match parent {
+            Some(p) => p.to_path_buf(),
+            None if shm.is_dir() => shm.to_path_buf(),
+            None => std::env::temp_dir(),
+        };
         let path = parent.join(format!("pdcal-fuzz-{tag}-{}", std::process::id()));
         if path.exists() {
             fs::remove_dir_all(&path)?;

@@ -4,7 +4,7 @@
 //! runs every target.
 //!
 //! Environment: `PDCAL_FUZZ_SCRATCH` is the directory under which the target's files are
-//! written (default: the system's temporary directory); `PDCAL_FUZZ_QUOTES=1` also counts a
+//! written (default: `/dev/shm`, else the system's temporary directory); `PDCAL_FUZZ_QUOTES=1` also counts a
 //! message quoting too much of its input as a crash.
 
 use std::path::PathBuf;
