@@ -24,6 +24,11 @@ cargo afl build --release -p pdcal-fuzz --features afl --target-dir "$afl_dir"
 # Cores and the CPU governor are shared with other work here: no core pinning, no check of
 # the frequency governor. Without a UI, the progress goes to the log.
 export AFL_NO_AFFINITY=1 AFL_SKIP_CPUFREQ=1 AFL_NO_UI=1 AFL_I_DONT_CARE_ABOUT_MISSING_CRASHES=1
+# afl-fuzz kills the harness, which then cannot remove its scratch files: one directory
+# for the whole run, in memory where possible, removed here.
+PDCAL_FUZZ_SCRATCH="$(mktemp -d -p /dev/shm 2>/dev/null || mktemp -d)"
+export PDCAL_FUZZ_SCRATCH
+trap 'rm -rf "$PDCAL_FUZZ_SCRATCH"' EXIT
 printf '%-14s %10s %9s %9s %7s %7s %6s\n' target execs seconds execs/s corpus crashes hangs
 for target in "${targets[@]}"; do
     out="$afl_dir/out/$target"
