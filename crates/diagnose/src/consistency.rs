@@ -4,10 +4,14 @@
 //! concentrates: which photodiodes, which incidence band, Sun or shadow, which part of the
 //! orbit.
 //!
-//! The noise model is the sensor noise plus the albedo model's own uncertainty: a
+//! The noise model is the sensor noise, the uncertainty the filter reports for what it
+//! estimated (each photodiode's final scale factor and normal: a photodiode seldom lit
+//! inside the filter's 60-deg gate keeps a wide normal, and its residuals at high incidence
+//! may be wide too), plus the albedo model's own uncertainty: a
 //! reflectivity map is a mean over years and cloud cover, and two maps of the same Earth
 //! (TOMS, CERES) differ by a fraction of the albedo they predict, not by a gain. Each
-//! sample's sigma is `sqrt(sigma_pd^2 + (kappa a)^2)`, `a` the modelled albedo output and
+//! sample's sigma is `sqrt(sigma_pd^2 + sigma_pred^2 + (kappa a)^2)`, `a` the modelled
+//! albedo output and
 //! `kappa` = [`ALBEDO_RELATIVE_SIGMA`]; a photodiode that sees no Earth keeps the sensor
 //! noise alone.
 //!
@@ -120,7 +124,7 @@ struct Noise {
 impl Noise {
     fn var(&self, p: &PdSample) -> f64 {
         let a = self.albedo_sigma_per_v * p.albedo_v;
-        self.sensor_var + a * a
+        self.sensor_var + a * a + p.prediction_sigma_v * p.prediction_sigma_v
     }
 }
 

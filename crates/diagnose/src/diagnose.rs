@@ -17,7 +17,7 @@ use serde::Serialize;
 
 use crate::DiagnoseError;
 use crate::candidates::{CandidateFit, Signature, score_candidates, score_one, scored, signature};
-use crate::consistency::{Misfit, misfit};
+use crate::consistency::{MAX_RMS_RATIO, Misfit, misfit};
 use crate::model::{BaseModel, ModelSpec, changes_filter};
 use crate::refit::time_offset_refit;
 use crate::residuals::{ResidualInputs, Residuals, mean_std, residuals, rms};
@@ -702,7 +702,13 @@ fn pd_shrink(
         rms_after: ms_after.sqrt(),
         fraction_removed,
         nats,
-        significant: n > 0 && fraction_removed >= config.min_shrink && nats > config.threshold,
+        // Where the misfit over the support is already within the noise model's bound, the
+        // gain alone decides: a small true effect cannot remove a quarter of an excess that
+        // is mostly the attitude error's.
+        significant: n > 0
+            && nats > config.threshold
+            && (fraction_removed >= config.min_shrink
+                || ms_before.sqrt() <= MAX_RMS_RATIO * before.sigma_pd_v),
     }
 }
 

@@ -58,6 +58,9 @@ pub struct PdSample {
     /// The photodiode's temperature, degrees Celsius (held from its last sample; NaN
     /// without temperature columns).
     pub temperature_c: f64,
+    /// 1-sigma of the prediction from the uncertainty the filter itself reports for the
+    /// final scale factor and normal, V.
+    pub prediction_sigma_v: f64,
 }
 
 /// One magnetometer sample, body frame.
@@ -199,6 +202,7 @@ pub fn residuals(
         });
     }
     let photodiodes = calibrated_photodiodes(run);
+    let uncertainty = calibration_sigmas(run);
     let model = spec.measurement_model(photodiodes.clone(), inputs.config)?;
     let offset_s = spec
         .added
@@ -221,6 +225,7 @@ pub fn residuals(
                 let row = RowInputs {
                     model: &model,
                     photodiodes: &photodiodes,
+                    uncertainty: &uncertainty,
                     offset_s,
                     temperatures,
                 };
@@ -275,8 +280,55 @@ fn sun_fraction_at(inputs: &ResidualInputs<'_>, k: usize, offset_s: f64) -> f64 
 struct RowInputs<'a> {
     model: &'a MeasurementModel,
     photodiodes: &'a [Photodiode],
+    uncertainty: &'a [CalibrationSigma],
     offset_s: f64,
     temperatures: &'a [f64],
+}
+
+/// One photodiode's final calibration uncertainty: relative scale and normal direction.
+#[derive(Debug, Clone, Copy)]
+struct CalibrationSigma {
+    scale_relative: f64,
+    normal_rad: f64,
+}
+
+/// The calibration uncertainties of `run`'s photodiodes (an azimuth at the pole, which has
+/// no sigma, counts as the elevation's).
+fn calibration_sigmas(run: &CalibrationRun) -> Vec<CalibrationSigma> {
+    run.calibration
+        .photodiodes
+        .iter()
+        .map(|p| {
+            let el = p.elevation_sigma_deg.to_radians();
+            let az = p
+                .azimuth_sigma_deg
+                .map_or(el, |s| s.to_radians() * p.elevation_deg.to_radians().cos());
+            CalibrationSigma {
+                scale_relative: p.scale_sigma_v / p.scale_v.abs().max(f64::MIN_POSITIVE),
+                normal_rad: (az * az + el * el).sqrt(),
+            }
+        })
+        .collect()
+}
+
+/// 1-sigma of a photodiode's predicted output from its calibration's uncertainty:
+/// `dI/dC sigma_C` and `C sin(theta) sigma_n` (a normal error moves the incidence by its
+/// component across the Sun line). The smoothed attitude's own sigma is left out: it is
+/// estimated from these same samples, so the residuals are already free of most of it.
+fn prediction_sigma(
+    sigma: CalibrationSigma,
+    scale_v: f64,
+    scale_part_v: f64,
+    cos_incidence: f64,
+) -> f64 {
+    let scale = scale_part_v * sigma.scale_relative;
+    let sin = if cos_incidence > 0.0 {
+        (1.0 - cos_incidence * cos_incidence).max(0.0).sqrt()
+    } else {
+        0.0
+    };
+    let angle = scale_v * sin * sigma.normal_rad;
+    (scale * scale + angle * angle).sqrt()
 }
 
 fn row_samples(
@@ -289,9 +341,11 @@ fn row_samples(
     let RowInputs {
         model,
         photodiodes,
+        uncertainty,
         offset_s,
         temperatures,
     } = *row;
+
     let k = estimate.index;
     let tel = inputs.telemetry;
     let reference = &inputs.references[k];
@@ -377,6 +431,10 @@ fn row_samples(
             time_offset_v_s: lit * pd.scale_v * pd.n_body.dot(&w_cross_s),
             scale_v: partials.d_scale * pd.scale_v,
             temperature_c: temperatures.get(i).copied().unwrap_or(f64::NAN),
+            prediction_sigma_v: uncertainty.get(i).map_or(0.0, |&u| {
+                let scale_part = partials.d_scale * pd.scale_v;
+                prediction_sigma(u, pd.scale_v, scale_part, cos)
+            }),
         });
     }
     if complete && sun_fraction >= FULL_SUN {

@@ -272,7 +272,12 @@ fn control_false_alarm_rate_20_seeds() {
         return;
     }
     let mut alarms = Vec::new();
-    for seed in 101..=120 {
+    // PDCAL_CONTROL_SEEDS=106,107 runs only those seeds.
+    let seeds: Vec<u64> = std::env::var("PDCAL_CONTROL_SEEDS")
+        .ok()
+        .map(|v| v.split(',').filter_map(|s| s.trim().parse().ok()).collect())
+        .unwrap_or_else(|| (101..=120).collect());
+    for seed in seeds {
         let (_, d) = run(&scenario(vec![albedo()], SHORT_S), seed, BaseModel::Paper);
         let best = d
             .final_candidates
@@ -284,6 +289,7 @@ fn control_false_alarm_rate_20_seeds() {
             d.verdict()
         );
         if d.verdict() != "none" {
+            println!("{}", describe(&d));
             alarms.push((seed, d.verdict()));
         }
     }
@@ -360,7 +366,11 @@ fn effect_size_sweep() {
                         seed,
                         BaseModel::Paper,
                     );
-                    d.rounds.first().is_some_and(|r| r.found == id)
+                    let hit = d.rounds.first().is_some_and(|r| r.found == id);
+                    if !hit {
+                        println!("missed, seed {seed}: {}", describe(&d));
+                    }
+                    hit
                 })
                 .count();
             println!("sweep {name}: size {size}: {hits}/3");
