@@ -12,6 +12,7 @@ use crate::algebra::{self, Pending};
 use crate::calibration::{Calibration, ParameterEstimate, PdCalibration};
 use crate::dense;
 use crate::error::check_len;
+use crate::guard::{self, CovarianceRepair};
 use crate::layout::{ATTITUDE, BIAS, CORE, StateLayout};
 use crate::sequential::{self, Outcome, Rows, Workspace};
 use crate::{FilterError, StepReference};
@@ -169,6 +170,8 @@ pub struct Filter {
     used: Vec<bool>,
     rate_est: Vector3<f64>,
     p: DMatrix<f64>,
+    /// The diagonal of the initial covariance (what a state the guard resets returns to).
+    initial_variance: Vec<f64>,
     scratch: Scratch,
     records: Vec<UpdateRecord>,
     counts: UpdateCounts,
@@ -316,6 +319,7 @@ impl Filter {
             normal,
             used: init.used,
             rate_est: Vector3::zeros(),
+            initial_variance: p.diagonal().iter().copied().collect(),
             p,
             records: Vec::with_capacity(3 + m),
             counts: UpdateCounts::default(),
@@ -431,6 +435,36 @@ impl Filter {
             self.reset()?;
         }
         Ok(())
+    }
+
+    /// Checks the state and covariance after the step at telemetry row `index` (time
+    /// `t_s`) and repairs the covariance if it stopped being positive definite
+    /// ([`crate::guard`]). Every call tests the diagonal (`O(n)`); with `full` the whole
+    /// matrix is factored (`O(n^3)`, for the caller to do every few hundred rows). A
+    /// non-finite state, or a covariance the repair cannot save, is an error naming the row.
+    pub fn guard_covariance(
+        &mut self,
+        index: usize,
+        t_s: f64,
+        full: bool,
+    ) -> Result<Option<CovarianceRepair>, FilterError> {
+        let finite = |v: &Vector3<f64>| v.iter().all(|x| x.is_finite());
+        let state_finite = [self.q.x, self.q.y, self.q.z, self.q.w]
+            .iter()
+            .chain(&self.scale)
+            .all(|x| x.is_finite())
+            && finite(&self.bias)
+            && self.normal.iter().all(finite);
+        if !state_finite {
+            return Err(FilterError::StateNotFinite { index, t_s });
+        }
+        if guard::diagonal_ok(&self.p) && (!full || guard::positive_definite(&self.p)) {
+            return Ok(None);
+        }
+        match guard::repair(&mut self.p, &self.initial_variance) {
+            Ok(kind) => Ok(kind.map(|kind| CovarianceRepair { index, t_s, kind })),
+            Err(()) => Err(FilterError::NotPositiveDefinite { index }),
+        }
     }
 
     /// Counts a magnetometer sample that was not taken (empty cell).
@@ -754,6 +788,16 @@ impl Filter {
     /// Error-state covariance.
     pub fn covariance(&self) -> &DMatrix<f64> {
         &self.p
+    }
+
+    /// Replaces the error-state covariance (a restart from an outside estimate). It is
+    /// taken as given: the guard ([`Filter::guard_covariance`]) judges it after the next
+    /// step.
+    pub fn set_covariance(&mut self, p: DMatrix<f64>) -> Result<(), FilterError> {
+        check_len("covariance rows", self.p.nrows(), p.nrows())?;
+        check_len("covariance columns", self.p.ncols(), p.ncols())?;
+        self.p = p;
+        Ok(())
     }
 
     /// The state layout.

@@ -88,11 +88,13 @@ pub mod config;
 pub mod dense;
 mod error;
 pub mod filter;
+pub mod guard;
 pub mod init;
 pub mod layout;
 pub mod output;
 pub mod references;
 pub mod run;
+pub mod screen;
 mod sequential;
 pub mod smoother;
 
@@ -103,10 +105,12 @@ pub use filter::{
     Algebra, Filter, FilterNoise, InitialState, Measurements, Propagation, Sensor, SensorCounts,
     UpdateCounts, UpdateRecord,
 };
+pub use guard::{CovarianceRepair, RepairKind, RepairLog};
 pub use layout::StateLayout;
 pub use output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
 pub use references::{orbit_source, step_references};
-pub use run::{RunInputs, calibrate, calibrate_with_model, paper_model};
+pub use run::{ForwardPass, RunInputs, calibrate, calibrate_with_model, paper_model};
+pub use screen::{Bounded, Channel, ChannelRejections, Rejections, RowList};
 
 use nalgebra::{Matrix3, Vector3};
 
