@@ -9,7 +9,10 @@ use pdcal_albedo::{AlbedoModel, MapChoice};
 /// The albedo model type, re-exported for callers that hold one (xtask).
 pub type AlbedoModelType = AlbedoModel;
 use pdcal_dataset::{DatasetMeta, Telemetry};
-use pdcal_filter::{Calibration, CalibrationRun, FilterConfig, Mode, RunInputs, StepReference};
+use pdcal_filter::screen::ScreenTolerances;
+use pdcal_filter::{
+    Calibration, CalibrationRun, FilterConfig, Mode, Rejections, RunInputs, StepReference,
+};
 
 use crate::sunvec::SunVectorMetrics;
 
@@ -99,9 +102,20 @@ pub fn run(
 pub fn run_dir(dataset: &Path, out: &Path, config: &RunConfig) -> Result<Outcome> {
     // Only meta and telemetry: calibrate never reads truth.*.
     let meta = pdcal_dataset::read_meta(dataset)?;
-    let telemetry = pdcal_dataset::read_telemetry(dataset, &meta)?;
+    let mut telemetry = pdcal_dataset::read_telemetry(dataset, &meta)?;
+    // Screened here, not only inside the filter, so that the Sun-vector metrics and the
+    // figures never see a wild sample either.
+    config.filter.validate().context("calibration filter")?;
+    let sigmas = config.filter.resolve(meta.noise.as_ref());
+    let mut screened = Rejections::new(meta.photodiodes.len());
+    pdcal_filter::screen::screen_in_place(
+        &mut telemetry,
+        &ScreenTolerances::new(&config.filter, &sigmas),
+        &mut screened,
+    );
     let albedo = albedo_model()?;
-    let outcome = run(&meta, &telemetry, config, &albedo)?;
+    let mut outcome = run(&meta, &telemetry, config, &albedo)?;
+    outcome.run.rejections.absorb_screened(&screened);
     crate::files::write_calibration_outputs(out, &meta, &telemetry, &outcome)?;
     Ok(outcome)
 }

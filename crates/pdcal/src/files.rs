@@ -5,7 +5,7 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use pdcal_dataset::{DatasetMeta, Telemetry};
-use pdcal_filter::{CalibrationRun, ResidualRecord, Sensor, StepEstimate};
+use pdcal_filter::{CalibrationRun, RepairKind, ResidualRecord, Sensor, StepEstimate};
 use serde::Serialize;
 
 use crate::calibrate::Outcome;
@@ -35,6 +35,11 @@ pub struct Summary {
     pub residuals: ResidualSummary,
     /// Update counts (accepted, gated, ...) per sensor class.
     pub updates: serde_json::Value,
+    /// Samples rejected per sensor (`gyro`, `mag`, `pd01`...): screened against their
+    /// neighbours before the filter, or gated by it; counts and the first rows.
+    pub rejected_samples: Vec<RejectedSummary>,
+    /// Repairs of the filter covariance (it stopped being positive definite).
+    pub covariance_repairs: RepairsSummary,
     /// Wall-clock time of the filter run, s.
     pub runtime_s: f64,
 }
@@ -114,6 +119,65 @@ pub struct ResidualSummary {
     pub count: usize,
 }
 
+/// One sensor's rejected samples in `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct RejectedSummary {
+    /// `gyro`, `mag`, `pd01`, ...
+    pub sensor: String,
+    /// Samples rejected by the screening against their neighbours.
+    pub screened: usize,
+    /// Their telemetry rows (zero-based data rows of telemetry.csv), the first 100.
+    pub screened_rows: Vec<usize>,
+    /// Samples rejected by the filter's innovation gate (a magnetometer row counts once).
+    pub gated: usize,
+    /// Their rows, the first 100.
+    pub gated_rows: Vec<usize>,
+}
+
+/// The covariance repairs in `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct RepairsSummary {
+    /// How many.
+    pub count: usize,
+    /// The first 100: row, time and what was done.
+    pub first: Vec<serde_json::Value>,
+}
+
+fn rejected_summary(run: &CalibrationRun) -> Vec<RejectedSummary> {
+    run.rejections
+        .channels
+        .iter()
+        .map(|c| RejectedSummary {
+            sensor: c.channel.name(),
+            screened: c.screened.count,
+            screened_rows: c.screened.first.clone(),
+            gated: c.gated.count,
+            gated_rows: c.gated.first.clone(),
+        })
+        .collect()
+}
+
+fn repairs_summary(run: &CalibrationRun) -> RepairsSummary {
+    let first = run
+        .covariance_repairs
+        .first
+        .iter()
+        .map(|r| match r.kind {
+            RepairKind::NonFinite { states } => serde_json::json!({
+                "row": r.index, "t_s": r.t_s, "kind": "non-finite", "states_reset": states,
+            }),
+            RepairKind::Indefinite { min_eigenvalue } => serde_json::json!({
+                "row": r.index, "t_s": r.t_s, "kind": "indefinite",
+                "min_eigenvalue": min_eigenvalue,
+            }),
+        })
+        .collect();
+    RepairsSummary {
+        count: run.covariance_repairs.count,
+        first,
+    }
+}
+
 /// Mean and sample standard deviation of finite values (NaN for fewer than 2).
 pub fn mean_std(values: &[f64]) -> MeanStd {
     let v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
@@ -188,6 +252,8 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         },
         residuals: residual_summary(&run.residuals),
         updates: counts_json(run),
+        rejected_samples: rejected_summary(run),
+        covariance_repairs: repairs_summary(run),
         runtime_s: outcome.runtime_s,
     }
 }
