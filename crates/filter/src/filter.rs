@@ -178,6 +178,23 @@ pub struct Filter {
     last: Option<Propagation>,
 }
 
+/// What the next step of a [`Filter`] reads of its past: a restart point
+/// ([`Filter::state`], [`Filter::restore`]). The work space is not part of it: every step
+/// overwrites what it reads of it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FilterState {
+    q: Quat,
+    bias: Vector3<f64>,
+    scale: Vec<f64>,
+    normal: Vec<Vector3<f64>>,
+    basis: Vec<(Vector3<f64>, Vector3<f64>)>,
+    rate_est: Vector3<f64>,
+    p: DMatrix<f64>,
+    parameters: Vec<f64>,
+    counts: UpdateCounts,
+    last: Option<Propagation>,
+}
+
 /// Preallocated work space: nothing is allocated per step.
 struct Scratch {
     dx: DVector<f64>,
@@ -788,6 +805,47 @@ impl Filter {
     /// Error-state covariance.
     pub fn covariance(&self) -> &DMatrix<f64> {
         &self.p
+    }
+
+    /// The state to restart from later ([`Filter::restore`]).
+    pub fn state(&self) -> FilterState {
+        FilterState {
+            q: self.q,
+            bias: self.bias,
+            scale: self.scale.clone(),
+            normal: self.normal.clone(),
+            basis: self.basis.clone(),
+            rate_est: self.rate_est,
+            p: self.p.clone(),
+            parameters: self.model.parameters().map(|(_, p)| p.value).collect(),
+            counts: self.counts,
+            last: self.last.clone(),
+        }
+    }
+
+    /// Returns to a state taken from this filter by [`Filter::state`]: the steps after it
+    /// repeat bit for bit.
+    pub fn restore(&mut self, state: &FilterState) -> Result<(), FilterError> {
+        check_len("restored covariance", self.p.nrows(), state.p.nrows())?;
+        check_len("restored scales", self.scale.len(), state.scale.len())?;
+        self.q = state.q;
+        self.bias = state.bias;
+        self.scale.copy_from_slice(&state.scale);
+        self.normal.copy_from_slice(&state.normal);
+        self.basis.copy_from_slice(&state.basis);
+        self.rate_est = state.rate_est;
+        self.p.copy_from(&state.p);
+        for (k, value) in state.parameters.iter().enumerate() {
+            self.model.parameter_mut(k)?.value = *value;
+        }
+        let estimates = self.scale.iter().zip(&self.normal);
+        for (pd, (scale_v, n_body)) in self.model.photodiodes_mut().iter_mut().zip(estimates) {
+            pd.scale_v = *scale_v;
+            pd.n_body = *n_body;
+        }
+        self.counts = state.counts;
+        self.last.clone_from(&state.last);
+        Ok(())
     }
 
     /// Replaces the error-state covariance (a restart from an outside estimate). It is

@@ -11,7 +11,9 @@ use pdcal_photodiode::{Albedo, DirectSun, MeasurementModel, Photodiode};
 use crate::calibration::Calibration;
 use crate::config::{E_AM0_W_M2, FilterConfig, Mode, SensorSigmas};
 use crate::error::check_len;
-use crate::filter::{Algebra, Filter, FilterNoise, InitialState, Measurements, Sensor, StateView};
+use crate::filter::{
+    Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Sensor, StateView,
+};
 use crate::guard::RepairLog;
 use crate::init::{StartInputs, find_start, initial_scales};
 use crate::layout::{ATTITUDE, StateLayout};
@@ -98,7 +100,92 @@ pub fn calibrate_with_model(
         Some(store) => Some(store.smooth(pass.filter().layout(), pass.prior)?),
         None => None,
     };
-    Ok(pass.finish(forward, smoothed, residuals))
+    Ok(pass.result(forward, smoothed, residuals))
+}
+
+/// Receives a streaming run's per-row results as they are produced
+/// ([`calibrate_streaming`]). Infallible by design: a sink that writes files keeps its
+/// first error and reports it after the run.
+pub trait RunSink {
+    /// The forward estimate after one row and that row's scalar updates; rows in
+    /// increasing order.
+    fn forward(&mut self, estimate: &StepEstimate, residuals: &[ResidualRecord]);
+    /// Smoothed estimates of consecutive rows in increasing order. Segments arrive last
+    /// first (the backward pass), each of at most `segment_rows + 1` rows.
+    fn smoothed(&mut self, segment: &[StepEstimate]);
+}
+
+/// Rows per segment of the streaming smoother: the forward state is kept every this many
+/// rows, and the backward pass recomputes one segment's posteriors at a time (about
+/// `13 kB x segment_rows` for 17 photodiodes, `27 kB` per kept state).
+pub const SEGMENT_ROWS: usize = 1024;
+
+/// [`calibrate_with_model`] with memory that does not grow with the data beyond the
+/// telemetry and references it reads: per-row results go to `sink` as they are produced;
+/// the smoother keeps the forward state every `segment_rows` rows and, going backward,
+/// recomputes one segment's posteriors from its kept state (the same step code, so the
+/// same numbers bit for bit) before smoothing it. The returned run has empty `forward`,
+/// `residuals` and (with the smoother) `smoothed` vectors: those went to `sink`.
+pub fn calibrate_streaming(
+    inputs: &RunInputs<'_>,
+    config: &FilterConfig,
+    mode: &Mode,
+    model: MeasurementModel,
+    algebra: Algebra,
+    segment_rows: usize,
+    sink: &mut dyn RunSink,
+) -> Result<CalibrationRun, FilterError> {
+    let segment_rows = segment_rows.max(1);
+    let mut pass = ForwardPass::new(inputs, config, mode, model, algebra)?;
+    let mut kept = Vec::new();
+    let mut residuals = Vec::new();
+    loop {
+        if config.smoother && (pass.next - pass.start).is_multiple_of(segment_rows) {
+            kept.push(pass.checkpoint());
+        }
+        if pass.step()?.is_none() {
+            break;
+        }
+        residuals.clear();
+        residuals.extend(pass.residual_records());
+        sink.forward(&pass.estimate(), &residuals);
+    }
+    // The forward results, before the replays below move the filter.
+    let mut run = pass.result(Vec::new(), None, Vec::new());
+    if config.smoother {
+        let layout = run.layout.clone();
+        let mut store = SmootherStore::new(layout.len(), segment_rows + 1);
+        let mut boundary = None;
+        let mut segment = Vec::with_capacity(segment_rows + 1);
+        for (i, checkpoint) in kept.iter().enumerate().rev() {
+            pass.restore(checkpoint)?;
+            // Through the next segment's first row: its transition ends this segment.
+            let last_row = kept.get(i + 1).map(|c| c.next);
+            store.clear();
+            while let Some(k) = pass.step()? {
+                pass.record_for_smoother(&mut store);
+                if Some(k) == last_row {
+                    break;
+                }
+            }
+            segment.clear();
+            boundary =
+                store.smooth_into(&layout, pass.prior, boundary, &mut |e| segment.push(e))?;
+            segment.reverse();
+            sink.smoothed(&segment);
+        }
+        run.smoothed = Some(Vec::new());
+    }
+    Ok(run)
+}
+
+/// A [`ForwardPass`] at one row, to replay from.
+struct PassCheckpoint {
+    filter: FilterState,
+    next: usize,
+    prior_q: Quat,
+    propagated: bool,
+    last_gyro: Option<Vector3<f64>>,
 }
 
 /// Rows between two full factorisations of the covariance by the guard
@@ -462,9 +549,31 @@ impl<'a> ForwardPass<'a> {
         &self.repairs
     }
 
+    /// The pass's position and filter state, to replay from.
+    fn checkpoint(&self) -> PassCheckpoint {
+        PassCheckpoint {
+            filter: self.filter.state(),
+            next: self.next,
+            prior_q: self.prior_q,
+            propagated: self.propagated,
+            last_gyro: self.last_gyro,
+        }
+    }
+
+    /// Back to a checkpoint of this pass (the rejection and repair records keep what they
+    /// have: a replay is not a new run).
+    fn restore(&mut self, checkpoint: &PassCheckpoint) -> Result<(), FilterError> {
+        self.filter.restore(&checkpoint.filter)?;
+        self.next = checkpoint.next;
+        self.prior_q = checkpoint.prior_q;
+        self.propagated = checkpoint.propagated;
+        self.last_gyro = checkpoint.last_gyro;
+        Ok(())
+    }
+
     /// The run's result with the given per-row outputs.
-    fn finish(
-        self,
+    fn result(
+        &self,
         forward: Vec<StepEstimate>,
         smoothed: Option<Vec<StepEstimate>>,
         residuals: Vec<ResidualRecord>,
@@ -472,8 +581,8 @@ impl<'a> ForwardPass<'a> {
         CalibrationRun {
             mode: self.mode_used,
             start_index: self.start,
-            initial: self.initial,
-            used_photodiodes: self.used,
+            initial: self.initial.clone(),
+            used_photodiodes: self.used.clone(),
             sensor_sigmas: self.sigmas,
             forward,
             smoothed,
@@ -482,8 +591,8 @@ impl<'a> ForwardPass<'a> {
             counts: *self.filter.counts(),
             layout: self.filter.layout().clone(),
             final_covariance: self.filter.covariance().clone(),
-            rejections: self.rejections,
-            covariance_repairs: self.repairs,
+            rejections: self.rejections.clone(),
+            covariance_repairs: self.repairs.clone(),
         }
     }
 }
