@@ -64,7 +64,9 @@ pub fn calibrate(
     )
 }
 
-fn nominal_photodiodes(meta: &DatasetMeta) -> Vec<Photodiode> {
+/// The dataset's nominal photodiodes (unit scale, `dataset.ron` normals), for
+/// [`paper_model`].
+pub fn nominal_photodiodes(meta: &DatasetMeta) -> Vec<Photodiode> {
     meta.photodiodes
         .iter()
         .map(|m| Photodiode::from_az_el_deg(1.0, m.azimuth_deg, m.elevation_deg, 0.0))

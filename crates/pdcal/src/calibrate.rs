@@ -11,9 +11,12 @@ pub type AlbedoModelType = AlbedoModel;
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_filter::screen::ScreenTolerances;
 use pdcal_filter::{
-    Calibration, CalibrationRun, FilterConfig, Mode, Rejections, RunInputs, StepReference,
+    Algebra, Calibration, CalibrationRun, FilterConfig, Mode, Rejections, RunInputs, StepReference,
 };
 
+use crate::files::ResidualSummary;
+use crate::output::OutputDir;
+use crate::stream::StreamSink;
 use crate::sunvec::SunVectorMetrics;
 
 /// The resolved run configuration: filter tuning and mode.
@@ -61,6 +64,8 @@ pub struct Outcome {
     pub references: Vec<StepReference>,
     /// Sun-vector magnitude and direction metrics (Figs. 8-11).
     pub sun_vector: SunVectorMetrics,
+    /// Photodiode residual statistics over every row.
+    pub residuals: ResidualSummary,
     /// Wall-clock time of the filter run, s.
     pub runtime_s: f64,
 }
@@ -91,6 +96,7 @@ pub fn run(
     let sun_vector =
         crate::sunvec::metrics(meta, telemetry, &references, &run, albedo, &config.filter)?;
     Ok(Outcome {
+        residuals: crate::files::residual_summary(&run.residuals),
         run,
         references,
         sun_vector,
@@ -99,6 +105,11 @@ pub fn run(
 }
 
 /// `pdcal calibrate DATASET_DIR --out OUT_DIR [--config FILE.ron]`.
+///
+/// Streams ([`pdcal_filter::calibrate_streaming`]): the CSVs are written into the staging
+/// directory as the rows are produced, the smoother works segment by segment, and the
+/// returned [`Outcome`]'s `run` holds the estimates and residuals of every
+/// [`crate::stream::stride_for`]-th row only (what the figures plot), no smoothed vector.
 pub fn run_dir(dataset: &Path, out: &Path, config: &RunConfig) -> Result<Outcome> {
     // Only meta and telemetry: calibrate never reads truth.*.
     let meta = pdcal_dataset::read_meta(dataset)?;
@@ -114,8 +125,55 @@ pub fn run_dir(dataset: &Path, out: &Path, config: &RunConfig) -> Result<Outcome
         &mut screened,
     );
     let albedo = albedo_model()?;
-    let mut outcome = run(&meta, &telemetry, config, &albedo)?;
-    outcome.run.rejections.absorb_screened(&screened);
-    crate::files::write_calibration_outputs(out, &meta, &telemetry, &outcome)?;
+    let references = pdcal_filter::step_references(&meta, &telemetry)?;
+    let dir = OutputDir::create(out)?;
+    let inputs = RunInputs {
+        meta: &meta,
+        telemetry: &telemetry,
+        references: &references,
+        albedo: Some(&albedo),
+    };
+    let mut sink = StreamSink::new(
+        &dir,
+        meta.photodiodes.len(),
+        telemetry.len(),
+        config.filter.smoother,
+    )?;
+    let start = Instant::now();
+    let model = pdcal_filter::paper_model(pdcal_filter::nominal_photodiodes(&meta), &config.filter);
+    let mut run = pdcal_filter::calibrate_streaming(
+        &inputs,
+        &config.filter,
+        &config.mode,
+        model,
+        Algebra::Structured,
+        pdcal_filter::SEGMENT_ROWS,
+        &mut sink,
+    )
+    .context("calibration filter")?;
+    let runtime_s = start.elapsed().as_secs_f64();
+    let streamed = sink.finish()?;
+    run.rejections.absorb_screened(&screened);
+    run.forward = streamed.forward_sample;
+    run.residuals = streamed.residual_sample;
+    run.smoothed = None;
+    let sun_vector = crate::sunvec::metrics_along(
+        &meta,
+        &telemetry,
+        &references,
+        &run,
+        &streamed.attitudes,
+        &albedo,
+        &config.filter,
+    )?;
+    let outcome = Outcome {
+        run,
+        references,
+        sun_vector,
+        residuals: streamed.residual_summary,
+        runtime_s,
+    };
+    let summary = crate::files::summary(&meta, &outcome);
+    crate::files::write_summary_and_figures(dir, &telemetry, &outcome, &summary)?;
     Ok(outcome)
 }

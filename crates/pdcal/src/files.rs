@@ -250,7 +250,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         sun_direction_change_deg: MeanOnly {
             mean: mean_std(&sv.direction_change_deg).mean,
         },
-        residuals: residual_summary(&run.residuals),
+        residuals: outcome.residuals,
         updates: counts_json(run),
         rejected_samples: rejected_summary(run),
         covariance_repairs: repairs_summary(run),
@@ -312,7 +312,8 @@ pub fn estimate_header(m: usize, parameters: &[String]) -> Vec<String> {
     h
 }
 
-fn estimate_row(e: &StepEstimate) -> Vec<String> {
+/// One `estimates.csv` row.
+pub fn estimate_row(e: &StepEstimate) -> Vec<String> {
     let f = |x: f64| format!("{x:?}");
     let c = &e.calibration;
     let mut row = vec![f(e.t_s), f(e.q.x), f(e.q.y), f(e.q.z), f(e.q.w)];
@@ -358,26 +359,34 @@ pub fn sensor_name(sensor: Sensor) -> String {
     }
 }
 
+/// The columns of `residuals.csv`.
+pub const RESIDUAL_COLUMNS: [&str; 6] = [
+    "t_s",
+    "sensor",
+    "measured",
+    "residual",
+    "bound_3sigma",
+    "accepted",
+];
+
+/// One `residuals.csv` row.
+pub fn residual_row(r: &ResidualRecord) -> [String; 6] {
+    [
+        format!("{:?}", r.t_s),
+        sensor_name(r.sensor),
+        format!("{:?}", r.measured),
+        format!("{:?}", r.residual),
+        format!("{:?}", r.bound_3sigma),
+        r.accepted.to_string(),
+    ]
+}
+
 /// `residuals.csv` text: one row per scalar update.
 pub fn residuals_csv(residuals: &[ResidualRecord]) -> Result<Vec<u8>> {
     let mut w = csv::Writer::from_writer(Vec::new());
-    w.write_record([
-        "t_s",
-        "sensor",
-        "measured",
-        "residual",
-        "bound_3sigma",
-        "accepted",
-    ])?;
+    w.write_record(RESIDUAL_COLUMNS)?;
     for r in residuals {
-        w.write_record([
-            format!("{:?}", r.t_s),
-            sensor_name(r.sensor),
-            format!("{:?}", r.measured),
-            format!("{:?}", r.residual),
-            format!("{:?}", r.bound_3sigma),
-            r.accepted.to_string(),
-        ])?;
+        w.write_record(residual_row(r))?;
     }
     w.into_inner().context("residuals.csv")
 }
@@ -390,16 +399,7 @@ pub fn write_calibration_outputs(
     outcome: &Outcome,
 ) -> Result<()> {
     let dir = OutputDir::create(out)?;
-    let summary = summary(meta, outcome);
     let m = meta.photodiodes.len();
-    std::fs::write(
-        dir.file("summary.json"),
-        serde_json::to_string_pretty(&summary)?,
-    )?;
-    std::fs::write(
-        dir.file("calibration.ron"),
-        outcome.run.calibration.to_ron_string()?,
-    )?;
     std::fs::write(
         dir.file("estimates.csv"),
         estimates_csv(&outcome.run.forward, m)?,
@@ -414,7 +414,27 @@ pub fn write_calibration_outputs(
         dir.file("residuals.csv"),
         residuals_csv(&outcome.run.residuals)?,
     )?;
+    let summary = summary(meta, outcome);
+    write_summary_and_figures(dir, telemetry, outcome, &summary)
+}
+
+/// Writes summary.json, calibration.ron, the figures and index.html into `dir` (which holds
+/// the CSVs already) and publishes it.
+pub fn write_summary_and_figures(
+    dir: OutputDir,
+    telemetry: &Telemetry,
+    outcome: &Outcome,
+    summary: &Summary,
+) -> Result<()> {
+    std::fs::write(
+        dir.file("summary.json"),
+        serde_json::to_string_pretty(summary)?,
+    )?;
+    std::fs::write(
+        dir.file("calibration.ron"),
+        outcome.run.calibration.to_ron_string()?,
+    )?;
     let figures = crate::figures::calibration_figures(dir.path(), telemetry, outcome)?;
-    crate::figures::write_index(dir.path(), &summary, None, &figures)?;
+    crate::figures::write_index(dir.path(), summary, None, &figures)?;
     dir.commit()
 }
