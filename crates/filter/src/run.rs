@@ -192,7 +192,7 @@ struct PassCheckpoint {
 
 /// Rows between two full factorisations of the covariance by the guard
 /// ([`Filter::guard_covariance`]; its diagonal is tested every row).
-pub const FULL_GUARD_ROWS: usize = 256;
+pub const FULL_GUARD_ROWS: usize = 1024;
 
 /// The forward filter over a dataset, one telemetry row per [`ForwardPass::step`]: the
 /// initialisation (outlier screening, initial scales, start row and attitude) in

@@ -328,6 +328,17 @@ fn flag_scalars(
             flags.push(k);
             continue;
         }
+        // Between its two adjacent samples (within the tolerance for them): inside the
+        // candidates' range below too, so accepted without gathering more.
+        if let (Some(a), Some(b)) = (
+            k.checked_sub(1).and_then(&value),
+            (k + 1 < len).then(|| value(k + 1)).flatten(),
+        ) {
+            let near = tol((t[k] - t[k - 1]).max(t[k + 1] - t[k]));
+            if v >= a.min(b) - near && v <= a.max(b) + near {
+                continue;
+            }
+        }
         let before = Side::gather((k.saturating_sub(WINDOW)..k).rev(), &value, t);
         let after = Side::gather(k + 1..len.min(k + 1 + WINDOW), &value, t);
         if before.count + after.count < 2 {
