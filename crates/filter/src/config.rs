@@ -98,6 +98,15 @@ pub struct FilterConfig {
     /// (a Gaussian innovation exceeds it with probability 5.7e-7, so gating rejects only
     /// outliers and model failures).
     pub gate_sigmas: f64,
+    /// Screening of every sensor's samples against their neighbours in time, before the
+    /// filter (`screen`): a sample outside its neighbours' range by more than this many
+    /// sensor sigmas (plus the range's own width) is rejected and counted. Default 8: a
+    /// Gaussian sample exceeds it with probability about 1e-10, so only outliers go.
+    pub outlier_sigmas: f64,
+    /// The largest angular acceleration the screening allows between neighbouring gyro
+    /// samples beyond the trend of the neighbours themselves, rad/s^2. Default 0.01
+    /// (0.6 deg/s^2): a sustained acceleration shows in the neighbours and needs none of it.
+    pub max_angular_acceleration_rad_s2: f64,
     /// A photodiode whose maximum output over the data set stays below this many
     /// photodiode sigmas is never lit (covered, broken) and takes no part. Default 10.
     pub min_lit_output_sigmas: f64,
@@ -158,6 +167,8 @@ impl Default for FilterConfig {
             fov_half_angle_deg: 60.0,
             min_sun_fraction: 0.999,
             gate_sigmas: 5.0,
+            outlier_sigmas: 8.0,
+            max_angular_acceleration_rad_s2: 0.01,
             min_lit_output_sigmas: 10.0,
             albedo_partials: AlbedoPartials::Included,
             average_gyro: true,
@@ -229,6 +240,11 @@ impl FilterConfig {
             ),
             ("unobserved_axis_sigma_deg", self.unobserved_axis_sigma_deg),
             ("gate_sigmas", self.gate_sigmas),
+            ("outlier_sigmas", self.outlier_sigmas),
+            (
+                "max_angular_acceleration_rad_s2",
+                self.max_angular_acceleration_rad_s2,
+            ),
         ];
         for (field, value) in positive {
             if !(value > 0.0 && value.is_finite()) {

@@ -55,11 +55,21 @@ pub enum FilterError {
         /// Which quantity.
         what: &'static str,
     },
-    /// The covariance lost positive definiteness (smoother inversion failed).
-    #[error("covariance not positive definite at sample {index}")]
+    /// The covariance lost positive definiteness and could not be repaired (forward
+    /// filter), or the smoother's inversion failed.
+    #[error("covariance not positive definite at row {index}")]
     NotPositiveDefinite {
         /// Sample index.
         index: usize,
+    },
+    /// The filter's state became non-finite (a divergence the covariance guard cannot
+    /// repair).
+    #[error("filter state not finite after row {index} (t_s = {t_s})")]
+    StateNotFinite {
+        /// Telemetry row.
+        index: usize,
+        /// Its time, s.
+        t_s: f64,
     },
     /// An error from the photodiode model.
     #[error(transparent)]

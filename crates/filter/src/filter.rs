@@ -12,6 +12,7 @@ use crate::algebra::{self, Pending};
 use crate::calibration::{Calibration, ParameterEstimate, PdCalibration};
 use crate::dense;
 use crate::error::check_len;
+use crate::guard::{self, CovarianceRepair};
 use crate::layout::{ATTITUDE, BIAS, CORE, StateLayout};
 use crate::sequential::{self, Outcome, Rows, Workspace};
 use crate::{FilterError, StepReference};
@@ -172,8 +173,27 @@ pub struct Filter {
     used: Vec<bool>,
     rate_est: Vector3<f64>,
     p: DMatrix<f64>,
+    /// The diagonal of the initial covariance (what a state the guard resets returns to).
+    initial_variance: Vec<f64>,
     scratch: Scratch,
     records: Vec<UpdateRecord>,
+    counts: UpdateCounts,
+    last: Option<Propagation>,
+}
+
+/// What the next step of a [`Filter`] reads of its past: a restart point
+/// ([`Filter::state`], [`Filter::restore`]). The work space is not part of it: every step
+/// overwrites what it reads of it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FilterState {
+    q: Quat,
+    bias: Vector3<f64>,
+    scale: Vec<f64>,
+    normal: Vec<Vector3<f64>>,
+    basis: Vec<(Vector3<f64>, Vector3<f64>)>,
+    rate_est: Vector3<f64>,
+    p: DMatrix<f64>,
+    parameters: Vec<f64>,
     counts: UpdateCounts,
     last: Option<Propagation>,
 }
@@ -319,6 +339,7 @@ impl Filter {
             normal,
             used: init.used,
             rate_est: Vector3::zeros(),
+            initial_variance: p.diagonal().iter().copied().collect(),
             p,
             records: Vec::with_capacity(3 + m),
             counts: UpdateCounts::default(),
@@ -441,6 +462,36 @@ impl Filter {
             self.reset()?;
         }
         Ok(())
+    }
+
+    /// Checks the state and covariance after the step at telemetry row `index` (time
+    /// `t_s`) and repairs the covariance if it stopped being positive definite
+    /// ([`crate::guard`]). Every call tests the diagonal (`O(n)`); with `full` the whole
+    /// matrix is factored (`O(n^3)`, for the caller to do every few hundred rows). A
+    /// non-finite state, or a covariance the repair cannot save, is an error naming the row.
+    pub fn guard_covariance(
+        &mut self,
+        index: usize,
+        t_s: f64,
+        full: bool,
+    ) -> Result<Option<CovarianceRepair>, FilterError> {
+        let finite = |v: &Vector3<f64>| v.iter().all(|x| x.is_finite());
+        let state_finite = [self.q.x, self.q.y, self.q.z, self.q.w]
+            .iter()
+            .chain(&self.scale)
+            .all(|x| x.is_finite())
+            && finite(&self.bias)
+            && self.normal.iter().all(finite);
+        if !state_finite {
+            return Err(FilterError::StateNotFinite { index, t_s });
+        }
+        if guard::diagonal_ok(&self.p) && (!full || guard::positive_definite(&self.p)) {
+            return Ok(None);
+        }
+        match guard::repair(&mut self.p, &self.initial_variance) {
+            Ok(kind) => Ok(kind.map(|kind| CovarianceRepair { index, t_s, kind })),
+            Err(()) => Err(FilterError::NotPositiveDefinite { index }),
+        }
     }
 
     /// Counts a magnetometer sample that was not taken (empty cell).
@@ -766,6 +817,57 @@ impl Filter {
     /// Error-state covariance.
     pub fn covariance(&self) -> &DMatrix<f64> {
         &self.p
+    }
+
+    /// The state to restart from later ([`Filter::restore`]).
+    pub fn state(&self) -> FilterState {
+        FilterState {
+            q: self.q,
+            bias: self.bias,
+            scale: self.scale.clone(),
+            normal: self.normal.clone(),
+            basis: self.basis.clone(),
+            rate_est: self.rate_est,
+            p: self.p.clone(),
+            parameters: self.model.parameters().map(|(_, p)| p.value).collect(),
+            counts: self.counts,
+            last: self.last.clone(),
+        }
+    }
+
+    /// Returns to a state taken from this filter by [`Filter::state`]: the steps after it
+    /// repeat bit for bit.
+    pub fn restore(&mut self, state: &FilterState) -> Result<(), FilterError> {
+        check_len("restored covariance", self.p.nrows(), state.p.nrows())?;
+        check_len("restored scales", self.scale.len(), state.scale.len())?;
+        self.q = state.q;
+        self.bias = state.bias;
+        self.scale.copy_from_slice(&state.scale);
+        self.normal.copy_from_slice(&state.normal);
+        self.basis.copy_from_slice(&state.basis);
+        self.rate_est = state.rate_est;
+        self.p.copy_from(&state.p);
+        for (k, value) in state.parameters.iter().enumerate() {
+            self.model.parameter_mut(k)?.value = *value;
+        }
+        let estimates = self.scale.iter().zip(&self.normal);
+        for (pd, (scale_v, n_body)) in self.model.photodiodes_mut().iter_mut().zip(estimates) {
+            pd.scale_v = *scale_v;
+            pd.n_body = *n_body;
+        }
+        self.counts = state.counts;
+        self.last.clone_from(&state.last);
+        Ok(())
+    }
+
+    /// Replaces the error-state covariance (a restart from an outside estimate). It is
+    /// taken as given: the guard ([`Filter::guard_covariance`]) judges it after the next
+    /// step.
+    pub fn set_covariance(&mut self, p: DMatrix<f64>) -> Result<(), FilterError> {
+        check_len("covariance rows", self.p.nrows(), p.nrows())?;
+        check_len("covariance columns", self.p.ncols(), p.ncols())?;
+        self.p = p;
+        Ok(())
     }
 
     /// The state layout.

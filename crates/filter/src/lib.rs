@@ -91,11 +91,13 @@ pub mod config;
 pub mod dense;
 mod error;
 pub mod filter;
+pub mod guard;
 pub mod init;
 pub mod layout;
 pub mod output;
 pub mod references;
 pub mod run;
+pub mod screen;
 mod sequential;
 pub mod smoother;
 
@@ -103,13 +105,18 @@ pub use calibration::{Calibration, ParameterEstimate, PdCalibration};
 pub use config::{FilterConfig, Mode, ParameterSigma, SensorSigmas};
 pub use error::FilterError;
 pub use filter::{
-    Algebra, Filter, FilterNoise, InitialState, Measurements, Propagation, Sensor, SensorCounts,
-    UpdateCounts, UpdateRecord,
+    Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Propagation, Sensor,
+    SensorCounts, UpdateCounts, UpdateRecord,
 };
+pub use guard::{CovarianceRepair, RepairKind, RepairLog};
 pub use layout::StateLayout;
 pub use output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
 pub use references::{orbit_source, step_references};
-pub use run::{RunInputs, calibrate, calibrate_with_model, paper_model};
+pub use run::{
+    ForwardPass, RunInputs, RunSink, SEGMENT_ROWS, calibrate, calibrate_streaming,
+    calibrate_with_model, nominal_photodiodes, paper_model,
+};
+pub use screen::{Bounded, Channel, ChannelRejections, Rejections, RowList};
 
 use nalgebra::{Matrix3, Vector3};
 

@@ -8,7 +8,9 @@ use pdcal_attitude::Quat;
 use crate::calibration::Calibration;
 use crate::config::SensorSigmas;
 use crate::filter::{Sensor, UpdateCounts};
+use crate::guard::RepairLog;
 use crate::layout::StateLayout;
+use crate::screen::Rejections;
 
 /// Estimates after the updates of one sample (one `estimates.csv` row).
 #[derive(Debug, Clone, PartialEq)]
@@ -87,4 +89,9 @@ pub struct CalibrationRun {
     /// Forward filter's final error-state covariance (for NEES; normals in the tangent basis
     /// of the final normals).
     pub final_covariance: DMatrix<f64>,
+    /// Samples rejected per sensor: screened against their neighbours before the filter,
+    /// or gated by it.
+    pub rejections: Rejections,
+    /// Repairs of the forward covariance by the guard, with their rows.
+    pub covariance_repairs: RepairLog,
 }

@@ -124,15 +124,39 @@ impl SmootherStore {
         layout: &StateLayout,
         fixed: Option<&Calibration>,
     ) -> Result<Vec<StepEstimate>, FilterError> {
+        let mut out = Vec::with_capacity(self.steps.len());
+        self.smooth_into(layout, fixed, None, &mut |e| out.push(e))?;
+        out.reverse();
+        Ok(out)
+    }
+
+    /// The backward pass over the stored steps, last first, each smoothed estimate handed
+    /// to `emit`. Without `boundary` it starts from the last stored posterior (the end of
+    /// the data) and emits it; with `boundary`, the smoothed state of the last stored row
+    /// (computed by the pass over the rows after it), it starts there and emits from the
+    /// row before. Returns the smoothed state of the first stored row: the boundary of the
+    /// segment before (`None` when nothing is stored).
+    pub(crate) fn smooth_into(
+        &self,
+        layout: &StateLayout,
+        fixed: Option<&Calibration>,
+        boundary: Option<Boundary>,
+        emit: &mut dyn FnMut(StepEstimate),
+    ) -> Result<Option<Boundary>, FilterError> {
         let Some(last) = self.steps.len().checked_sub(1) else {
-            return Ok(Vec::new());
+            return Ok(boundary);
         };
         let n = self.n;
-        let mut out = Vec::with_capacity(self.steps.len());
-        let mut xs = SmoothedState::from_stored(&self.steps[last]);
-        let mut ps = DMatrix::zeros(n, n);
-        self.unpack_into(last, &mut ps);
-        out.push(xs.estimate(&self.steps[last], &ps, layout, fixed));
+        let (mut xs, mut ps) = match boundary {
+            Some(b) => (b.state, b.p),
+            None => {
+                let mut ps = DMatrix::zeros(n, n);
+                self.unpack_into(last, &mut ps);
+                let xs = SmoothedState::from_stored(&self.steps[last]);
+                emit(xs.estimate(&self.steps[last], &ps, layout, fixed));
+                (xs, ps)
+            }
+        };
         let mut work = Work::new(n);
         let mut d = DVector::zeros(n);
         let mut delta = DVector::zeros(n);
@@ -155,11 +179,23 @@ impl SmootherStore {
             delta.gemv_tr(1.0, &work.gt, &d, 0.0);
             xs = SmoothedState::from_stored(stored).plus(&delta, layout);
             work.smoothed_covariance(&mut ps);
-            out.push(xs.estimate(stored, &ps, layout, fixed));
+            emit(xs.estimate(stored, &ps, layout, fixed));
         }
-        out.reverse();
-        Ok(out)
+        Ok(Some(Boundary { state: xs, p: ps }))
     }
+
+    /// Forgets every stored step (keeps the allocations).
+    pub(crate) fn clear(&mut self) {
+        self.steps.clear();
+        self.packed.clear();
+        self.cal_noise.clear();
+    }
+}
+
+/// The smoothed state and covariance at the first row of a segment of the backward pass.
+pub(crate) struct Boundary {
+    state: SmoothedState,
+    p: DMatrix<f64>,
 }
 
 /// Work matrices of one backward step (allocated once per pass).

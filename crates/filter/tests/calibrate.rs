@@ -5,7 +5,9 @@ mod common;
 use common::{Case, angle_deg};
 use nalgebra::{Matrix3, Vector3};
 use pdcal_filter::smoother::tangent_log_in;
-use pdcal_filter::{CalibrationRun, FilterConfig, Mode, ModeUsed, RunInputs, Sensor, calibrate};
+use pdcal_filter::{
+    CalibrationRun, Channel, FilterConfig, Mode, ModeUsed, RunInputs, Sensor, calibrate,
+};
 
 fn run(case: &Case, config: &FilterConfig, mode: &Mode) -> CalibrationRun {
     let (meta, tel, refs, _) = case.build();
@@ -198,7 +200,22 @@ fn gate_rejects_an_injected_outlier() {
         references: &refs,
         albedo: None,
     };
+    // By default the screening against the neighbouring samples takes it out first.
     let run = calibrate(&inputs, &no_smoother(), &Mode::Full).unwrap();
+    let pd01 = run.rejections.get(Channel::Photodiode(0)).unwrap();
+    assert_eq!(pd01.screened.first, vec![k]);
+    assert!(
+        !run.residuals
+            .iter()
+            .any(|r| r.index == k && r.sensor == Sensor::Photodiode(0))
+    );
+    // With the screening out of the way, the innovation gate rejects it.
+    let unscreened = FilterConfig {
+        outlier_sigmas: 1e9,
+        ..no_smoother()
+    };
+    let run = calibrate(&inputs, &unscreened, &Mode::Full).unwrap();
+    assert_eq!(run.rejections.screened_total(), 0);
     let record = run
         .residuals
         .iter()
@@ -206,6 +223,8 @@ fn gate_rejects_an_injected_outlier() {
         .expect("the spike was considered");
     assert!(!record.accepted, "{record:?}");
     assert!(run.counts.photodiode.gated >= 1);
+    let gated = &run.rejections.get(Channel::Photodiode(0)).unwrap().gated;
+    assert!(gated.first.contains(&k), "{gated:?}");
     // Nothing else of note is gated (5 sigma: probability 6e-7 per Gaussian innovation).
     assert!(run.counts.photodiode.gated <= 2, "{:?}", run.counts);
 }

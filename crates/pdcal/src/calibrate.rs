@@ -9,9 +9,14 @@ use pdcal_albedo::{AlbedoModel, MapChoice};
 /// The albedo model type, re-exported for callers that hold one (xtask).
 pub type AlbedoModelType = AlbedoModel;
 use pdcal_dataset::{DatasetMeta, Telemetry};
-use pdcal_filter::{Calibration, CalibrationRun, FilterConfig, Mode, RunInputs, StepReference};
+use pdcal_filter::screen::ScreenTolerances;
+use pdcal_filter::{
+    Algebra, Calibration, CalibrationRun, FilterConfig, Mode, Rejections, RunInputs, StepReference,
+};
 
+use crate::files::ResidualSummary;
 use crate::output::OutputDir;
+use crate::stream::StreamSink;
 use crate::sunvec::SunVectorMetrics;
 
 /// The resolved run configuration: filter tuning and mode.
@@ -91,6 +96,8 @@ pub struct Outcome {
     pub references: Vec<StepReference>,
     /// Sun-vector magnitude and direction metrics (Figs. 8-11).
     pub sun_vector: SunVectorMetrics,
+    /// Photodiode residual statistics over every row.
+    pub residuals: ResidualSummary,
     /// Wall-clock time of the filter run, s.
     pub runtime_s: f64,
     /// Physical-plausibility warnings on the input ([`crate::checks`]), one line each.
@@ -127,6 +134,7 @@ pub fn run(
     let sun_vector =
         crate::sunvec::metrics(meta, telemetry, &references, &run, albedo, &config.filter)?;
     Ok(Outcome {
+        residuals: crate::files::residual_summary(&run.residuals),
         run,
         references,
         sun_vector,
@@ -136,13 +144,77 @@ pub fn run(
 }
 
 /// `pdcal calibrate DATASET_DIR --out OUT_DIR [--config FILE.ron]`.
+///
+/// Streams ([`pdcal_filter::calibrate_streaming`]): the CSVs are written into the staging
+/// directory as the rows are produced, the smoother works segment by segment, and the
+/// returned [`Outcome`]'s `run` holds the estimates and residuals of every
+/// [`crate::stream::stride_for`]-th row only (what the figures plot), no smoothed vector.
 pub fn run_dir(dataset: &Path, out: &Path, config: &RunConfig) -> Result<Outcome> {
     let dir = OutputDir::create(out, "calibrate")?;
     // Only meta and telemetry: calibrate never reads truth.*.
     let meta = pdcal_dataset::read_meta(dataset)?;
-    let telemetry = pdcal_dataset::read_telemetry(dataset, &meta)?;
+    let mut telemetry = pdcal_dataset::read_telemetry(dataset, &meta)?;
+    let warnings = crate::checks::check_telemetry(&telemetry)?;
+    // Screened here, not only inside the filter, so that the Sun-vector metrics and the
+    // figures never see a wild sample either.
+    config.filter.validate().context("calibration filter")?;
+    let sigmas = config.filter.resolve(meta.noise.as_ref());
+    let mut screened = Rejections::new(meta.photodiodes.len());
+    pdcal_filter::screen::screen_in_place(
+        &mut telemetry,
+        &ScreenTolerances::new(&config.filter, &sigmas),
+        &mut screened,
+    );
     let albedo = albedo_model()?;
-    let outcome = run(&meta, &telemetry, config, &albedo)?;
-    crate::files::write_calibration_outputs(dir, &meta, &telemetry, &outcome, None)?;
+    let references = pdcal_filter::step_references(&meta, &telemetry)?;
+    let inputs = RunInputs {
+        meta: &meta,
+        telemetry: &telemetry,
+        references: &references,
+        albedo: Some(&albedo),
+    };
+    let mut sink = StreamSink::new(
+        &dir,
+        meta.photodiodes.len(),
+        telemetry.len(),
+        config.filter.smoother,
+    )?;
+    let start = Instant::now();
+    let model = pdcal_filter::paper_model(pdcal_filter::nominal_photodiodes(&meta), &config.filter);
+    let mut run = pdcal_filter::calibrate_streaming(
+        &inputs,
+        &config.filter,
+        &config.mode,
+        model,
+        Algebra::Structured,
+        pdcal_filter::SEGMENT_ROWS,
+        &mut sink,
+    )
+    .context("calibration filter")?;
+    let runtime_s = start.elapsed().as_secs_f64();
+    let streamed = sink.finish()?;
+    run.rejections.absorb_screened(&screened);
+    run.forward = streamed.forward_sample;
+    run.residuals = streamed.residual_sample;
+    run.smoothed = None;
+    let sun_vector = crate::sunvec::metrics_along(
+        &meta,
+        &telemetry,
+        &references,
+        &run,
+        &streamed.attitudes,
+        &albedo,
+        &config.filter,
+    )?;
+    let outcome = Outcome {
+        run,
+        references,
+        sun_vector,
+        residuals: streamed.residual_summary,
+        runtime_s,
+        warnings,
+    };
+    let summary = crate::files::summary(&meta, &outcome);
+    crate::files::write_summary_and_figures(dir, &telemetry, &outcome, &summary, None)?;
     Ok(outcome)
 }

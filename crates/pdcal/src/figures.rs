@@ -12,12 +12,19 @@ use pdcal_report::{
 
 use crate::calibrate::Outcome;
 use crate::files::Summary;
+use crate::stream::stride_for;
 
 /// A written figure: caption and file stem.
 pub type FigureEntry = (String, String);
 
 /// Photodiodes shown in the per-photodiode figures (the paper shows 1-3).
 const SHOWN: usize = 3;
+
+/// Every `stride`-th element: a long series cut to at most
+/// [`crate::stream::FIGURE_POINTS`] points for a figure.
+fn every<T: Clone>(values: &[T], stride: usize) -> Vec<T> {
+    values.iter().step_by(stride.max(1)).cloned().collect()
+}
 
 fn minutes(t_s: &[f64]) -> Vec<f64> {
     t_s.iter().map(|t| t / 60.0).collect()
@@ -52,11 +59,17 @@ fn raw_outputs(dir: &Path, telemetry: &Telemetry, out: &mut Vec<FigureEntry>) ->
 /// Fig. 2: every photodiode's raw output over time (`fig02_raw_outputs` in `dir`); empty
 /// cells are gaps.
 pub fn raw_outputs_figure(dir: &Path, telemetry: &Telemetry, title: &str) -> Result<()> {
-    let t = minutes(&telemetry.t_s);
+    let stride = stride_for(telemetry.len());
+    let t = minutes(&every(&telemetry.t_s, stride));
     let columns: Vec<Vec<f64>> = telemetry
         .pd_v
         .iter()
-        .map(|c| c.iter().map(|v| v.unwrap_or(f64::NAN)).collect())
+        .map(|c| {
+            c.iter()
+                .step_by(stride)
+                .map(|v| v.unwrap_or(f64::NAN))
+                .collect()
+        })
         .collect();
     let names: Vec<String> = (1..=columns.len()).map(|i| format!("pd{i:02}")).collect();
     let series: Vec<Series> = columns
@@ -76,7 +89,8 @@ pub fn raw_outputs_figure(dir: &Path, telemetry: &Telemetry, title: &str) -> Res
 }
 
 fn sun_directions(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Result<()> {
-    let dirs = &outcome.sun_vector.directions_initial_body;
+    let all = &outcome.sun_vector.directions_initial_body;
+    let dirs = &every(all, stride_for(all.len()));
     let figure = Figure::new(
         "fig03_sun_directions",
         "Measured Sun directions in the body frame (initial parameters)",
@@ -97,11 +111,12 @@ fn sun_directions(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> 
     Ok(())
 }
 
-/// Residuals of photodiodes 1-3 on the time grid of the run (NaN where not updated).
+/// Residuals of photodiodes 1-3 on the rows of the run's forward estimates (every row, or
+/// every few rows of a long streamed run; NaN where not updated).
 fn residuals(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Result<()> {
     let run = &outcome.run;
     let t: Vec<f64> = run.forward.iter().map(|e| e.t_s / 60.0).collect();
-    let first = run.forward.first().map_or(0, |e| e.index);
+    let rows: Vec<usize> = run.forward.iter().map(|e| e.index).collect();
     let n = t.len();
     let shown = SHOWN.min(run.calibration.photodiodes.len());
     let mut value = vec![vec![f64::NAN; n]; shown];
@@ -109,7 +124,7 @@ fn residuals(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Resul
     for r in &run.residuals {
         if let Sensor::Photodiode(i) = r.sensor
             && i < shown
-            && let Some(k) = r.index.checked_sub(first).filter(|k| *k < n)
+            && let Ok(k) = rows.binary_search(&r.index)
         {
             value[i][k] = r.residual;
             sigma[i][k] = r.bound_3sigma / 3.0;
@@ -211,12 +226,15 @@ fn magnitudes(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Resu
         "fig08_magnitude_histograms",
     );
 
-    let t = minutes(&sv.t_s);
+    let stride = stride_for(sv.t_s.len());
+    let t = minutes(&every(&sv.t_s, stride));
+    let (raw, calibrated) = (
+        every(&sv.magnitude_uncompensated, stride),
+        every(&sv.magnitude_calibrated, stride),
+    );
     let series = [
-        Series::new("uncompensated", &sv.magnitude_uncompensated, Mark::Circle)
-            .with_colour([220, 40, 40]),
-        Series::new("albedo compensated", &sv.magnitude_calibrated, Mark::Dot)
-            .with_colour([30, 80, 220]),
+        Series::new("uncompensated", &raw, Mark::Circle).with_colour([220, 40, 40]),
+        Series::new("albedo compensated", &calibrated, Mark::Dot).with_colour([30, 80, 220]),
     ];
     let figure = Figure::new(
         "fig10_magnitude_time",

@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result};
 use pdcal_dataset::{DatasetMeta, Telemetry};
-use pdcal_filter::{CalibrationRun, ModeUsed, ResidualRecord, Sensor, StepEstimate};
+use pdcal_filter::{CalibrationRun, ModeUsed, RepairKind, ResidualRecord, Sensor, StepEstimate};
 use serde::Serialize;
 
 use crate::calibrate::Outcome;
@@ -35,6 +35,11 @@ pub struct Summary {
     pub residuals: ResidualSummary,
     /// Update counts (accepted, gated, ...) per sensor class.
     pub updates: serde_json::Value,
+    /// Samples rejected per sensor (`gyro`, `mag`, `pd01`...): screened against their
+    /// neighbours before the filter, or gated by it; counts and the first rows.
+    pub rejected_samples: Vec<RejectedSummary>,
+    /// Repairs of the filter covariance (it stopped being positive definite).
+    pub covariance_repairs: RepairsSummary,
     /// Wall-clock time of the filter run, s.
     pub runtime_s: f64,
     /// Physical-plausibility warnings on the input, one line each (also on stderr).
@@ -142,6 +147,65 @@ pub struct ResidualSummary {
     pub reason: Option<&'static str>,
 }
 
+/// One sensor's rejected samples in `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct RejectedSummary {
+    /// `gyro`, `mag`, `pd01`, ...
+    pub sensor: String,
+    /// Samples rejected by the screening against their neighbours.
+    pub screened: usize,
+    /// Their telemetry rows (zero-based data rows of telemetry.csv), the first 100.
+    pub screened_rows: Vec<usize>,
+    /// Samples rejected by the filter's innovation gate (a magnetometer row counts once).
+    pub gated: usize,
+    /// Their rows, the first 100.
+    pub gated_rows: Vec<usize>,
+}
+
+/// The covariance repairs in `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct RepairsSummary {
+    /// How many.
+    pub count: usize,
+    /// The first 100: row, time and what was done.
+    pub first: Vec<serde_json::Value>,
+}
+
+fn rejected_summary(run: &CalibrationRun) -> Vec<RejectedSummary> {
+    run.rejections
+        .channels
+        .iter()
+        .map(|c| RejectedSummary {
+            sensor: c.channel.name(),
+            screened: c.screened.count,
+            screened_rows: c.screened.first.clone(),
+            gated: c.gated.count,
+            gated_rows: c.gated.first.clone(),
+        })
+        .collect()
+}
+
+fn repairs_summary(run: &CalibrationRun) -> RepairsSummary {
+    let first = run
+        .covariance_repairs
+        .first
+        .iter()
+        .map(|r| match r.kind {
+            RepairKind::NonFinite { states } => serde_json::json!({
+                "row": r.index, "t_s": r.t_s, "kind": "non-finite", "states_reset": states,
+            }),
+            RepairKind::Indefinite { min_eigenvalue } => serde_json::json!({
+                "row": r.index, "t_s": r.t_s, "kind": "indefinite",
+                "min_eigenvalue": min_eigenvalue,
+            }),
+        })
+        .collect();
+    RepairsSummary {
+        count: run.covariance_repairs.count,
+        first,
+    }
+}
+
 /// The `reason` of a statistic over `count` samples that needs at least `needed`.
 fn too_few(count: usize, needed: usize) -> Option<&'static str> {
     match (count, needed) {
@@ -172,17 +236,25 @@ pub fn residual_summary(residuals: &[ResidualRecord]) -> ResidualSummary {
         .iter()
         .filter(|r| matches!(r.sensor, Sensor::Photodiode(_)))
         .collect();
-    let n = pd.len() as f64;
-    let rms = (pd.iter().map(|r| r.residual * r.residual).sum::<f64>() / n).sqrt();
+    let sum_sq = pd.iter().map(|r| r.residual * r.residual).sum::<f64>();
     let inside = pd
         .iter()
         .filter(|r| r.residual.abs() <= r.bound_3sigma)
-        .count() as f64;
-    ResidualSummary {
-        photodiode_rms_V: rms,
-        fraction_within_3sigma: inside / n,
-        count: pd.len(),
-        reason: too_few(pd.len(), 1),
+        .count();
+    ResidualSummary::from_sums(sum_sq, inside, pd.len())
+}
+
+impl ResidualSummary {
+    /// From the sum of squared photodiode residuals, how many were inside their 3-sigma
+    /// bound, and how many there were (NaN statistics and a reason when none).
+    pub fn from_sums(sum_sq_v2: f64, inside: usize, count: usize) -> Self {
+        let n = count as f64;
+        ResidualSummary {
+            photodiode_rms_V: (sum_sq_v2 / n).sqrt(),
+            fraction_within_3sigma: inside as f64 / n,
+            count,
+            reason: too_few(count, 1),
+        }
     }
 }
 
@@ -248,8 +320,10 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
                 reason: too_few(m.count, 1),
             }
         },
-        residuals: residual_summary(&run.residuals),
+        residuals: outcome.residuals,
         updates: counts_json(run),
+        rejected_samples: rejected_summary(run),
+        covariance_repairs: repairs_summary(run),
         runtime_s: outcome.runtime_s,
         warnings: outcome.warnings.clone(),
     }
@@ -309,7 +383,8 @@ pub fn estimate_header(m: usize, parameters: &[String]) -> Vec<String> {
     h
 }
 
-fn estimate_row(e: &StepEstimate) -> Vec<String> {
+/// One `estimates.csv` row.
+pub fn estimate_row(e: &StepEstimate) -> Vec<String> {
     let f = |x: f64| format!("{x:?}");
     let c = &e.calibration;
     let mut row = vec![f(e.t_s), f(e.q.x), f(e.q.y), f(e.q.z), f(e.q.w)];
@@ -355,26 +430,34 @@ pub fn sensor_name(sensor: Sensor) -> String {
     }
 }
 
+/// The columns of `residuals.csv`.
+pub const RESIDUAL_COLUMNS: [&str; 6] = [
+    "t_s",
+    "sensor",
+    "measured",
+    "residual",
+    "bound_3sigma",
+    "accepted",
+];
+
+/// One `residuals.csv` row.
+pub fn residual_row(r: &ResidualRecord) -> [String; 6] {
+    [
+        format!("{:?}", r.t_s),
+        sensor_name(r.sensor),
+        format!("{:?}", r.measured),
+        format!("{:?}", r.residual),
+        format!("{:?}", r.bound_3sigma),
+        r.accepted.to_string(),
+    ]
+}
+
 /// `residuals.csv` text: one row per scalar update.
 pub fn residuals_csv(residuals: &[ResidualRecord]) -> Result<Vec<u8>> {
     let mut w = csv::Writer::from_writer(Vec::new());
-    w.write_record([
-        "t_s",
-        "sensor",
-        "measured",
-        "residual",
-        "bound_3sigma",
-        "accepted",
-    ])?;
+    w.write_record(RESIDUAL_COLUMNS)?;
     for r in residuals {
-        w.write_record([
-            format!("{:?}", r.t_s),
-            sensor_name(r.sensor),
-            format!("{:?}", r.measured),
-            format!("{:?}", r.residual),
-            format!("{:?}", r.bound_3sigma),
-            r.accepted.to_string(),
-        ])?;
+        w.write_record(residual_row(r))?;
     }
     w.into_inner().context("residuals.csv")
 }
@@ -389,16 +472,7 @@ pub fn write_calibration_outputs(
     outcome: &Outcome,
     evaluation: Option<&crate::evaluate::Evaluation>,
 ) -> Result<()> {
-    let summary = summary(meta, outcome);
     let m = meta.photodiodes.len();
-    write_file(
-        &dir.file("summary.json"),
-        serde_json::to_string_pretty(&summary)?.as_bytes(),
-    )?;
-    write_file(
-        &dir.file("calibration.ron"),
-        outcome.run.calibration.to_ron_string()?.as_bytes(),
-    )?;
     write_file(
         &dir.file("estimates.csv"),
         &estimates_csv(&outcome.run.forward, m)?,
@@ -413,6 +487,28 @@ pub fn write_calibration_outputs(
         &dir.file("residuals.csv"),
         &residuals_csv(&outcome.run.residuals)?,
     )?;
+    let summary = summary(meta, outcome);
+    write_summary_and_figures(dir, telemetry, outcome, &summary, evaluation)
+}
+
+/// Writes summary.json, calibration.ron, the figures and index.html into `dir` (which holds
+/// the CSVs already) and publishes it; with `evaluation` (the default run), also
+/// `evaluation.json` and its rows in index.html.
+pub fn write_summary_and_figures(
+    dir: OutputDir,
+    telemetry: &Telemetry,
+    outcome: &Outcome,
+    summary: &Summary,
+    evaluation: Option<&crate::evaluate::Evaluation>,
+) -> Result<()> {
+    write_file(
+        &dir.file("summary.json"),
+        serde_json::to_string_pretty(summary)?.as_bytes(),
+    )?;
+    write_file(
+        &dir.file("calibration.ron"),
+        outcome.run.calibration.to_ron_string()?.as_bytes(),
+    )?;
     let figures = crate::figures::calibration_figures(dir.path(), telemetry, outcome)?;
     let rows = evaluation.map(crate::evaluate::index_rows);
     if let Some(e) = evaluation {
@@ -421,6 +517,6 @@ pub fn write_calibration_outputs(
             serde_json::to_string_pretty(e)?.as_bytes(),
         )?;
     }
-    crate::figures::write_index(dir.path(), &summary, rows.as_deref(), &figures)?;
+    crate::figures::write_index(dir.path(), summary, rows.as_deref(), &figures)?;
     dir.commit()
 }

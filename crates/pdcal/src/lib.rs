@@ -15,4 +15,5 @@ pub mod figures;
 pub mod files;
 pub mod output;
 pub mod simulate;
+pub mod stream;
 pub mod sunvec;

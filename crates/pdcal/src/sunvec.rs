@@ -8,6 +8,7 @@
 use anyhow::Result;
 use nalgebra::Vector3;
 use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView};
+use pdcal_attitude::Quat;
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_filter::{Calibration, CalibrationRun, FilterConfig, StepReference};
 use pdcal_photodiode::{Photodiode, SunEstimate, SunVectorOptions, estimate_sun_vector};
@@ -49,12 +50,29 @@ fn photodiodes(calibration: &Calibration, noise_v: f64, fov_rad: f64) -> Vec<Pho
 /// determination, so the two sets stay comparable.
 pub const UNCALIBRATED_SCALE_SIGMA_FRACTION: f64 = 0.05;
 
-/// Computes the metrics from a finished run.
+/// Computes the metrics from a finished run, along its smoothed attitudes (else the
+/// forward ones).
 pub fn metrics(
     meta: &DatasetMeta,
     telemetry: &Telemetry,
     references: &[StepReference],
     run: &CalibrationRun,
+    albedo: &AlbedoModel,
+    config: &FilterConfig,
+) -> Result<SunVectorMetrics> {
+    let track = run.smoothed.as_ref().unwrap_or(&run.forward);
+    let attitudes: Vec<(usize, Quat)> = track.iter().map(|e| (e.index, e.q)).collect();
+    metrics_along(meta, telemetry, references, run, &attitudes, albedo, config)
+}
+
+/// [`metrics`] along given attitudes `(row, attitude)` (a streaming run keeps no
+/// estimates).
+pub fn metrics_along(
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+    references: &[StepReference],
+    run: &CalibrationRun,
+    attitudes: &[(usize, Quat)],
     albedo: &AlbedoModel,
     config: &FilterConfig,
 ) -> Result<SunVectorMetrics> {
@@ -76,9 +94,7 @@ pub fn metrics(
     let mut view = AlbedoView::new();
     let (mut outputs, mut known_initial, mut known_cal) =
         (vec![0.0; m], vec![0.0; m], vec![0.0; m]);
-    let attitude = run.smoothed.as_ref().unwrap_or(&run.forward);
-    for estimate in attitude {
-        let k = estimate.index;
+    for &(k, q) in attitudes {
         let reference = &references[k];
         if reference.sun_fraction < config.min_sun_fraction
             || !read_outputs(telemetry, k, &calibrated_ok, &mut outputs)
@@ -91,7 +107,7 @@ pub fn metrics(
             &reference.sun_gcrf_km,
             &reference.gcrf_to_itrf,
         )?;
-        let a_t = estimate.q.attitude_matrix().transpose();
+        let a_t = q.attitude_matrix().transpose();
         albedo_volts(&view, &initial, &a_t, &mut known_initial);
         albedo_volts(&view, &calibrated, &a_t, &mut known_cal);
         let s_init = observable(estimate_sun_vector(

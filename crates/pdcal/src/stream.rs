@@ -1,0 +1,224 @@
+//! The sink of a streaming calibration ([`pdcal_filter::calibrate_streaming`]): writes
+//! `estimates.csv`, `residuals.csv` and `estimates_smoothed.csv` into the staging directory
+//! as the rows are produced, and keeps only what the summary and the figures need: the
+//! residual statistics over every row, the attitude per row for the Sun-vector metrics
+//! (40 bytes a row), and the estimates and residuals of every `stride`-th row for the
+//! figures.
+//!
+//! The smoothed rows arrive in segments, last segment first: each is appended to a spill
+//! file in the staging directory with its byte range, and [`StreamSink::finish`] copies
+//! the ranges in row order into `estimates_smoothed.csv` and removes the spill.
+
+use std::fs::File;
+use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use pdcal_attitude::Quat;
+use pdcal_filter::{ResidualRecord, RunSink, Sensor, StepEstimate};
+
+use crate::files::{
+    RESIDUAL_COLUMNS, ResidualSummary, estimate_header, estimate_row, residual_row,
+};
+use crate::output::OutputDir;
+
+/// Largest number of points a figure's time series keeps.
+pub const FIGURE_POINTS: usize = 4000;
+
+/// Every `stride`-th row keeps at most [`FIGURE_POINTS`] of `rows`.
+pub fn stride_for(rows: usize) -> usize {
+    rows.div_ceil(FIGURE_POINTS).max(1)
+}
+
+/// What a finished [`StreamSink`] keeps.
+pub struct Streamed {
+    /// The attitude per row (smoothed when the smoother ran), rows increasing.
+    pub attitudes: Vec<(usize, Quat)>,
+    /// Photodiode residual statistics over every row.
+    pub residual_summary: ResidualSummary,
+    /// Every `stride`-th forward estimate.
+    pub forward_sample: Vec<StepEstimate>,
+    /// The residuals of those rows.
+    pub residual_sample: Vec<ResidualRecord>,
+}
+
+/// Streams the per-row outputs of a calibration into the staging directory.
+pub struct StreamSink {
+    m: usize,
+    stride: usize,
+    smoother: bool,
+    estimates: csv::Writer<BufWriter<File>>,
+    estimates_header: bool,
+    residuals: csv::Writer<BufWriter<File>>,
+    spill: csv::Writer<BufWriter<File>>,
+    spill_path: PathBuf,
+    smoothed_path: PathBuf,
+    smoothed_header: Option<Vec<String>>,
+    /// Byte ranges of the smoothed segments in the spill, in arrival order.
+    segments: Vec<(u64, u64)>,
+    /// Attitudes for the Sun-vector metrics: forward, or smoothed in arrival order.
+    attitudes: Vec<Vec<(usize, Quat)>>,
+    forward_sample: Vec<StepEstimate>,
+    residual_sample: Vec<ResidualRecord>,
+    pd_count: usize,
+    pd_sum_sq: f64,
+    pd_inside: usize,
+    error: Option<anyhow::Error>,
+}
+
+fn create(path: &Path) -> Result<csv::Writer<BufWriter<File>>> {
+    let file = File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    Ok(csv::Writer::from_writer(BufWriter::new(file)))
+}
+
+impl StreamSink {
+    /// Files in `dir` for `m` photodiodes over at most `rows` rows.
+    pub fn new(dir: &OutputDir, m: usize, rows: usize, smoother: bool) -> Result<Self> {
+        let spill_path = dir.file(".estimates_smoothed.spill");
+        let mut residuals = create(&dir.file("residuals.csv"))?;
+        residuals.write_record(RESIDUAL_COLUMNS)?;
+        Ok(StreamSink {
+            m,
+            stride: stride_for(rows),
+            smoother,
+            estimates: create(&dir.file("estimates.csv"))?,
+            estimates_header: false,
+            residuals,
+            spill: create(&spill_path)?,
+            spill_path,
+            smoothed_path: dir.file("estimates_smoothed.csv"),
+            smoothed_header: None,
+            segments: Vec::new(),
+            attitudes: vec![Vec::new()],
+            forward_sample: Vec::new(),
+            residual_sample: Vec::new(),
+            pd_count: 0,
+            pd_sum_sq: 0.0,
+            pd_inside: 0,
+            error: None,
+        })
+    }
+
+    fn keep(&mut self, result: Result<()>) {
+        if let (Err(e), None) = (result, &self.error) {
+            self.error = Some(e);
+        }
+    }
+
+    fn header(&self, e: &StepEstimate) -> Vec<String> {
+        let names: Vec<String> = e
+            .calibration
+            .parameters
+            .iter()
+            .map(|p| p.name.clone())
+            .collect();
+        estimate_header(self.m, &names)
+    }
+
+    fn write_forward(&mut self, e: &StepEstimate, residuals: &[ResidualRecord]) -> Result<()> {
+        if !self.estimates_header {
+            let header = self.header(e);
+            self.estimates.write_record(&header)?;
+            self.smoothed_header = Some(header);
+            self.estimates_header = true;
+        }
+        self.estimates.write_record(estimate_row(e))?;
+        for r in residuals {
+            self.residuals.write_record(residual_row(r))?;
+        }
+        Ok(())
+    }
+
+    fn write_segment(&mut self, segment: &[StepEstimate]) -> Result<()> {
+        self.spill.flush()?;
+        let mut file: &File = self.spill.get_ref().get_ref();
+        let start = file.stream_position()?;
+        for e in segment {
+            self.spill.write_record(estimate_row(e))?;
+        }
+        self.spill.flush()?;
+        let mut file: &File = self.spill.get_ref().get_ref();
+        let end = file.stream_position()?;
+        self.segments.push((start, end));
+        Ok(())
+    }
+
+    /// Closes the files (`estimates_smoothed.csv` assembled in row order when the smoother
+    /// ran); the first write error, if any. Returns the attitude per row (smoothed when
+    /// available) and the photodiode residual statistics.
+    pub fn finish(mut self) -> Result<Streamed> {
+        if let Some(e) = self.error.take() {
+            return Err(e);
+        }
+        self.estimates.flush()?;
+        self.residuals.flush()?;
+        self.spill.flush()?;
+        drop(self.spill);
+        if self.smoother {
+            let mut out = create(&self.smoothed_path)?;
+            if let Some(header) = &self.smoothed_header {
+                out.write_record(header)?;
+            }
+            out.flush()?;
+            let mut out = out
+                .into_inner()
+                .map_err(|e| anyhow::anyhow!("{}: {e}", self.smoothed_path.display()))?;
+            let mut spill = File::open(&self.spill_path)
+                .with_context(|| format!("cannot read {}", self.spill_path.display()))?;
+            for &(start, end) in self.segments.iter().rev() {
+                spill.seek(SeekFrom::Start(start))?;
+                std::io::copy(&mut (&mut spill).take(end - start), &mut out)
+                    .with_context(|| format!("cannot write {}", self.smoothed_path.display()))?;
+            }
+            out.flush()?;
+        }
+        std::fs::remove_file(&self.spill_path)
+            .with_context(|| format!("cannot remove {}", self.spill_path.display()))?;
+        let attitudes: Vec<(usize, Quat)> = if self.smoother {
+            self.attitudes.into_iter().skip(1).rev().flatten().collect()
+        } else {
+            self.attitudes.into_iter().next().unwrap_or_default()
+        };
+        let summary = ResidualSummary::from_sums(self.pd_sum_sq, self.pd_inside, self.pd_count);
+        Ok(Streamed {
+            attitudes,
+            residual_summary: summary,
+            forward_sample: self.forward_sample,
+            residual_sample: self.residual_sample,
+        })
+    }
+}
+
+impl RunSink for StreamSink {
+    fn forward(&mut self, estimate: &StepEstimate, residuals: &[ResidualRecord]) {
+        if self.error.is_some() {
+            return;
+        }
+        let result = self.write_forward(estimate, residuals);
+        self.keep(result);
+        for r in residuals {
+            if matches!(r.sensor, Sensor::Photodiode(_)) {
+                self.pd_count += 1;
+                self.pd_sum_sq += r.residual * r.residual;
+                self.pd_inside += usize::from(r.residual.abs() <= r.bound_3sigma);
+            }
+        }
+        if !self.smoother {
+            self.attitudes[0].push((estimate.index, estimate.q));
+        }
+        if estimate.index.is_multiple_of(self.stride) {
+            self.forward_sample.push(estimate.clone());
+            self.residual_sample.extend_from_slice(residuals);
+        }
+    }
+
+    fn smoothed(&mut self, segment: &[StepEstimate]) {
+        if self.error.is_some() {
+            return;
+        }
+        let result = self.write_segment(segment);
+        self.keep(result);
+        self.attitudes
+            .push(segment.iter().map(|e| (e.index, e.q)).collect());
+    }
+}

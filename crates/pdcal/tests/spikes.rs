@@ -1,0 +1,64 @@
+//! `pdcal calibrate` on a data set with one wild cell in a photodiode, the gyro and the
+//! magnetometer: the run completes and `summary.json` lists each rejected sample with its
+//! row.
+
+use pdcal_sim::Scenario;
+
+#[test]
+fn wild_cells_are_listed_with_their_rows_in_the_summary() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (dataset, out) = (tmp.path().join("set"), tmp.path().join("out"));
+    let mut scenario = Scenario::rax2_like().unwrap();
+    // Sunlight from about 24 min: row 2001 is lit.
+    scenario.duration_s = 2400.0;
+    pdcal::simulate::run_to_dir(&scenario, 2, &dataset).unwrap();
+    let mut ds = pdcal_dataset::read_dataset(&dataset).unwrap();
+    let row = 2001;
+    let pd = (0..ds.telemetry.pd_v.len())
+        .max_by(|&a, &b| {
+            let v = |i: usize| ds.telemetry.pd_v[i][row].unwrap_or(0.0);
+            v(a).total_cmp(&v(b))
+        })
+        .unwrap();
+    ds.telemetry.pd_v[pd][row] = Some(1e300);
+    ds.telemetry.gyro_rad_s[row + 10].as_mut().unwrap().z = 1e300;
+    ds.telemetry.mag_nt.as_mut().unwrap()[row + 20]
+        .as_mut()
+        .unwrap()
+        .x = -1e6;
+    std::fs::remove_dir_all(&dataset).unwrap();
+    pdcal_dataset::write_dataset(&dataset, &ds).unwrap();
+
+    pdcal::calibrate::run_dir(&dataset, &out, &pdcal::calibrate::RunConfig::default()).unwrap();
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+    let rejected = summary["rejected_samples"].as_array().unwrap();
+    let entry = |name: &str| {
+        rejected
+            .iter()
+            .find(|e| e["sensor"] == name)
+            .unwrap_or_else(|| panic!("no entry for {name}: {rejected:?}"))
+    };
+    let pd_name = format!("pd{:02}", pd + 1);
+    for (name, at) in [
+        (pd_name.as_str(), row),
+        ("gyro", row + 10),
+        ("mag", row + 20),
+    ] {
+        assert_eq!(entry(name)["screened"], 1, "{name}: {}", entry(name));
+        assert_eq!(
+            entry(name)["screened_rows"],
+            serde_json::json!([at]),
+            "{name}"
+        );
+    }
+    let screened: u64 = rejected
+        .iter()
+        .map(|e| e["screened"].as_u64().unwrap())
+        .sum();
+    assert_eq!(screened, 3, "nothing else screened: {rejected:?}");
+    assert_eq!(summary["covariance_repairs"]["count"], 0);
+    // The calibrated photodiode is sane (its initial scale was not the wild cell).
+    let scale = summary["photodiodes"][pd]["scale_V"].as_f64().unwrap();
+    assert!(scale > 1.0 && scale < 10.0, "scale {scale}");
+}
