@@ -187,30 +187,24 @@ fn config_ron_never_panics_and_places_errors() {
 }
 
 // Quoting: one test per target, so that each known failure is marked on its own with its
-// cause. Every reader still quotes whole values somewhere (the dataset reader whole cells,
-// `"<5000 x>" is not a number`; its fix to crates/dataset is in progress under issue 14,
-// "Messages"). Drop an `ignore` when its cause is fixed; `cargo test -p pdcal-fuzz --
-// --ignored` runs them now.
+// cause (the scenario and config readers). Drop an `ignore` when its cause is fixed;
+// `cargo test -p pdcal-fuzz -- --ignored` runs them now.
 #[test]
-#[ignore = "the dataset reader quotes whole values; its fix (issue 14, Messages) is in progress"]
 fn dataset_pair_errors_quote_at_most_the_limit() {
     assert_holds(Target::DatasetPair, Promises::Quoting);
 }
 
 #[test]
-#[ignore = "the dataset reader quotes whole values; its fix (issue 14, Messages) is in progress"]
 fn dataset_ron_errors_quote_at_most_the_limit() {
     assert_holds(Target::DatasetRon, Promises::Quoting);
 }
 
 #[test]
-#[ignore = "the dataset reader quotes whole values; its fix (issue 14, Messages) is in progress"]
 fn telemetry_csv_errors_quote_at_most_the_limit() {
     assert_holds(Target::TelemetryCsv, Promises::Quoting);
 }
 
 #[test]
-#[ignore = "the dataset reader quotes whole values; its fix (issue 14, Messages) is in progress"]
 fn truth_csv_errors_quote_at_most_the_limit() {
     assert_holds(Target::TruthCsv, Promises::Quoting);
 }

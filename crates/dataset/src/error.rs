@@ -110,7 +110,7 @@ pub enum ErrorKind {
         line_number: u8,
     },
     /// A CSV column that the format does not define.
-    #[error("unknown column {name:?}{hint}")]
+    #[error("unknown column {}{hint}", quote(.name))]
     UnknownColumn {
         /// The header found.
         name: String,
@@ -329,7 +329,11 @@ impl fmt::Display for DatasetError {
             }
         }
         if let Some(field) = &e.field {
-            write!(f, " ({field})")?;
+            // A header or field path comes from the file too: cut like any quoted value.
+            match field.char_indices().nth(QUOTE_MAX_CHARS) {
+                None => write!(f, " ({field})")?,
+                Some((cut, _)) => write!(f, " ({}... {} bytes)", &field[..cut], field.len())?,
+            }
         }
         write!(f, ": {}", e.kind)
     }
@@ -342,6 +346,15 @@ impl std::error::Error for DatasetError {}
 /// Characters of an offending value quoted in a message; longer values are cut, so that a
 /// 50 MB cell does not become a 50 MB error message.
 pub const QUOTE_MAX_CHARS: usize = 80;
+
+/// `text` for a message, unquoted (a library's own message quoting the input): at most
+/// [`QUOTE_MAX_CHARS`] characters of it, and the full length when cut.
+pub fn clip(text: &str) -> String {
+    match text.char_indices().nth(QUOTE_MAX_CHARS) {
+        None => text.to_owned(),
+        Some((cut, _)) => format!("{}... ({} bytes)", &text[..cut], text.len()),
+    }
+}
 
 /// `text` quoted for a message: Rust string syntax, at most [`QUOTE_MAX_CHARS`] characters
 /// of it, and the full length when cut (`"aaaa..."... (52428800 bytes)`).

@@ -22,14 +22,14 @@ pub(crate) fn from_ron<T: DeserializeOwned>(file: &Path, text: &str) -> Result<T
             ron::Error::NoSuchStructField {
                 expected, found, ..
             } => ErrorKind::UnknownField {
-                name: found,
+                name: crate::error::clip(&found),
                 expected: expected.join(", "),
             },
             ron::Error::MissingStructField { field, .. } => ErrorKind::MissingField {
                 name: field.to_owned(),
             },
             other => ErrorKind::Ron {
-                message: other.to_string(),
+                message: crate::error::clip(&other.to_string()),
             },
         };
         let (line, col) = skip_blanks(text, e.span.start.line, e.span.start.col);
