@@ -296,7 +296,8 @@ fn shrink_line(x: &pdcal_diagnose::Shrink) -> String {
 fn misfit_text(m: &pdcal_diagnose::Misfit) -> String {
     if m.explained {
         return format!(
-            "Yes: photodiode RMS {:.4} V is {:.2} times the noise, {:.1} % inside 3 sigma, every \
+            "Yes: photodiode RMS {:.4} V, {:.2} times the noise model's sigma (sensor noise, \
+             the calibration's uncertainty, the albedo map's), {:.1} % inside 3 sigma, every \
              photodiode consistent.",
             m.photodiode_rms_v,
             m.rms_ratio,
@@ -304,8 +305,8 @@ fn misfit_text(m: &pdcal_diagnose::Misfit) -> String {
         );
     }
     let mut s = format!(
-        "No (`unexplained`): photodiode RMS {:.4} V is {:.2} times the noise ({:.4} V), {:.1} % \
-         inside 3 sigma. Concentrated in: {}.",
+        "No (`unexplained`): photodiode RMS {:.4} V, {:.2} times the noise model's sigma \
+         (sensor noise {:.4} V), {:.1} % inside 3 sigma. Concentrated in: {}.",
         m.photodiode_rms_v,
         m.rms_ratio,
         m.photodiode_noise_v,
