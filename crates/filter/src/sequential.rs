@@ -15,9 +15,9 @@
 //! step, by the caller ([`algebra::apply_pending`]).
 //!
 //! (The Cholesky form of the same recursion, every scalar in the `m x m` space of
-//! `H P_0 H^T + R` first and the `n`-vectors after, was measured slower at `m = 20`,
-//! `n = 57`: 4.6 us against 2.8 us per step, its small-space recursion and the products
-//! `H P_0 H^T` cost more than the serial chain it removes.)
+//! `H P_0 H^T + R` first and the `n`-vectors after, is slower here: its small-space
+//! recursion and the products `H P_0 H^T` cost more than the serial chain it removes;
+//! docs/performance.md has the measurement.)
 
 use crate::algebra::{self, Pending, Picked, Run};
 

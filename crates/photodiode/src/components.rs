@@ -57,18 +57,12 @@ pub fn add_effect(
             return Ok(false);
         }
     }
-    if estimable(effect.id()) {
+    // The effects whose values a filter can carry as states: those `estimated_values_mut`
+    // lists.
+    if !estimated_values_mut(&mut effect.clone()).is_empty() {
         set_role(model, effect.id(), options.role)?;
     }
     Ok(true)
-}
-
-/// Effects whose parameters a filter can carry as states.
-fn estimable(id: EffectId) -> bool {
-    matches!(
-        id,
-        EffectId::TimeOffset | EffectId::ScaleDrift | EffectId::AlbedoGain | EffectId::Temperature
-    )
 }
 
 fn set_role(
