@@ -461,6 +461,9 @@ fn model_direct(model: &MeasurementModel, i: usize, scene: &Scene) -> Result<f64
 /// Gyro samples on each side of a step averaged into its nearby rotation.
 pub const NEARBY: usize = 3;
 
+/// Longest step, in median row spacings, whose rotation the gyro residuals compare.
+const MAX_GYRO_STEP_SPACINGS: f64 = 5.0;
+
 /// Rotation over each step of the smoothed attitude minus the gyro's, body frame.
 ///
 /// `A_{k+1} = exp(-[theta x]) A_k` for a body rotation `theta = w dt` (`dA/dt = -[w x] A`),
@@ -468,10 +471,16 @@ pub const NEARBY: usize = 3;
 /// both ends minus the smoothed bias, as the filter propagates.
 fn gyro_samples(tel: &Telemetry, track: &[StepEstimate]) -> Vec<GyroSample> {
     let n = tel.len();
+    let longest_s = MAX_GYRO_STEP_SPACINGS * pdcal_filter::nominal_step_s(tel);
     track
         .windows(2)
         .filter_map(|w| {
             let (a, b) = (&w[0], &w[1]);
+            // Across a gap in the telemetry the step's rotation is not the gyro's to answer
+            // for: no sample covers it.
+            if b.t_s - a.t_s > longest_s {
+                return None;
+            }
             let nearby: Vec<Vector3<f64>> = (a.index.saturating_sub(NEARBY)..a.index)
                 .chain((b.index + 1..b.index + 1 + NEARBY).filter(|&k| k < n))
                 .filter_map(|k| tel.gyro_rad_s[k])

@@ -114,7 +114,7 @@ pub use output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
 pub use references::{orbit_source, step_references};
 pub use run::{
     ForwardPass, RunInputs, RunSink, SEGMENT_ROWS, calibrate, calibrate_streaming,
-    calibrate_with_model, nominal_photodiodes, paper_model,
+    calibrate_with_model, nominal_photodiodes, nominal_step_s, paper_model,
 };
 pub use screen::{Bounded, Channel, ChannelRejections, Rejections, RowList};
 

@@ -637,8 +637,9 @@ fn step_rate(
     }
 }
 
-/// Median spacing of consecutive rows (the gyro sample period for the noise conversion).
-fn nominal_step_s(tel: &Telemetry) -> f64 {
+/// Median spacing of consecutive rows, s, 1 with fewer than two rows (the gyro sample
+/// period for the noise conversion; the diagnosis's gap test).
+pub fn nominal_step_s(tel: &Telemetry) -> f64 {
     let mut dts: Vec<f64> = tel.t_s.windows(2).map(|w| w[1] - w[0]).collect();
     if dts.is_empty() {
         return 1.0;
