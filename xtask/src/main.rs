@@ -37,6 +37,10 @@ enum Task {
         /// Filter configuration RON (as `pdcal calibrate --config`).
         #[arg(long)]
         config: Option<std::path::PathBuf>,
+        /// Keep only passes of the telemetry: `passes:ON/PERIOD` (seconds), at a phase
+        /// drawn from each seed.
+        #[arg(long)]
+        cut: Option<monte_carlo::Cut>,
     },
     /// Simulate rax2-like with albedo and dark offsets hidden, diagnose from `cosine`.
     DiagnoseDemo,
@@ -52,7 +56,8 @@ fn main() -> ExitCode {
             scenario,
             photodiode_only,
             config,
-        } => monte_carlo::run(seeds, &scenario, photodiode_only, config.as_deref()),
+            cut,
+        } => monte_carlo::run(seeds, &scenario, photodiode_only, config.as_deref(), cut),
         Task::DiagnoseDemo => diagnose_demo::run(std::path::Path::new("out/diagnose-demo")),
         Task::Bench => bench(),
     };

@@ -62,6 +62,30 @@ impl Telemetry {
     pub fn is_empty(&self) -> bool {
         self.t_s.is_empty()
     }
+
+    /// The rows `k` for which `keep(k)` holds, in order (a pass-by-pass downlink cut from
+    /// a continuous set, in tests and validation runs).
+    pub fn select_rows(&self, keep: impl Fn(usize) -> bool) -> Telemetry {
+        let rows: Vec<usize> = (0..self.len()).filter(|&k| keep(k)).collect();
+        let pick = |column: &[Option<f64>]| rows.iter().map(|&k| column[k]).collect();
+        let pick3 =
+            |column: &[Option<Vector3<f64>>]| rows.iter().map(|&k| column[k]).collect::<Vec<_>>();
+        Telemetry {
+            t_s: rows.iter().map(|&k| self.t_s[k]).collect(),
+            gyro_rad_s: pick3(&self.gyro_rad_s),
+            mag_nt: self.mag_nt.as_deref().map(pick3),
+            pd_v: self.pd_v.iter().map(|c| pick(c)).collect(),
+            r_gcrf_km: self.r_gcrf_km.as_deref().map(pick3),
+            temperature_c: self
+                .temperature_c
+                .iter()
+                .map(|c| TemperatureColumn {
+                    name: c.name.clone(),
+                    values: pick(&c.values),
+                })
+                .collect(),
+        }
+    }
 }
 
 /// Column indices of one telemetry.csv header.

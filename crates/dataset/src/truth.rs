@@ -70,6 +70,24 @@ impl TruthSeries {
     pub fn is_empty(&self) -> bool {
         self.t_s.is_empty()
     }
+
+    /// The rows `k` for which `keep(k)` holds, in order.
+    pub fn select_rows(&self, keep: impl Fn(usize) -> bool) -> TruthSeries {
+        let rows: Vec<usize> = (0..self.len()).filter(|&k| keep(k)).collect();
+        fn pick<T: Copy>(rows: &[usize], column: &[T]) -> Vec<T> {
+            rows.iter().map(|&k| column[k]).collect()
+        }
+        TruthSeries {
+            t_s: pick(&rows, &self.t_s),
+            q: pick(&rows, &self.q),
+            w_body_rad_s: pick(&rows, &self.w_body_rad_s),
+            gyro_bias_rad_s: pick(&rows, &self.gyro_bias_rad_s),
+            sun_body: pick(&rows, &self.sun_body),
+            eclipse: pick(&rows, &self.eclipse),
+            r_gcrf_km: pick(&rows, &self.r_gcrf_km),
+            mag_body_nt: pick(&rows, &self.mag_body_nt),
+        }
+    }
 }
 
 /// The simulated truth constants (truth.ron).

@@ -10,6 +10,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::FilterError;
 use crate::calibration::Calibration;
+use crate::segments::SegmentConfig;
 
 /// Solar irradiance at 1 AU, W/m^2 (the paper's `E_AM0`, footnote 3).
 pub const E_AM0_W_M2: f64 = 1367.0;
@@ -129,6 +130,8 @@ pub struct FilterConfig {
     pub smoother: bool,
     /// Initial sigma and random walk of estimated model parameters, by unit or name.
     pub parameter_sigmas: Vec<ParameterSigma>,
+    /// Gaps, segments and the lost-attitude test ([`crate::segments`]).
+    pub segments: SegmentConfig,
 }
 
 /// Initial sigma and random walk of estimated model parameters whose `name` (exact) or
@@ -175,6 +178,7 @@ impl Default for FilterConfig {
             second_order_noise: true,
             smoother: true,
             parameter_sigmas: default_parameter_sigmas(),
+            segments: SegmentConfig::default(),
         }
     }
 }
@@ -292,6 +296,7 @@ impl FilterConfig {
                 "must be in (0, 1]",
             ));
         }
+        self.segments.validate()?;
         for p in &self.parameter_sigmas {
             if !(p.sigma > 0.0 && p.sigma.is_finite()) {
                 return Err(bad(

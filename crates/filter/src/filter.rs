@@ -369,6 +369,34 @@ impl Filter {
         self.last = Some(Propagation { phi, qd, dt_s });
     }
 
+    /// Starts a new segment `dt_s` after the last processed row (a gap, or an attitude
+    /// declared lost): the calibration states and the gyro bias keep their estimates, their
+    /// covariance grown by their random walks over `dt_s` (Eq. 19; the bias walk of the
+    /// gyro model); the attitude becomes `q` with covariance `attitude_cov`, uncorrelated
+    /// with every other state (it was acquired from the new segment's own samples). No
+    /// propagation leads to the next update: the smoother starts afresh there.
+    pub fn reacquire(&mut self, q: Quat, attitude_cov: &Matrix3<f64>, dt_s: f64) {
+        let n = self.p.nrows();
+        let dt_s = dt_s.max(0.0);
+        self.fill_calibration_noise(dt_s);
+        for k in CORE..n {
+            self.p[(k, k)] += self.scratch.cal_noise[k];
+        }
+        let bias_walk = self.noise.gyro.sigma_u_rad_s_sqrt_s.powi(2) * dt_s;
+        for k in 0..3 {
+            self.p[(BIAS + k, BIAS + k)] += bias_walk;
+        }
+        for k in ATTITUDE..ATTITUDE + 3 {
+            self.p.row_mut(k).fill(0.0);
+            self.p.column_mut(k).fill(0.0);
+        }
+        self.p
+            .fixed_view_mut::<3, 3>(ATTITUDE, ATTITUDE)
+            .copy_from(&(0.5 * (attitude_cov + attitude_cov.transpose())));
+        self.q = q;
+        self.last = None;
+    }
+
     /// Diagonal calibration-state process noise over `dt_s` into `scratch.cal_noise`
     /// (entries 0..6 stay zero).
     fn fill_calibration_noise(&mut self, dt_s: f64) {

@@ -2,12 +2,15 @@
 //! attitude by the q-method from the magnetometer and the photodiode Sun vector at the first
 //! usable sample, zero gyro bias.
 
+use std::ops::Range;
+
 use nalgebra::{Matrix3, Vector3};
 use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView};
 use pdcal_attitude::{Quat, VectorPair, q_method};
 use pdcal_dataset::Telemetry;
 use pdcal_photodiode::{Photodiode, SunEstimate, SunVectorOptions, estimate_sun_vector};
 
+use crate::segments::GapRules;
 use crate::{FilterConfig, FilterError, StepReference};
 
 /// A lit photodiode whose maximum output stays below this fraction of the median maximum
@@ -75,15 +78,22 @@ pub fn initial_scales(
     })
 }
 
-/// The first usable sample and the attitude there.
+/// The first usable sample of a row range and the attitude there.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Start {
-    /// Telemetry row.
+    /// Telemetry row (the photodiode row the attitude is at).
     pub index: usize,
     /// Attitude.
     pub q: Quat,
     /// Attitude-error covariance, rad^2.
     pub attitude_cov: Matrix3<f64>,
+    /// The magnetometer row paired with it, when another row (brought to this row's time
+    /// with the gyro).
+    pub paired_field_row: Option<usize>,
+    /// The gyro sample nearest the row and its time, s: the rate held until the next one.
+    pub gyro_rad_s: Vector3<f64>,
+    /// Time of that gyro sample, s.
+    pub gyro_t_s: f64,
 }
 
 /// What [`find_start`] works with.
@@ -92,7 +102,7 @@ pub struct StartInputs<'a> {
     pub telemetry: &'a Telemetry,
     /// One reference per row.
     pub references: &'a [StepReference],
-    /// Photodiodes with the initial scales and normals (`noise_v` = photodiode sigma).
+    /// Photodiodes with the current scales and normals (`noise_v` = photodiode sigma).
     pub photodiodes: &'a [Photodiode],
     /// Which photodiodes take part.
     pub used: &'a [bool],
@@ -102,98 +112,195 @@ pub struct StartInputs<'a> {
     pub mag_sigma_nt: f64,
     /// Albedo model to remove albedo from the initial Sun vector.
     pub albedo: Option<&'a AlbedoModel>,
+    /// Current gyro bias estimate, rad/s, and its largest 1-sigma, rad/s: a magnetometer
+    /// sample from another row is rotated to the photodiode row with the corrected rate,
+    /// and its direction sigma grows by the bias sigma times the time between them.
+    pub bias_rad_s: Vector3<f64>,
+    /// See `bias_rad_s`.
+    pub bias_sigma_rad_s: f64,
+    /// How far the gyro and magnetometer samples may be from the photodiode row.
+    pub rules: GapRules,
 }
 
-/// The first row in full Sun with a gyro sample, an observable photodiode Sun vector and
-/// (with the magnetometer) a field sample at least `initial_min_sun_field_angle_deg` from the
-/// Sun; the attitude there by the q-method (or, Sun only, the smallest rotation taking the
-/// reference Sun to the measured one), refined twice with the albedo removed at that attitude.
+/// The first row of `rows` in full Sun with photodiode samples, a gyro sample within the
+/// gyro hold, an observable photodiode Sun vector and (with the magnetometer) a field sample
+/// within the pairing tolerance at least `initial_min_sun_field_angle_deg` from the Sun;
+/// the attitude there by the q-method (or, Sun only, the smallest rotation taking the
+/// reference Sun to the measured one), refined twice with the albedo removed at that
+/// attitude. A field sample of another row is brought to the photodiode row's time with
+/// the bias-corrected gyro rate (`v(t + dt) = exp(-[w dt x]) v(t)` for a fixed inertial
+/// vector) and paired with its own row's reference field. `Ok(Err(reason))` when no row of
+/// the range qualifies.
 ///
 /// Covariance: two vectors, `(sum w_i (I - b_i b_i^T))^-1` with `w = 1/sigma^2` (the
 /// q-method's Fisher information; Markley & Crassidis Sec. 5.5); Sun only,
 /// `sigma_sun^2 (I - s s^T) + sigma_unobserved^2 s s^T`. Plus the configured floor.
-pub fn find_start(inputs: &StartInputs<'_>, config: &FilterConfig) -> Result<Start, FilterError> {
+pub fn find_start(
+    inputs: &StartInputs<'_>,
+    rows: Range<usize>,
+    config: &FilterConfig,
+) -> Result<Result<Start, String>, FilterError> {
     let tel = inputs.telemetry;
-    let m = inputs.photodiodes.len();
-    let mut outputs = vec![0.0; m];
-    let mut known = vec![0.0; m];
     let mut view = AlbedoView::new();
     let options = SunVectorOptions::default();
     let sin_min_angle = config.initial_min_sun_field_angle_deg.to_radians().sin();
     let mut reason = "no sample in full Sun";
-    for k in 0..tel.len() {
+    for k in rows.clone() {
         let reference = &inputs.references[k];
-        if reference.sun_fraction < config.min_sun_fraction || tel.gyro_rad_s[k].is_none() {
+        if reference.sun_fraction < config.min_sun_fraction {
             continue;
         }
-        let mag = match (inputs.use_mag, tel.mag_nt.as_ref().and_then(|m| m[k])) {
+        let sampled: Vec<usize> = (0..inputs.photodiodes.len())
+            .filter(|&i| inputs.used[i] && tel.pd_v[i][k].is_some())
+            .collect();
+        if sampled.is_empty() {
+            reason = "no photodiode sample in full Sun";
+            continue;
+        }
+        let Some((gyro_t_s, gyro_rad_s)) = nearest_gyro(tel, &rows, k, inputs.rules.gyro_hold_s)
+        else {
+            reason = "no gyro sample near a sunlit photodiode sample";
+            continue;
+        };
+        let field = match (inputs.use_mag, paired_field(inputs, &rows, k, &gyro_rad_s)) {
             (false, _) => None,
-            (true, Some(b)) => Some(b),
+            (true, Some(f)) => Some(f),
             (true, None) => {
-                reason = "no magnetometer sample in full Sun";
+                reason = "no magnetometer sample near a sunlit photodiode sample";
                 continue;
             }
         };
-        if let Some(b) = mag {
-            let sin_angle = reference
-                .b_gcrf_nt
+        if let Some(f) = &field {
+            let sin_angle = f
+                .reference_nt
                 .normalize()
                 .cross(&reference.sun_gcrf_unit)
                 .norm();
-            if sin_angle < sin_min_angle || b.norm() == 0.0 {
+            if sin_angle < sin_min_angle || f.body_nt.norm() == 0.0 {
                 reason = "Sun and field too close to parallel";
                 continue;
             }
         }
-        for (i, out) in outputs.iter_mut().enumerate() {
-            *out = if inputs.used[i] {
-                tel.pd_v[i][k].unwrap_or(0.0)
-            } else {
-                0.0
-            };
-        }
-        known.iter_mut().for_each(|x| *x = 0.0);
-        let Some(mut sun_body) = sun_direction(inputs.photodiodes, &outputs, &known, &options)?
-        else {
+        let pds: Vec<Photodiode> = sampled
+            .iter()
+            .map(|&i| inputs.photodiodes[i])
+            .collect();
+        let outputs: Vec<f64> = sampled
+            .iter()
+            .map(|&i| tel.pd_v[i][k].unwrap_or(0.0))
+            .collect();
+        let mut known = vec![0.0; pds.len()];
+        let Some(mut sun_body) = sun_direction(&pds, &outputs, &known, &options)? else {
             reason = "photodiode Sun vector not observable";
             continue;
         };
-        let mut q = attitude(
-            &sun_body,
-            mag.as_ref(),
-            reference,
-            config,
-            inputs.mag_sigma_nt,
-        )?;
+        let mut q = attitude(&sun_body, field.as_ref(), reference, config)?;
         if let Some(model) = inputs.albedo {
             reference.albedo_into(model, &mut view, k)?;
             for _ in 0..2 {
                 let a = q.attitude_matrix();
-                for (i, pd) in inputs.photodiodes.iter().enumerate() {
-                    known[i] = pd.scale_v * view.ratio(&(a.transpose() * pd.n_body), 0.0);
+                for (known, pd) in known.iter_mut().zip(&pds) {
+                    *known = pd.scale_v * view.ratio(&(a.transpose() * pd.n_body), 0.0);
                 }
-                if let Some(s) = sun_direction(inputs.photodiodes, &outputs, &known, &options)? {
+                if let Some(s) = sun_direction(&pds, &outputs, &known, &options)? {
                     sun_body = s;
-                    q = attitude(
-                        &sun_body,
-                        mag.as_ref(),
-                        reference,
-                        config,
-                        inputs.mag_sigma_nt,
-                    )?;
+                    q = attitude(&sun_body, field.as_ref(), reference, config)?;
                 }
             }
         }
-        let attitude_cov = covariance(&sun_body, mag.as_ref(), config, inputs.mag_sigma_nt);
-        return Ok(Start {
+        let attitude_cov = covariance(&sun_body, field.as_ref(), config);
+        return Ok(Ok(Start {
             index: k,
             q,
             attitude_cov,
-        });
+            paired_field_row: field.and_then(|f| (f.row != k).then_some(f.row)),
+            gyro_rad_s,
+            gyro_t_s,
+        }));
     }
-    Err(FilterError::NoInitialSample {
-        reason: reason.to_owned(),
+    Ok(Err(reason.to_owned()))
+}
+
+/// A magnetometer sample paired with a photodiode row.
+struct PairedField {
+    /// Its row.
+    row: usize,
+    /// The measured field brought to the photodiode row's time, body frame, nT.
+    body_nt: Vector3<f64>,
+    /// The reference field at its own row, GCRF, nT.
+    reference_nt: Vector3<f64>,
+    /// Its direction sigma, rad: noise over magnitude, plus the bias sigma times the time
+    /// it was rotated over.
+    sigma_rad: f64,
+}
+
+/// The magnetometer sample of `rows` nearest in time to row `k`, within the pairing
+/// tolerance, rotated to row `k`'s time.
+fn paired_field(
+    inputs: &StartInputs<'_>,
+    rows: &Range<usize>,
+    k: usize,
+    gyro_rad_s: &Vector3<f64>,
+) -> Option<PairedField> {
+    let tel = inputs.telemetry;
+    let mag = tel.mag_nt.as_ref()?;
+    let t_k = tel.t_s[k];
+    let tolerance = inputs.rules.pairing_tolerance_s;
+    let j = nearest_row(tel, rows, k, tolerance, |j| mag[j].is_some())?;
+    let b = mag[j]?;
+    let dt = t_k - tel.t_s[j];
+    let rate = gyro_rad_s - inputs.bias_rad_s;
+    // The body rotation from t_j to t_k, A(t_k) = R A(t_j).
+    let rotation = pdcal_attitude::mekf::propagate(&Quat::IDENTITY, &rate, dt).attitude_matrix();
+    let noise = inputs.mag_sigma_nt / b.norm();
+    Some(PairedField {
+        row: j,
+        body_nt: rotation * b,
+        reference_nt: inputs.references[j].b_gcrf_nt,
+        sigma_rad: noise.hypot(inputs.bias_sigma_rad_s * dt.abs()),
     })
+}
+
+/// The gyro sample of `rows` nearest in time to row `k` within `hold_s`: its time and rate.
+fn nearest_gyro(
+    tel: &Telemetry,
+    rows: &Range<usize>,
+    k: usize,
+    hold_s: f64,
+) -> Option<(f64, Vector3<f64>)> {
+    let j = nearest_row(tel, rows, k, hold_s, |j| tel.gyro_rad_s[j].is_some())?;
+    Some((tel.t_s[j], tel.gyro_rad_s[j]?))
+}
+
+/// The row of `rows` nearest in time to row `k` (itself first) within `tolerance_s` that
+/// satisfies `has`.
+fn nearest_row(
+    tel: &Telemetry,
+    rows: &Range<usize>,
+    k: usize,
+    tolerance_s: f64,
+    has: impl Fn(usize) -> bool,
+) -> Option<usize> {
+    if has(k) {
+        return Some(k);
+    }
+    let t_k = tel.t_s[k];
+    let within = |j: usize| (tel.t_s[j] - t_k).abs() <= tolerance_s;
+    let before = (rows.start..k)
+        .rev()
+        .take_while(|&j| within(j))
+        .find(|&j| has(j));
+    let after = (k + 1..rows.end)
+        .take_while(|&j| within(j))
+        .find(|&j| has(j));
+    match (before, after) {
+        (Some(b), Some(a)) => Some(if t_k - tel.t_s[b] <= tel.t_s[a] - t_k {
+            b
+        } else {
+            a
+        }),
+        (b, a) => b.or(a),
+    }
 }
 
 fn sun_direction(
@@ -212,19 +319,18 @@ fn sun_direction(
 
 fn attitude(
     sun_body: &Vector3<f64>,
-    mag_body: Option<&Vector3<f64>>,
+    field: Option<&PairedField>,
     reference: &StepReference,
     config: &FilterConfig,
-    mag_sigma_nt: f64,
 ) -> Result<Quat, FilterError> {
-    let Some(b) = mag_body else {
+    let Some(f) = field else {
         return Ok(minimal_rotation(&reference.sun_gcrf_unit, sun_body));
     };
     let w_sun = config.initial_sun_sigma_deg.to_radians().powi(-2);
-    let w_mag = (mag_sigma_nt / b.norm()).powi(-2);
+    let w_mag = f.sigma_rad.powi(-2);
     let pairs = [
         VectorPair::new(*sun_body, reference.sun_gcrf_unit, w_sun),
-        VectorPair::new(*b, reference.b_gcrf_nt, w_mag),
+        VectorPair::new(f.body_nt, f.reference_nt, w_mag),
     ];
     q_method(&pairs).map_err(|e| FilterError::NoInitialSample {
         reason: format!("q-method failed: {e}"),
@@ -254,19 +360,17 @@ pub fn minimal_rotation(s_ref: &Vector3<f64>, s_body: &Vector3<f64>) -> Quat {
 
 fn covariance(
     sun_body: &Vector3<f64>,
-    mag_body: Option<&Vector3<f64>>,
+    field: Option<&PairedField>,
     config: &FilterConfig,
-    mag_sigma_nt: f64,
 ) -> Matrix3<f64> {
     let s = sun_body.normalize();
     let var_sun = config.initial_sun_sigma_deg.to_radians().powi(2);
     let floor = config.initial_attitude_sigma_floor_deg.to_radians().powi(2) * Matrix3::identity();
     let across = |v: &Vector3<f64>| Matrix3::identity() - v * v.transpose();
-    match mag_body {
-        Some(b) => {
-            let bu = b.normalize();
-            let var_mag = (mag_sigma_nt / b.norm()).powi(2);
-            let info = across(&s) / var_sun + across(&bu) / var_mag;
+    match field {
+        Some(f) => {
+            let bu = f.body_nt.normalize();
+            let info = across(&s) / var_sun + across(&bu) / f.sigma_rad.powi(2);
             info.try_inverse()
                 .unwrap_or_else(|| Matrix3::identity() * var_sun)
                 + floor

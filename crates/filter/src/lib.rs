@@ -98,6 +98,7 @@ pub mod output;
 pub mod references;
 pub mod run;
 pub mod screen;
+pub mod segments;
 mod sequential;
 pub mod smoother;
 
@@ -113,10 +114,13 @@ pub use layout::StateLayout;
 pub use output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
 pub use references::{orbit_source, step_references};
 pub use run::{
-    ForwardPass, RunInputs, RunSink, SEGMENT_ROWS, calibrate, calibrate_streaming,
+    ForwardPass, RunInputs, RunSink, SMOOTHER_BLOCK_ROWS, calibrate, calibrate_streaming,
     calibrate_with_model, nominal_photodiodes, nominal_step_s, paper_model,
 };
 pub use screen::{Bounded, Channel, ChannelRejections, Rejections, RowList};
+pub use segments::{
+    Acquisition, GapRules, SegmentBreak, SegmentConfig, SegmentReport, gyro_step_s, median_spacing,
+};
 
 use nalgebra::{Matrix3, Vector3};
 

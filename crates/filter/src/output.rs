@@ -11,6 +11,7 @@ use crate::filter::{Sensor, UpdateCounts};
 use crate::guard::RepairLog;
 use crate::layout::StateLayout;
 use crate::screen::Rejections;
+use crate::segments::{GapRules, SegmentReport};
 
 /// Estimates after the updates of one sample (one `estimates.csv` row).
 #[derive(Debug, Clone, PartialEq)]
@@ -19,6 +20,8 @@ pub struct StepEstimate {
     pub index: usize,
     /// Time, s since the dataset epoch.
     pub t_s: f64,
+    /// The run's segment holding the row (`CalibrationRun::segments` index).
+    pub segment: usize,
     /// Attitude, GCRF -> body, scalar last.
     pub q: Quat,
     /// 1-sigma attitude error about the body x, y, z axes, deg.
@@ -94,4 +97,9 @@ pub struct CalibrationRun {
     pub rejections: Rejections,
     /// Repairs of the forward covariance by the guard, with their rows.
     pub covariance_repairs: RepairLog,
+    /// The segments of the run: the rows between gaps, silent gyros and lost attitudes,
+    /// each with how its attitude was acquired, or why it was skipped.
+    pub segments: Vec<SegmentReport>,
+    /// The gap threshold, gyro hold and pairing tolerance the run used.
+    pub segment_rules: GapRules,
 }

@@ -2,7 +2,7 @@
 
 use std::borrow::Cow;
 
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView};
 use pdcal_attitude::{GyroNoise, Quat, normal_from_az_el};
 use pdcal_dataset::{DatasetMeta, Telemetry};
@@ -16,9 +16,12 @@ use crate::filter::{
 };
 use crate::guard::RepairLog;
 use crate::init::{StartInputs, find_start, initial_scales};
-use crate::layout::{ATTITUDE, StateLayout};
+use crate::layout::{ATTITUDE, BIAS, StateLayout};
 use crate::output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
 use crate::screen::{Channel, Rejections, ScreenTolerances, find_outliers, remove_outliers};
+use crate::segments::{
+    Acquisition, GapRules, InnovationWindow, SegmentBreak, SegmentReport, attitude_sigma_rad,
+};
 use crate::smoother::SmootherStore;
 use crate::{FilterError, StepReference};
 
@@ -91,17 +94,27 @@ pub fn calibrate_with_model(
         .then(|| SmootherStore::new(pass.filter().layout().len(), steps));
     let mut forward = Vec::with_capacity(steps);
     let mut residuals = Vec::with_capacity(steps * 4);
-    while pass.step()?.is_some() {
+    let mut smoothed = config.smoother.then(|| Vec::with_capacity(steps));
+    loop {
+        // The smoother runs per segment: nothing links the attitude across a break.
+        if pass.at_segment_start()
+            && let (Some(store), Some(out)) = (store.as_mut(), smoothed.as_mut())
+        {
+            out.extend(store.smooth(pass.filter().layout(), pass.prior)?);
+            store.clear();
+        }
+        if pass.step()?.is_none() {
+            break;
+        }
         residuals.extend(pass.residual_records());
         forward.push(pass.estimate());
         if let Some(store) = store.as_mut() {
             pass.record_for_smoother(store);
         }
     }
-    let smoothed = match store {
-        Some(store) => Some(store.smooth(pass.filter().layout(), pass.prior)?),
-        None => None,
-    };
+    if let (Some(store), Some(out)) = (store.as_ref(), smoothed.as_mut()) {
+        out.extend(store.smooth(pass.filter().layout(), pass.prior)?);
+    }
     Ok(pass.result(forward, smoothed, residuals))
 }
 
@@ -112,21 +125,23 @@ pub trait RunSink {
     /// The forward estimate after one row and that row's scalar updates; rows in
     /// increasing order.
     fn forward(&mut self, estimate: &StepEstimate, residuals: &[ResidualRecord]);
-    /// Smoothed estimates of consecutive rows in increasing order. Segments arrive last
-    /// first (the backward pass), each of at most `segment_rows + 1` rows.
+    /// Smoothed estimates of consecutive rows of one segment in increasing order. Blocks
+    /// arrive last first (the backward pass), each of at most `block_rows + 1` rows.
     fn smoothed(&mut self, segment: &[StepEstimate]);
 }
 
-/// Rows per segment of the streaming smoother: the forward state is kept every this many
-/// rows, and the backward pass recomputes one segment's posteriors at a time (about
-/// `13 kB x segment_rows` for 17 photodiodes, `27 kB` per kept state).
-pub const SEGMENT_ROWS: usize = 1024;
+/// Rows per block of the streaming smoother: the forward state is kept every this many
+/// rows (and at every segment start), and the backward pass recomputes one block's
+/// posteriors at a time (about `13 kB x block_rows` for 17 photodiodes, `27 kB` per kept
+/// state).
+pub const SMOOTHER_BLOCK_ROWS: usize = 1024;
 
 /// [`calibrate_with_model`] with memory that does not grow with the data beyond the
 /// telemetry and references it reads: per-row results go to `sink` as they are produced;
-/// the smoother keeps the forward state every `segment_rows` rows and, going backward,
-/// recomputes one segment's posteriors from its kept state (the same step code, so the
-/// same numbers bit for bit) before smoothing it. The returned run has empty `forward`,
+/// the smoother keeps the forward state every `block_rows` rows and at every segment
+/// start and, going backward, recomputes one block's posteriors from its kept state (the
+/// same step code, so the same numbers bit for bit) before smoothing it; a block that ends
+/// a segment starts the backward pass afresh. The returned run has empty `forward`,
 /// `residuals` and (with the smoother) `smoothed` vectors: those went to `sink`.
 pub fn calibrate_streaming(
     inputs: &RunInputs<'_>,
@@ -134,20 +149,24 @@ pub fn calibrate_streaming(
     mode: &Mode,
     model: MeasurementModel,
     algebra: Algebra,
-    segment_rows: usize,
+    block_rows: usize,
     sink: &mut dyn RunSink,
 ) -> Result<CalibrationRun, FilterError> {
-    let segment_rows = segment_rows.max(1);
+    let block_rows = block_rows.max(1);
     let mut pass = ForwardPass::new(inputs, config, mode, model, algebra)?;
-    let mut kept = Vec::new();
+    let mut kept: Vec<(PassCheckpoint, bool)> = Vec::new();
     let mut residuals = Vec::new();
+    let mut in_block = 0;
     loop {
-        if config.smoother && (pass.next - pass.start).is_multiple_of(segment_rows) {
-            kept.push(pass.checkpoint());
+        let segment_start = pass.at_segment_start();
+        if config.smoother && (segment_start || in_block == block_rows) {
+            kept.push((pass.checkpoint(), segment_start));
+            in_block = 0;
         }
         if pass.step()?.is_none() {
             break;
         }
+        in_block += 1;
         residuals.clear();
         residuals.extend(pass.residual_records());
         sink.forward(&pass.estimate(), &residuals);
@@ -156,25 +175,33 @@ pub fn calibrate_streaming(
     let mut run = pass.result(Vec::new(), None, Vec::new());
     if config.smoother {
         let layout = run.layout.clone();
-        let mut store = SmootherStore::new(layout.len(), segment_rows + 1);
+        let mut store = SmootherStore::new(layout.len(), block_rows + 1);
         let mut boundary = None;
-        let mut segment = Vec::with_capacity(segment_rows + 1);
-        for (i, checkpoint) in kept.iter().enumerate().rev() {
+        let mut block = Vec::with_capacity(block_rows + 1);
+        for (i, (checkpoint, _)) in kept.iter().enumerate().rev() {
             pass.restore(checkpoint)?;
-            // Through the next segment's first row: its transition ends this segment.
-            let last_row = kept.get(i + 1).map(|c| c.next);
+            // Through the next block's first row, whose transition ends this block, unless
+            // the next block starts a segment: then this block ends its segment.
+            let next = kept.get(i + 1);
+            let through = next.and_then(|(c, starts)| (!starts).then_some(c.next));
+            if next.is_none_or(|(_, starts)| *starts) {
+                boundary = None;
+            }
             store.clear();
-            while let Some(k) = pass.step()? {
+            loop {
+                if pass.at_segment_start() && !store.is_empty() {
+                    break;
+                }
+                let Some(k) = pass.step()? else { break };
                 pass.record_for_smoother(&mut store);
-                if Some(k) == last_row {
+                if Some(k) == through {
                     break;
                 }
             }
-            segment.clear();
-            boundary =
-                store.smooth_into(&layout, pass.prior, boundary, &mut |e| segment.push(e))?;
-            segment.reverse();
-            sink.smoothed(&segment);
+            block.clear();
+            boundary = store.smooth_into(&layout, pass.prior, boundary, &mut |e| block.push(e))?;
+            block.reverse();
+            sink.smoothed(&block);
         }
         run.smoothed = Some(Vec::new());
     }
@@ -187,7 +214,16 @@ struct PassCheckpoint {
     next: usize,
     prior_q: Quat,
     propagated: bool,
+    fresh: bool,
     last_gyro: Option<Vector3<f64>>,
+    last_gyro_t_s: f64,
+    last_t_s: f64,
+    acquiring: bool,
+    window: InnovationWindow,
+    steps: usize,
+    step_segment: usize,
+    closed_segments: usize,
+    current: SegmentReport,
 }
 
 /// Rows between two full factorisations of the covariance by the guard
@@ -195,15 +231,19 @@ struct PassCheckpoint {
 pub const FULL_GUARD_ROWS: usize = 1024;
 
 /// The forward filter over a dataset, one telemetry row per [`ForwardPass::step`]: the
-/// initialisation (outlier screening, initial scales, start row and attitude) in
+/// initialisation (outlier screening, initial scales, the first attitude) in
 /// [`ForwardPass::new`], then per row the propagation from the previous row, the updates
-/// and the covariance guard. The one implementation of the run's step, shared by
-/// [`calibrate_with_model`] and the streaming run.
+/// and the covariance guard. The rows fall into segments ([`crate::segments`]): at a gap, a
+/// silent gyro or a lost attitude the segment ends, and the next step first re-acquires
+/// the attitude in the rows that follow. The one implementation of the run's step, shared
+/// by [`calibrate_with_model`] and the streaming run.
 pub struct ForwardPass<'a> {
     telemetry: Cow<'a, Telemetry>,
     references: &'a [StepReference],
     albedo: Option<&'a AlbedoModel>,
     prior: Option<&'a Calibration>,
+    config: FilterConfig,
+    rules: GapRules,
     use_mag: bool,
     average_gyro: bool,
     min_sun_fraction: f64,
@@ -218,7 +258,23 @@ pub struct ForwardPass<'a> {
     /// The attitude after the last propagation (before the updates).
     prior_q: Quat,
     propagated: bool,
+    /// The next step is the first of a segment (no propagation leads to it).
+    fresh: bool,
     last_gyro: Option<Vector3<f64>>,
+    /// Time of `last_gyro`, s.
+    last_gyro_t_s: f64,
+    /// Time of the last processed row, s.
+    last_t_s: f64,
+    /// The next step must first acquire the attitude (a segment ended).
+    acquiring: bool,
+    window: InnovationWindow,
+    /// Steps taken (the guard's full factorisation every [`FULL_GUARD_ROWS`]).
+    steps: usize,
+    /// The segment of the last step's row.
+    step_segment: usize,
+    /// Closed segments, and the open one.
+    segments: Vec<SegmentReport>,
+    current: SegmentReport,
     row: Vec<Option<f64>>,
     /// Each photodiode's temperature column (`Telemetry::photodiode_temperatures`).
     temperature_columns: Vec<Option<usize>>,
@@ -232,7 +288,8 @@ pub struct ForwardPass<'a> {
 
 impl<'a> ForwardPass<'a> {
     /// Screens the telemetry ([`crate::screen`]; a screened copy is made only when a
-    /// sample is rejected), initialises the filter and positions it at the start row.
+    /// sample is rejected), initialises the filter and acquires the first attitude
+    /// (skipping, and reporting, segments where it cannot be acquired).
     pub fn new(
         inputs: &RunInputs<'a>,
         config: &FilterConfig,
@@ -267,6 +324,11 @@ impl<'a> ForwardPass<'a> {
             Cow::Owned(screened)
         };
         let tel: &Telemetry = &telemetry;
+        if tel.is_empty() {
+            return Err(FilterError::NoInitialSample {
+                reason: "the telemetry has no rows".to_owned(),
+            });
+        }
         let has_mag = tel.mag_nt.is_some();
         let (mode_used, use_mag) = match mode {
             Mode::Full if has_mag => (ModeUsed::Full, true),
@@ -323,30 +385,8 @@ impl<'a> ForwardPass<'a> {
                     .collect(),
             ),
         };
-        let init_pds: Vec<Photodiode> = scale_v
-            .iter()
-            .zip(&n_body)
-            .map(|(&c, n)| Photodiode {
-                scale_v: c,
-                n_body: *n,
-                noise_v: sigmas.photodiode_v,
-                fov_half_angle_rad: None,
-            })
-            .collect();
-        let start = find_start(
-            &StartInputs {
-                telemetry: tel,
-                references: inputs.references,
-                photodiodes: &init_pds,
-                used: &used,
-                use_mag,
-                mag_sigma_nt: sigmas.mag_nt,
-                albedo: inputs.albedo,
-            },
-            config,
-        )?;
         let layout = StateLayout::new(&model, prior.is_none());
-        let dt_nominal = nominal_step_s(tel);
+        let rules = GapRules::new(&config.segments, tel);
         let (extra_sigma, extra_walk): (Vec<f64>, Vec<f64>) = layout
             .extras()
             .iter()
@@ -357,8 +397,10 @@ impl<'a> ForwardPass<'a> {
             .unzip();
         let noise = FilterNoise {
             gyro: GyroNoise {
+                // The white-noise density from the gyro's own sample period: another
+                // sensor sampling faster must not shrink it.
                 sigma_v_rad_sqrt_s: sigmas.gyro_rad_s
-                    * dt_nominal.sqrt()
+                    * rules.gyro_step_s.sqrt()
                     * config.gyro_noise_inflation,
                 sigma_u_rad_s_sqrt_s: config.gyro_bias_walk_rad_s_sqrt_s,
             },
@@ -378,8 +420,9 @@ impl<'a> ForwardPass<'a> {
             second_order: config.second_order_noise,
         };
         let init = InitialState {
-            q: start.q,
-            attitude_cov: start.attitude_cov,
+            // Set by the first acquisition below.
+            q: Quat::IDENTITY,
+            attitude_cov: Matrix3::identity(),
             bias_rad_s: Vector3::zeros(),
             bias_sigma_rad_s: config.initial_bias_sigma_deg_s.to_radians(),
             scale_v,
@@ -391,34 +434,155 @@ impl<'a> ForwardPass<'a> {
         };
         let filter = Filter::new(model, layout, init, noise, algebra)?;
         let initial = filter.calibration(prior);
-        Ok(ForwardPass {
+        let mut pass = ForwardPass {
             references: inputs.references,
             albedo: inputs.albedo,
             prior,
+            config: config.clone(),
+            rules,
             use_mag,
             average_gyro: config.average_gyro,
             min_sun_fraction: config.min_sun_fraction,
             mode_used,
-            start: start.index,
+            start: 0,
             initial,
             used,
             sigmas,
-            next: start.index,
+            next: 0,
             prior_q: filter.q(),
             propagated: false,
+            fresh: true,
             filter,
             last_gyro: None,
+            last_gyro_t_s: f64::NEG_INFINITY,
+            last_t_s: tel.t_s[0],
+            acquiring: true,
+            window: InnovationWindow::new(&config.segments),
+            steps: 0,
+            step_segment: 0,
+            segments: Vec::new(),
+            current: SegmentReport::open(0, tel.t_s[0]),
             row: vec![None; m],
-            temperatures_c: telemetry
-                .held_temperatures(inputs.meta)
-                .at(start.index)
-                .to_vec(),
+            temperatures_c: telemetry.held_temperatures(inputs.meta).at(0).to_vec(),
             temperature_columns: telemetry.photodiode_temperatures(inputs.meta),
             view: AlbedoView::new(),
             rejections,
             repairs: RepairLog::default(),
             telemetry,
-        })
+        };
+        if let Err(reason) = pass.acquire()? {
+            return Err(FilterError::NoInitialSample { reason });
+        }
+        pass.start = pass.next;
+        pass.temperatures_c = pass
+            .telemetry
+            .held_temperatures(inputs.meta)
+            .at(pass.start)
+            .to_vec();
+        Ok(pass)
+    }
+
+    /// Acquires the attitude in the open segment from row `next` on: the first usable row
+    /// ([`find_start`], with the current calibration) becomes the next row, the filter
+    /// re-acquired there ([`Filter::reacquire`], the calibration's random walk grown over
+    /// the time since the last processed row). A segment with no usable row is closed as
+    /// skipped and the search goes on in the next. `Err(reason)` of the last segment tried
+    /// when the data end first.
+    fn acquire(&mut self) -> Result<Result<(), String>, FilterError> {
+        let mut reason = "no rows left".to_owned();
+        while self.next < self.telemetry.len() {
+            let first = self.next;
+            let end = self.segment_end(first);
+            let photodiodes = self.current_photodiodes();
+            let p = self.filter.covariance();
+            let bias_var = (0..3).map(|k| p[(BIAS + k, BIAS + k)]).fold(0.0, f64::max);
+            let found = find_start(
+                &StartInputs {
+                    telemetry: &self.telemetry,
+                    references: self.references,
+                    photodiodes: &photodiodes,
+                    used: &self.used,
+                    use_mag: self.use_mag,
+                    mag_sigma_nt: self.sigmas.mag_nt,
+                    albedo: self.albedo,
+                    bias_rad_s: self.filter.bias_rad_s(),
+                    bias_sigma_rad_s: bias_var.sqrt(),
+                    rules: self.rules,
+                },
+                first..end,
+                &self.config,
+            )?;
+            match found {
+                Ok(start) => {
+                    let t_s = self.telemetry.t_s[start.index];
+                    self.filter
+                        .reacquire(start.q, &start.attitude_cov, t_s - self.last_t_s);
+                    self.current.acquired_row = Some(start.index);
+                    self.current.acquisition = if self.use_mag {
+                        Acquisition::SunAndField
+                    } else {
+                        Acquisition::SunOnly
+                    };
+                    self.current.paired_field_row = start.paired_field_row;
+                    self.next = start.index;
+                    self.prior_q = start.q;
+                    self.fresh = true;
+                    self.last_gyro = Some(start.gyro_rad_s);
+                    self.last_gyro_t_s = start.gyro_t_s;
+                    self.acquiring = false;
+                    self.window.clear();
+                    return Ok(Ok(()));
+                }
+                Err(why) => {
+                    let last = end - 1;
+                    let ended_by = if end < self.telemetry.len() {
+                        SegmentBreak::Gap
+                    } else {
+                        SegmentBreak::End
+                    };
+                    self.current.skipped = Some(why.clone());
+                    self.close_segment(last, ended_by);
+                    reason = why;
+                    self.next = end;
+                }
+            }
+        }
+        Ok(Err(reason))
+    }
+
+    /// The first row after the gap that ends the data segment holding row `first` (the
+    /// number of rows when none does).
+    fn segment_end(&self, first: usize) -> usize {
+        let t = &self.telemetry.t_s;
+        (first + 1..t.len())
+            .find(|&k| t[k] - t[k - 1] > self.rules.gap_threshold_s)
+            .unwrap_or(t.len())
+    }
+
+    /// The filter's photodiodes with the sensor noise, for the Sun vector of an
+    /// acquisition.
+    fn current_photodiodes(&self) -> Vec<Photodiode> {
+        self.filter
+            .scales_v()
+            .iter()
+            .zip(self.filter.normals())
+            .map(|(&c, n)| Photodiode {
+                scale_v: c,
+                n_body: *n,
+                noise_v: self.sigmas.photodiode_v,
+                fov_half_angle_rad: None,
+            })
+            .collect()
+    }
+
+    /// Closes the open segment after `last_row` and opens the next one after it.
+    fn close_segment(&mut self, last_row: usize, ended_by: SegmentBreak) {
+        let t = &self.telemetry.t_s;
+        self.current.close(last_row, t[last_row], ended_by);
+        let next_row = last_row + 1;
+        let next_t = t.get(next_row).copied().unwrap_or(t[last_row]);
+        let closed = std::mem::replace(&mut self.current, SegmentReport::open(next_row, next_t));
+        self.segments.push(closed);
     }
 
     /// Rows left to process.
@@ -441,11 +605,44 @@ impl<'a> ForwardPass<'a> {
         &mut self.filter
     }
 
-    /// Processes the next row: propagation from the previous row (the gyro samples at both
-    /// ends averaged or held; a sample the screening rejected is bridged by holding the
-    /// last one), the updates, the gated samples recorded and the covariance guard. The row
-    /// processed, `None` after the last.
+    /// Whether the next step starts a segment: the attitude is acquired first, and no
+    /// propagation leads to it (the smoother's segments end before it).
+    pub fn at_segment_start(&self) -> bool {
+        self.acquiring || self.fresh
+    }
+
+    /// The segments so far: the closed ones and, after the last step, the open one.
+    pub fn segments(&self) -> Vec<SegmentReport> {
+        let mut all = self.segments.clone();
+        if self.current.rows_used > 0 || self.current.skipped.is_some() {
+            let mut open = self.current.clone();
+            let last = self.next.saturating_sub(1).min(self.telemetry.len() - 1);
+            open.close(
+                last.max(open.first_row),
+                self.telemetry.t_s[last],
+                SegmentBreak::End,
+            );
+            all.push(open);
+        }
+        all
+    }
+
+    /// Processes the next row: at a segment start the attitude is acquired first (rows
+    /// before the acquisition are not used); then the propagation from the previous row
+    /// (the gyro samples at both ends averaged or held; a sample the screening rejected is
+    /// bridged by holding the last one), the updates, the gated samples recorded, the
+    /// covariance guard, and the test whether the attitude is lost or the next row starts
+    /// a segment. The row processed, `None` after the last.
     pub fn step(&mut self) -> Result<Option<usize>, FilterError> {
+        if self.acquiring {
+            let from = self.next;
+            if self.acquire()?.is_err() {
+                return Ok(None);
+            }
+            for k in from..self.next {
+                self.hold_temperatures(k);
+            }
+        }
         let tel: &Telemetry = &self.telemetry;
         let k = self.next;
         if k >= tel.len() {
@@ -455,7 +652,8 @@ impl<'a> ForwardPass<'a> {
         let reference = &self.references[k];
         check_reference(k, t_s, reference)?;
         let gyro = tel.gyro_rad_s[k];
-        self.propagated = k > self.start;
+        self.propagated = !self.fresh;
+        self.fresh = false;
         if self.propagated {
             let dt = t_s - tel.t_s[k - 1];
             let previous = tel.gyro_rad_s[k - 1].or(self.last_gyro);
@@ -465,19 +663,13 @@ impl<'a> ForwardPass<'a> {
         }
         if gyro.is_some() {
             self.last_gyro = gyro;
+            self.last_gyro_t_s = t_s;
         }
         for (slot, column) in self.row.iter_mut().zip(&tel.pd_v) {
             *slot = column[k];
         }
-        for (held, column) in self
-            .temperatures_c
-            .iter_mut()
-            .zip(&self.temperature_columns)
-        {
-            if let Some(v) = column.and_then(|c| tel.temperature_c[c].values[k]) {
-                *held = v;
-            }
-        }
+        self.hold_temperatures(k);
+        let tel: &Telemetry = &self.telemetry;
         let mag_nt = if self.use_mag {
             tel.mag_nt.as_ref().and_then(|col| col[k])
         } else {
@@ -506,8 +698,29 @@ impl<'a> ForwardPass<'a> {
             reference,
             provider,
         )?;
+        self.record_rejections(k);
+        let full = self.steps.is_multiple_of(FULL_GUARD_ROWS);
+        if let Some(repair) = self.filter.guard_covariance(k, t_s, full)? {
+            self.repairs.push(repair);
+        }
+        self.steps += 1;
+        self.step_segment = self.segments.len();
+        self.current.rows_used += 1;
+        self.next = k + 1;
+        self.last_t_s = t_s;
+        self.end_segment_if_due(k);
+        Ok(Some(k))
+    }
+
+    /// The gated samples of the last update, counted per sensor (one magnetometer
+    /// rejection per row) and in the innovation window.
+    fn record_rejections(&mut self, k: usize) {
         let mut mag_gated = false;
-        for r in self.filter.records().iter().filter(|r| !r.accepted) {
+        for r in self.filter.records() {
+            self.window.push(r.accepted);
+            if r.accepted {
+                continue;
+            }
             match r.sensor {
                 Sensor::Magnetometer(_) if mag_gated => {}
                 sensor => {
@@ -516,12 +729,63 @@ impl<'a> ForwardPass<'a> {
                 }
             }
         }
-        let full = (k - self.start).is_multiple_of(FULL_GUARD_ROWS);
-        if let Some(repair) = self.filter.guard_covariance(k, t_s, full)? {
-            self.repairs.push(repair);
+    }
+
+    /// Ends the segment after row `k` when the attitude is lost or the next row is beyond
+    /// a gap or a silent gyro.
+    fn end_segment_if_due(&mut self, k: usize) {
+        let ended_by = if let Some(why) = self.lost_reason() {
+            self.current.lost = Some(why);
+            Some(SegmentBreak::Lost)
+        } else {
+            let t = &self.telemetry.t_s;
+            t.get(k + 1)
+                .and_then(|&t_next| self.rules.breaks(t[k], t_next, self.last_gyro_t_s))
+        };
+        if let Some(ended_by) = ended_by {
+            self.close_segment(k, ended_by);
+            self.acquiring = true;
         }
-        self.next = k + 1;
-        Ok(Some(k))
+    }
+
+    /// Why the attitude is lost after the last step, if it is: its sigma beyond the bound
+    /// (across the Sun line without the magnetometer), or most of a full window of
+    /// innovations gated.
+    fn lost_reason(&self) -> Option<String> {
+        let p = self.filter.covariance();
+        let p_aa = p.fixed_view::<3, 3>(ATTITUDE, ATTITUDE).into_owned();
+        let sun_body = (!self.use_mag).then(|| {
+            let k = self.next - 1;
+            self.filter.q().to_body(&self.references[k].sun_gcrf_unit)
+        });
+        let sigma_deg = attitude_sigma_rad(&p_aa, sun_body.as_ref()).to_degrees();
+        let bound_deg = self.config.segments.lost_attitude_sigma_deg;
+        if sigma_deg > bound_deg {
+            return Some(format!(
+                "attitude sigma {sigma_deg:.1} deg above {bound_deg} deg"
+            ));
+        }
+        self.window.lost().map(|fraction| {
+            format!(
+                "{:.0} % of the latest {} updates gated",
+                100.0 * fraction,
+                self.config.segments.lost_window_updates
+            )
+        })
+    }
+
+    /// Holds each photodiode's temperature sample of row `k`, if it has one.
+    fn hold_temperatures(&mut self, k: usize) {
+        let tel: &Telemetry = &self.telemetry;
+        for (held, column) in self
+            .temperatures_c
+            .iter_mut()
+            .zip(&self.temperature_columns)
+        {
+            if let Some(v) = column.and_then(|c| tel.temperature_c[c].values[k]) {
+                *held = v;
+            }
+        }
     }
 
     /// The row [`ForwardPass::step`] processed last and its time.
@@ -547,7 +811,7 @@ impl<'a> ForwardPass<'a> {
     /// The estimate after the last step.
     pub fn estimate(&self) -> StepEstimate {
         let (index, t_s) = self.last_row();
-        filter_estimate(&self.filter, index, t_s, self.prior)
+        filter_estimate(&self.filter, (index, t_s, self.step_segment), self.prior)
     }
 
     /// Records the last step (its propagation and posterior) for the smoother.
@@ -558,7 +822,7 @@ impl<'a> ForwardPass<'a> {
         {
             store.push_transition(prop, self.prior_q, self.filter.calibration_noise());
         }
-        store.push_posterior(index, t_s, &self.filter);
+        store.push_posterior(index, t_s, self.step_segment, &self.filter);
     }
 
     /// The samples rejected so far (screened, and gated up to the last step).
@@ -578,7 +842,16 @@ impl<'a> ForwardPass<'a> {
             next: self.next,
             prior_q: self.prior_q,
             propagated: self.propagated,
+            fresh: self.fresh,
             last_gyro: self.last_gyro,
+            last_gyro_t_s: self.last_gyro_t_s,
+            last_t_s: self.last_t_s,
+            acquiring: self.acquiring,
+            window: self.window.clone(),
+            steps: self.steps,
+            step_segment: self.step_segment,
+            closed_segments: self.segments.len(),
+            current: self.current.clone(),
         }
     }
 
@@ -589,7 +862,16 @@ impl<'a> ForwardPass<'a> {
         self.next = checkpoint.next;
         self.prior_q = checkpoint.prior_q;
         self.propagated = checkpoint.propagated;
+        self.fresh = checkpoint.fresh;
         self.last_gyro = checkpoint.last_gyro;
+        self.last_gyro_t_s = checkpoint.last_gyro_t_s;
+        self.last_t_s = checkpoint.last_t_s;
+        self.acquiring = checkpoint.acquiring;
+        self.window.clone_from(&checkpoint.window);
+        self.steps = checkpoint.steps;
+        self.step_segment = checkpoint.step_segment;
+        self.segments.truncate(checkpoint.closed_segments);
+        self.current.clone_from(&checkpoint.current);
         Ok(())
     }
 
@@ -615,6 +897,8 @@ impl<'a> ForwardPass<'a> {
             final_covariance: self.filter.covariance().clone(),
             rejections: self.rejections.clone(),
             covariance_repairs: self.repairs.clone(),
+            segments: self.segments(),
+            segment_rules: self.rules,
         }
     }
 }
@@ -637,15 +921,10 @@ fn step_rate(
     }
 }
 
-/// Median spacing of consecutive rows, s, 1 with fewer than two rows (the gyro sample
-/// period for the noise conversion; the diagnosis's gap test).
+/// Median spacing of consecutive rows, s, 1 with fewer than two rows (the diagnosis's
+/// gap test; the gyro's own spacing is [`crate::segments::gyro_step_s`]).
 pub fn nominal_step_s(tel: &Telemetry) -> f64 {
-    let mut dts: Vec<f64> = tel.t_s.windows(2).map(|w| w[1] - w[0]).collect();
-    if dts.is_empty() {
-        return 1.0;
-    }
-    dts.sort_by(f64::total_cmp);
-    dts[dts.len() / 2]
+    crate::segments::median_spacing(tel.t_s.iter().copied()).unwrap_or(1.0)
 }
 
 fn check_reference(index: usize, t_s: f64, r: &StepReference) -> Result<(), FilterError> {
@@ -668,8 +947,7 @@ fn check_reference(index: usize, t_s: f64, r: &StepReference) -> Result<(), Filt
 
 fn filter_estimate(
     filter: &Filter,
-    index: usize,
-    t_s: f64,
+    (index, t_s, segment): (usize, f64, usize),
     fixed: Option<&Calibration>,
 ) -> StepEstimate {
     let view = StateView {
@@ -679,12 +957,21 @@ fn filter_estimate(
         extras: filter.extra_values(),
         p: filter.covariance(),
     };
-    step_estimate(index, t_s, filter.q(), &view, filter.layout(), fixed)
+    step_estimate(
+        index,
+        t_s,
+        segment,
+        filter.q(),
+        &view,
+        filter.layout(),
+        fixed,
+    )
 }
 
 pub(crate) fn step_estimate(
     index: usize,
     t_s: f64,
+    segment: usize,
     q: Quat,
     view: &StateView<'_>,
     layout: &StateLayout,
@@ -699,6 +986,7 @@ pub(crate) fn step_estimate(
     StepEstimate {
         index,
         t_s,
+        segment,
         q,
         attitude_sigma_deg: [sig(0), sig(1), sig(2)],
         calibration: view.calibration(layout, fixed),

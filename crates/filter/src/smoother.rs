@@ -42,6 +42,7 @@ struct Transition {
 struct Stored {
     index: usize,
     t_s: f64,
+    segment: usize,
     q: Quat,
     bias: Vector3<f64>,
     scale: Vec<f64>,
@@ -86,7 +87,13 @@ impl SmootherStore {
     }
 
     /// Records the filter's posterior at row `index`.
-    pub(crate) fn push_posterior(&mut self, index: usize, t_s: f64, filter: &Filter) {
+    pub(crate) fn push_posterior(
+        &mut self,
+        index: usize,
+        t_s: f64,
+        segment: usize,
+        filter: &Filter,
+    ) {
         let (n, p) = (self.n, filter.covariance().as_slice());
         for j in 0..n {
             self.packed.extend_from_slice(&p[j * n + j..(j + 1) * n]);
@@ -94,6 +101,7 @@ impl SmootherStore {
         self.steps.push(Stored {
             index,
             t_s,
+            segment,
             q: filter.q(),
             bias: filter.bias_rad_s(),
             scale: filter.scales_v().to_vec(),
@@ -182,6 +190,11 @@ impl SmootherStore {
             emit(xs.estimate(stored, &ps, layout, fixed));
         }
         Ok(Some(Boundary { state: xs, p: ps }))
+    }
+
+    /// Whether no step is stored.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.steps.is_empty()
     }
 
     /// Forgets every stored step (keeps the allocations).
@@ -368,7 +381,7 @@ impl SmoothedState {
             extras: self.extras.clone(),
             p,
         };
-        crate::run::step_estimate(at.index, at.t_s, self.q, &view, layout, fixed)
+        crate::run::step_estimate(at.index, at.t_s, at.segment, self.q, &view, layout, fixed)
     }
 }
 

@@ -187,7 +187,7 @@ pub fn run_dir(dataset: &Path, out: &Path, config: &RunConfig) -> Result<Outcome
         &config.mode,
         model,
         Algebra::Structured,
-        pdcal_filter::SEGMENT_ROWS,
+        pdcal_filter::SMOOTHER_BLOCK_ROWS,
         &mut sink,
     )
     .context("calibration filter")?;

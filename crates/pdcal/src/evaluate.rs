@@ -12,6 +12,10 @@ use serde::Serialize;
 
 /// Sunlit time after which attitude statistics are taken (the paper's ~10 min convergence).
 pub const CONVERGENCE_SUNLIT_S: f64 = 600.0;
+
+/// The attitude after an acquisition is judged from this long after it, s: the q-method's
+/// 10-degree start needs a few tens of photodiode updates to converge.
+pub const SETTLE_AFTER_ACQUISITION_S: f64 = 60.0;
 /// Incidence angle inside which a photodiode counts as usefully lit (the filter's default
 /// field of view), deg.
 pub const LIT_FOV_DEG: f64 = 60.0;
@@ -35,6 +39,9 @@ pub struct Evaluation {
     pub worst_scale_error_percent: f64,
     /// Attitude error over sunlit samples after convergence.
     pub attitude: AttitudeStats,
+    /// Attitude error over sunlit samples from [`SETTLE_AFTER_ACQUISITION_S`] after each
+    /// acquisition of the attitude (the start of every segment).
+    pub attitude_after_acquisition: AttitudeStats,
     /// NEES-style consistency.
     pub consistency: Consistency,
     /// Estimate rows whose time truth.csv has, and all estimate rows.
@@ -146,7 +153,16 @@ pub fn evaluate(
     let truth_row = |t: f64| truth.t_s.binary_search_by(|x| x.total_cmp(&t)).ok();
     let (photodiodes, worst_normal_error_deg, worst_scale_error_percent) =
         photodiode_errors(final_cal, truth, constants);
-    let attitude = attitude_stats(estimates, truth, &truth_row)?;
+    let attitude = attitude_stats(
+        estimates,
+        truth,
+        converged_sunlit(estimates, truth, &truth_row),
+    )?;
+    let after_acquisition = attitude_stats(
+        estimates,
+        truth,
+        settled_sunlit(estimates, truth, &truth_row),
+    )?;
     let consistency = consistency(
         estimates,
         final_cal,
@@ -168,6 +184,7 @@ pub fn evaluate(
         worst_scale_error_percent,
         photodiodes,
         attitude: attitude.0,
+        attitude_after_acquisition: after_acquisition.0,
         consistency,
         truth_coverage,
         not_evaluable: Vec::new(),
@@ -291,6 +308,20 @@ fn mark_not_evaluable(e: &mut Evaluation) {
             });
         }
     }
+    if covered && e.attitude_after_acquisition.samples == 0 {
+        for figure in [
+            "attitude_after_acquisition.mean_deg",
+            "attitude_after_acquisition.rms_deg",
+            "attitude_after_acquisition.p99_deg",
+        ] {
+            out.push(NotEvaluable {
+                figure,
+                reason: format!(
+                    "no sunlit samples {SETTLE_AFTER_ACQUISITION_S:.0} s after an acquisition"
+                ),
+            });
+        }
+    }
     e.not_evaluable = out;
 }
 
@@ -324,14 +355,18 @@ fn converged_sunlit(
     truth_row: &dyn Fn(f64) -> Option<usize>,
 ) -> Vec<(usize, usize)> {
     let mut sunlit_s = 0.0;
-    let mut previous_t: Option<f64> = None;
+    let mut previous: Option<(usize, f64)> = None;
     let mut out = Vec::new();
     for (k, e) in estimates.iter().enumerate() {
         let Some(row) = truth_row(e.t_s) else {
             continue;
         };
-        let dt = previous_t.map_or(0.0, |p| e.t_s - p);
-        previous_t = Some(e.t_s);
+        // The time across a gap between segments was not observed.
+        let dt = match previous {
+            Some((segment, t)) if segment == e.segment => e.t_s - t,
+            _ => 0.0,
+        };
+        previous = Some((e.segment, e.t_s));
         if truth.eclipse[row] >= 0.999 {
             sunlit_s += dt;
             if sunlit_s >= CONVERGENCE_SUNLIT_S {
@@ -342,12 +377,38 @@ fn converged_sunlit(
     out
 }
 
-fn attitude_stats(
+/// Indices (into `estimates`) of the samples in full Sun at least
+/// [`SETTLE_AFTER_ACQUISITION_S`] after the first row of their segment, with their truth rows.
+fn settled_sunlit(
     estimates: &[StepEstimate],
     truth: &TruthSeries,
     truth_row: &dyn Fn(f64) -> Option<usize>,
+) -> Vec<(usize, usize)> {
+    let mut segment_start: Option<(usize, f64)> = None;
+    let mut out = Vec::new();
+    for (k, e) in estimates.iter().enumerate() {
+        let start = match segment_start {
+            Some((segment, t)) if segment == e.segment => t,
+            _ => {
+                segment_start = Some((e.segment, e.t_s));
+                e.t_s
+            }
+        };
+        if let Some(row) = truth_row(e.t_s)
+            && truth.eclipse[row] >= 0.999
+            && e.t_s - start >= SETTLE_AFTER_ACQUISITION_S
+        {
+            out.push((k, row));
+        }
+    }
+    out
+}
+
+fn attitude_stats(
+    estimates: &[StepEstimate],
+    truth: &TruthSeries,
+    samples: Vec<(usize, usize)>,
 ) -> Result<(AttitudeStats, Vec<(usize, usize)>)> {
-    let samples = converged_sunlit(estimates, truth, truth_row);
     let mut angles = Vec::with_capacity(samples.len());
     let (mut sq, mut sig) = (Vector3::zeros(), Vector3::zeros());
     for &(k, row) in &samples {
@@ -516,6 +577,8 @@ pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
             ])
         })
         .collect::<Result<_>>()?;
+    // Files written before segments existed have no `segment` column: one segment.
+    let segment_col = header.iter().position(|h| h == "segment");
     let mut out = Vec::new();
     for (line, record) in reader.records().enumerate() {
         let record = record.with_context(|| format!("{}:{}", path.display(), line + 2))?;
@@ -560,9 +623,25 @@ pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
                 })
             })
             .collect::<Result<_>>()?;
+        let segment = match segment_col {
+            Some(c) => {
+                let text = record.get(c).unwrap_or("");
+                text.parse::<usize>().map_err(|_| {
+                    anyhow::anyhow!(
+                        "{}:{}:{} (segment): {} is not a segment number",
+                        path.display(),
+                        line + 2,
+                        c + 1,
+                        pdcal_dataset::quote(text)
+                    )
+                })?
+            }
+            None => 0,
+        };
         out.push(StepEstimate {
             index: line,
             t_s: num(base[0])?,
+            segment,
             q,
             attitude_sigma_deg: [num(base[5])?, num(base[6])?, num(base[7])?],
             calibration: Calibration {

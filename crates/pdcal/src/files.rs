@@ -3,7 +3,10 @@
 
 use anyhow::{Context, Result};
 use pdcal_dataset::{DatasetMeta, Telemetry};
-use pdcal_filter::{CalibrationRun, ModeUsed, RepairKind, ResidualRecord, Sensor, StepEstimate};
+use pdcal_filter::{
+    CalibrationRun, GapRules, ModeUsed, RepairKind, ResidualRecord, SegmentReport, Sensor,
+    StepEstimate,
+};
 use serde::Serialize;
 
 use crate::calibrate::Outcome;
@@ -44,6 +47,12 @@ pub struct Summary {
     pub runtime_s: f64,
     /// Physical-plausibility warnings on the input, one line each (also on stderr).
     pub warnings: Vec<String>,
+    /// The rules that split the telemetry into segments (gap threshold, gyro hold, the
+    /// gyro's own sample period, magnetometer pairing tolerance; s).
+    pub segment_rules: GapRules,
+    /// The segments: rows between gaps, silent gyros and lost attitudes, how each one's
+    /// attitude was acquired, or why it was skipped.
+    pub segments: Vec<SegmentReport>,
 }
 
 /// One photodiode in `summary.json`.
@@ -326,6 +335,8 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         covariance_repairs: repairs_summary(run),
         runtime_s: outcome.runtime_s,
         warnings: outcome.warnings.clone(),
+        segment_rules: run.segment_rules,
+        segments: run.segments.clone(),
     }
 }
 
@@ -380,6 +391,7 @@ pub fn estimate_header(m: usize, parameters: &[String]) -> Vec<String> {
         h.push(p.clone());
         h.push(format!("{p}_sigma"));
     }
+    h.push("segment".to_owned());
     h
 }
 
@@ -399,6 +411,7 @@ pub fn estimate_row(e: &StepEstimate) -> Vec<String> {
     for p in &c.parameters {
         row.extend([f(p.value), f(p.sigma)]);
     }
+    row.push(e.segment.to_string());
     row
 }
 

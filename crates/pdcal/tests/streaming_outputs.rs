@@ -23,7 +23,7 @@ fn streamed_files_equal_the_in_memory_files() {
     let telemetry = pdcal_dataset::read_telemetry(&dataset, &meta).unwrap();
     let albedo = pdcal::calibrate::albedo_model().unwrap();
     let outcome = pdcal::calibrate::run(&meta, &telemetry, &config, &albedo).unwrap();
-    assert!(outcome.run.forward.len() > 2 * pdcal_filter::SEGMENT_ROWS);
+    assert!(outcome.run.forward.len() > 2 * pdcal_filter::SMOOTHER_BLOCK_ROWS);
     let dir = pdcal::output::OutputDir::create(&memory, "calibrate").unwrap();
     pdcal::files::write_calibration_outputs(dir, &meta, &telemetry, &outcome, None).unwrap();
 
