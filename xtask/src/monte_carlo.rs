@@ -27,6 +27,8 @@ pub struct SeedResult {
     pub attitude_settled_rms_deg: f64,
     /// Segments of the run, and how many ended with the attitude lost.
     pub segments: (usize, usize),
+    /// Why the attitude was first declared lost, and at which row.
+    pub first_lost: Option<(usize, String)>,
     /// Final calibration-state errors inside 3 sigma (count inside, count).
     pub final_inside: (usize, usize),
     /// Photodiode residuals inside their 3-sigma bound.
@@ -130,6 +132,11 @@ fn one_seed(
                 .filter(|g| g.lost.is_some())
                 .count(),
         ),
+        first_lost: outcome
+            .run
+            .segments
+            .iter()
+            .find_map(|g| g.lost.clone().map(|why| (g.last_row, why))),
         final_inside: (inside, eval.consistency.final_states),
         residual_inside: s.residuals.fraction_within_3sigma,
         magnitude: (

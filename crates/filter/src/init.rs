@@ -181,10 +181,7 @@ pub fn find_start(
                 continue;
             }
         }
-        let pds: Vec<Photodiode> = sampled
-            .iter()
-            .map(|&i| inputs.photodiodes[i])
-            .collect();
+        let pds: Vec<Photodiode> = sampled.iter().map(|&i| inputs.photodiodes[i]).collect();
         let outputs: Vec<f64> = sampled
             .iter()
             .map(|&i| tel.pd_v[i][k].unwrap_or(0.0))

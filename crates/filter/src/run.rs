@@ -220,6 +220,7 @@ struct PassCheckpoint {
     last_t_s: f64,
     acquiring: bool,
     window: InnovationWindow,
+    acquired_sigma_deg: f64,
     steps: usize,
     step_segment: usize,
     closed_segments: usize,
@@ -268,6 +269,8 @@ pub struct ForwardPass<'a> {
     /// The next step must first acquire the attitude (a segment ended).
     acquiring: bool,
     window: InnovationWindow,
+    /// The attitude sigma the segment's acquisition gave, deg ([`ForwardPass::lost_reason`]).
+    acquired_sigma_deg: f64,
     /// Steps taken (the guard's full factorisation every [`FULL_GUARD_ROWS`]).
     steps: usize,
     /// The segment of the last step's row.
@@ -458,6 +461,7 @@ impl<'a> ForwardPass<'a> {
             last_t_s: tel.t_s[0],
             acquiring: true,
             window: InnovationWindow::new(&config.segments),
+            acquired_sigma_deg: 0.0,
             steps: 0,
             step_segment: 0,
             segments: Vec::new(),
@@ -531,6 +535,7 @@ impl<'a> ForwardPass<'a> {
                     self.last_gyro_t_s = start.gyro_t_s;
                     self.acquiring = false;
                     self.window.clear();
+                    self.acquired_sigma_deg = self.attitude_sigma_deg(start.index);
                     return Ok(Ok(()));
                 }
                 Err(why) => {
@@ -748,18 +753,27 @@ impl<'a> ForwardPass<'a> {
         }
     }
 
-    /// Why the attitude is lost after the last step, if it is: its sigma beyond the bound
-    /// (across the Sun line without the magnetometer), or most of a full window of
-    /// innovations gated.
-    fn lost_reason(&self) -> Option<String> {
+    /// The filter's largest attitude sigma at row `k`, deg (across the Sun line without
+    /// the magnetometer).
+    fn attitude_sigma_deg(&self, k: usize) -> f64 {
         let p = self.filter.covariance();
         let p_aa = p.fixed_view::<3, 3>(ATTITUDE, ATTITUDE).into_owned();
-        let sun_body = (!self.use_mag).then(|| {
-            let k = self.next - 1;
-            self.filter.q().to_body(&self.references[k].sun_gcrf_unit)
-        });
-        let sigma_deg = attitude_sigma_rad(&p_aa, sun_body.as_ref()).to_degrees();
-        let bound_deg = self.config.segments.lost_attitude_sigma_deg;
+        let sun_body =
+            (!self.use_mag).then(|| self.filter.q().to_body(&self.references[k].sun_gcrf_unit));
+        attitude_sigma_rad(&p_aa, sun_body.as_ref()).to_degrees()
+    }
+
+    /// Why the attitude is lost after the last step, if it is: its sigma beyond the bound
+    /// and beyond what the acquisition gave (a q-method with Sun and field 20 degrees apart
+    /// starts near 30 degrees about one axis, and is not lost for that), or most of a full
+    /// window of innovations gated.
+    fn lost_reason(&self) -> Option<String> {
+        let sigma_deg = self.attitude_sigma_deg(self.next - 1);
+        let bound_deg = self
+            .config
+            .segments
+            .lost_attitude_sigma_deg
+            .max(self.acquired_sigma_deg);
         if sigma_deg > bound_deg {
             return Some(format!(
                 "attitude sigma {sigma_deg:.1} deg above {bound_deg} deg"
@@ -848,6 +862,7 @@ impl<'a> ForwardPass<'a> {
             last_t_s: self.last_t_s,
             acquiring: self.acquiring,
             window: self.window.clone(),
+            acquired_sigma_deg: self.acquired_sigma_deg,
             steps: self.steps,
             step_segment: self.step_segment,
             closed_segments: self.segments.len(),
@@ -868,6 +883,7 @@ impl<'a> ForwardPass<'a> {
         self.last_t_s = checkpoint.last_t_s;
         self.acquiring = checkpoint.acquiring;
         self.window.clone_from(&checkpoint.window);
+        self.acquired_sigma_deg = checkpoint.acquired_sigma_deg;
         self.steps = checkpoint.steps;
         self.step_segment = checkpoint.step_segment;
         self.segments.truncate(checkpoint.closed_segments);
