@@ -660,10 +660,17 @@ impl<'a> ForwardPass<'a> {
         self.propagated = !self.fresh;
         self.fresh = false;
         if self.propagated {
-            let dt = t_s - tel.t_s[k - 1];
-            let previous = tel.gyro_rad_s[k - 1].or(self.last_gyro);
-            let (rate, change) = step_rate(previous, gyro, self.average_gyro);
-            self.filter.propagate(&rate, change, dt);
+            let t0 = tel.t_s[k - 1];
+            let before = match tel.gyro_rad_s[k - 1] {
+                Some(g) => Some((t0, g)),
+                None => self.last_gyro.map(|g| (self.last_gyro_t_s, g)),
+            };
+            let after = match gyro {
+                Some(g) => Some((t_s, g)),
+                None => self.gyro_after(k),
+            };
+            let (rate, change) = step_rate(before, after, (t0, t_s), self.average_gyro);
+            self.filter.propagate(&rate, change, t_s - t0);
             self.prior_q = self.filter.q();
         }
         if gyro.is_some() {
@@ -786,6 +793,15 @@ impl<'a> ForwardPass<'a> {
                 self.config.segments.lost_window_updates
             )
         })
+    }
+
+    /// The first gyro sample after row `k` within the gyro hold of the last one.
+    fn gyro_after(&self, k: usize) -> Option<GyroSample> {
+        let tel: &Telemetry = &self.telemetry;
+        let limit = self.last_gyro_t_s + self.rules.gyro_hold_s;
+        (k + 1..tel.len())
+            .take_while(|&j| tel.t_s[j] <= limit)
+            .find_map(|j| tel.gyro_rad_s[j].map(|g| (tel.t_s[j], g)))
     }
 
     /// Holds each photodiode's temperature sample of row `k`, if it has one.
@@ -919,20 +935,41 @@ impl<'a> ForwardPass<'a> {
     }
 }
 
-/// The rate over a step from the gyro samples at its ends: their mean (or the first held),
-/// and the size of the change between them.
+/// A gyro sample: its time, s, and rate, rad/s.
+type GyroSample = (f64, Vector3<f64>);
+
+/// The rate over the step from `t0` to `t1` (s) from the gyro samples around it: `before`,
+/// the latest at or before `t0`, and `after`, the first after `t0` (at `t1`, or, the run
+/// being offline, a later one within the gyro hold when the gyro samples slower than the
+/// rows). Averaging, the rate between them interpolated linearly at the step's midpoint
+/// (their mean when they are the step's ends: second-order accurate for a rate that
+/// changes during the step); otherwise `before` held. With it, the change of the rate over
+/// the step (the extra attitude noise's measure).
 fn step_rate(
-    previous: Option<Vector3<f64>>,
-    current: Option<Vector3<f64>>,
+    before: Option<GyroSample>,
+    after: Option<GyroSample>,
+    (t0, t1): (f64, f64),
     average: bool,
 ) -> (Vector3<f64>, f64) {
-    match (previous, current) {
-        (Some(a), Some(b)) => {
-            let rate = if average { 0.5 * (a + b) } else { a };
-            (rate, (b - a).norm())
+    match (before, after) {
+        (Some((ta, a)), Some((tb, b))) => {
+            let span = tb - ta;
+            if ta == t0 && tb == t1 {
+                let rate = if average { 0.5 * (a + b) } else { a };
+                return (rate, (b - a).norm());
+            }
+            if span <= 0.0 {
+                return (a, 0.0);
+            }
+            let change = (b - a).norm() * ((t1 - t0) / span).min(1.0);
+            if !average {
+                return (a, change);
+            }
+            let f = ((0.5 * (t0 + t1) - ta) / span).clamp(0.0, 1.0);
+            (a + (b - a) * f, change)
         }
-        (Some(a), None) => (a, 0.0),
-        (None, Some(b)) => (b, 0.0),
+        (Some((_, a)), None) => (a, 0.0),
+        (None, Some((_, b))) => (b, 0.0),
         (None, None) => (Vector3::zeros(), 0.0),
     }
 }

@@ -1,5 +1,6 @@
-//! The streaming run (per-row results through a sink, smoother by segments recomputed from
-//! kept forward states) gives the in-memory run's numbers bit for bit.
+//! The streaming run (per-row results through a sink, smoother by blocks recomputed from
+//! kept forward states) gives the in-memory run's numbers bit for bit, with and without
+//! gaps in the telemetry.
 
 mod common;
 
@@ -33,10 +34,43 @@ fn streaming_equals_in_memory_bit_for_bit() {
     // Starts in eclipse: the run's first row is not the data's.
     case.eclipse = 0..40;
     let (meta, tel, refs, _) = case.build();
+    let memory = compare(&meta, &tel, &refs);
+    assert!(memory.start_index >= 40);
+}
+
+#[test]
+fn streaming_equals_in_memory_across_gaps() {
+    let case = Case::rax2(12, 1300);
+    let (meta, tel, refs, _) = case.build();
+    // Two downlink gaps (200 s and 100 s, beyond the 10 s threshold): three segments,
+    // the smoother's blocks ending at each.
+    let keep = |k: usize| !(300..500).contains(&k) && !(800..900).contains(&k);
+    let cut = tel.select_rows(keep);
+    let refs: Vec<_> = refs
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| keep(*k))
+        .map(|(_, r)| *r)
+        .collect();
+    let memory = compare(&meta, &cut, &refs);
+    assert_eq!(memory.segments.len(), 3, "{:#?}", memory.segments);
+    let smoothed = memory.smoothed.as_ref().unwrap();
+    for (f, s) in memory.forward.iter().zip(smoothed) {
+        assert_eq!((f.index, f.segment), (s.index, s.segment));
+    }
+}
+
+/// Runs in memory and streaming with blocks of 1 row, an uneven split and one block for
+/// the whole run; asserts the same numbers bit for bit; returns the in-memory run.
+fn compare(
+    meta: &pdcal_dataset::DatasetMeta,
+    tel: &pdcal_dataset::Telemetry,
+    refs: &[pdcal_filter::StepReference],
+) -> pdcal_filter::CalibrationRun {
     let inputs = RunInputs {
-        meta: &meta,
-        telemetry: &tel,
-        references: &refs,
+        meta,
+        telemetry: tel,
+        references: refs,
         albedo: None,
     };
     let config = FilterConfig::default();
@@ -50,10 +84,9 @@ fn streaming_equals_in_memory_bit_for_bit() {
     };
     let memory =
         calibrate_with_model(&inputs, &config, &Mode::Full, model(), Algebra::Structured).unwrap();
-    assert!(memory.start_index >= 40);
     let smoothed = memory.smoothed.as_ref().unwrap();
-    // Segments of 1 row, an uneven split and one segment for the whole run.
-    for segment_rows in [1, 97, 5000] {
+    assert_eq!(smoothed.len(), memory.forward.len());
+    for block_rows in [1, 97, 5000] {
         let mut sink = Collect::default();
         let streamed = calibrate_streaming(
             &inputs,
@@ -61,19 +94,21 @@ fn streaming_equals_in_memory_bit_for_bit() {
             &Mode::Full,
             model(),
             Algebra::Structured,
-            segment_rows,
+            block_rows,
             &mut sink,
         )
         .unwrap();
-        assert_eq!(sink.forward, memory.forward, "segment {segment_rows}");
-        assert_eq!(sink.residuals, memory.residuals, "segment {segment_rows}");
+        assert_eq!(sink.forward, memory.forward, "blocks of {block_rows}");
+        assert_eq!(sink.residuals, memory.residuals, "blocks of {block_rows}");
         assert_eq!(streamed.calibration, memory.calibration);
         assert_eq!(streamed.final_covariance, memory.final_covariance);
         assert_eq!(streamed.counts, memory.counts);
         assert_eq!(streamed.rejections, memory.rejections);
-        // Segments arrive last first, each in row order.
+        assert_eq!(streamed.segments, memory.segments);
+        // Blocks arrive last first, each in row order.
         let joined: Vec<StepEstimate> = sink.segments.iter().rev().flatten().cloned().collect();
-        assert_eq!(&joined, smoothed, "segment {segment_rows}");
-        assert!(sink.segments.iter().all(|s| s.len() <= segment_rows + 1));
+        assert_eq!(&joined, smoothed, "blocks of {block_rows}");
+        assert!(sink.segments.iter().all(|s| s.len() <= block_rows + 1));
     }
+    memory
 }
