@@ -30,6 +30,54 @@ fn minutes(t_s: &[f64]) -> Vec<f64> {
     t_s.iter().map(|t| t / 60.0).collect()
 }
 
+/// The points of a time series with a break (a NaN point) inserted wherever a new segment
+/// starts: figures draw a gap as a gap, not as a line across it.
+struct Broken {
+    /// Times, min.
+    t_min: Vec<f64>,
+    /// Index into the original series; `None` at a break.
+    at: Vec<Option<usize>>,
+}
+
+impl Broken {
+    /// Breaks before every point `i` where `starts(i)` holds.
+    fn new(t_s: &[f64], starts: impl Fn(usize) -> bool) -> Self {
+        let mut broken = Broken {
+            t_min: Vec::with_capacity(t_s.len()),
+            at: Vec::with_capacity(t_s.len()),
+        };
+        for (i, &t) in t_s.iter().enumerate() {
+            if i > 0 && starts(i) {
+                broken.t_min.push(0.5 * (t_s[i - 1] + t) / 60.0);
+                broken.at.push(None);
+            }
+            broken.t_min.push(t / 60.0);
+            broken.at.push(Some(i));
+        }
+        broken
+    }
+
+    /// Breaks between the estimates of different segments.
+    fn segments(estimates: &[StepEstimate]) -> Self {
+        let t: Vec<f64> = estimates.iter().map(|e| e.t_s).collect();
+        Broken::new(&t, |i| estimates[i].segment != estimates[i - 1].segment)
+    }
+
+    /// Breaks where consecutive times are further apart than the gap rule (ten median
+    /// spacings, at least the floor), for series that carry no segment.
+    fn time_gaps(t_s: &[f64]) -> Self {
+        let spacing = pdcal_filter::median_spacing(t_s.iter().copied()).unwrap_or(1.0);
+        let gap_s = (pdcal_filter::segments::GAP_SPACINGS * spacing)
+            .max(pdcal_filter::segments::GAP_FLOOR_S);
+        Broken::new(t_s, |i| t_s[i] - t_s[i - 1] > gap_s)
+    }
+
+    /// `value(i)` at every point, NaN at the breaks.
+    fn pick(&self, value: impl Fn(usize) -> f64) -> Vec<f64> {
+        self.at.iter().map(|i| i.map_or(f64::NAN, &value)).collect()
+    }
+}
+
 /// Writes Figs. 2-12 into `dir`; returns what was written.
 pub fn calibration_figures(
     dir: &Path,
@@ -60,16 +108,12 @@ fn raw_outputs(dir: &Path, telemetry: &Telemetry, out: &mut Vec<FigureEntry>) ->
 /// cells are gaps.
 pub fn raw_outputs_figure(dir: &Path, telemetry: &Telemetry, title: &str) -> Result<()> {
     let stride = stride_for(telemetry.len());
-    let t = minutes(&every(&telemetry.t_s, stride));
+    let broken = Broken::time_gaps(&every(&telemetry.t_s, stride));
+    let t = &broken.t_min;
     let columns: Vec<Vec<f64>> = telemetry
         .pd_v
         .iter()
-        .map(|c| {
-            c.iter()
-                .step_by(stride)
-                .map(|v| v.unwrap_or(f64::NAN))
-                .collect()
-        })
+        .map(|c| broken.pick(|i| c[i * stride].unwrap_or(f64::NAN)))
         .collect();
     let names: Vec<String> = (1..=columns.len()).map(|i| format!("pd{i:02}")).collect();
     let series: Vec<Series> = columns
@@ -82,7 +126,7 @@ pub fn raw_outputs_figure(dir: &Path, telemetry: &Telemetry, title: &str) -> Res
         dir,
         &figure,
         &LineAxes::new("time (min)", "output (V)"),
-        &t,
+        t,
         &series,
     )?;
     Ok(())
@@ -115,7 +159,15 @@ fn sun_directions(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> 
 /// every few rows of a long streamed run; NaN where not updated).
 fn residuals(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Result<()> {
     let run = &outcome.run;
-    let t: Vec<f64> = run.forward.iter().map(|e| e.t_s / 60.0).collect();
+    let broken = Broken::segments(&run.forward);
+    let t = &broken.t_min;
+    // The plotted point of each estimate (breaks between segments stay NaN).
+    let mut point = vec![0; run.forward.len()];
+    for (p, at) in broken.at.iter().enumerate() {
+        if let Some(k) = at {
+            point[*k] = p;
+        }
+    }
     let rows: Vec<usize> = run.forward.iter().map(|e| e.index).collect();
     let n = t.len();
     let shown = SHOWN.min(run.calibration.photodiodes.len());
@@ -126,13 +178,13 @@ fn residuals(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Resul
             && i < shown
             && let Ok(k) = rows.binary_search(&r.index)
         {
-            value[i][k] = r.residual;
-            sigma[i][k] = r.bound_3sigma / 3.0;
+            value[i][point[k]] = r.residual;
+            sigma[i][point[k]] = r.bound_3sigma / 3.0;
         }
     }
     let labels: Vec<String> = (1..=shown).map(|i| format!("photodiode {i}")).collect();
     let panels: Vec<BoundsPanel> = (0..shown)
-        .map(|i| BoundsPanel::new(&labels[i], "residual (V)", &t, &value[i], &sigma[i]))
+        .map(|i| BoundsPanel::new(&labels[i], "residual (V)", t, &value[i], &sigma[i]))
         .collect();
     let figure = Figure::new("fig04_residuals", "Photodiode residuals and 3-sigma bounds");
     series_with_bounds(dir, &figure, "time (min)", "residual", &panels)?;
@@ -146,7 +198,8 @@ fn residuals(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Resul
 
 /// Scale, azimuth and elevation estimates of photodiodes 1-3 with 3-sigma bounds (Figs. 5-7).
 fn estimates(dir: &Path, forward: &[StepEstimate], out: &mut Vec<FigureEntry>) -> Result<()> {
-    let t: Vec<f64> = forward.iter().map(|e| e.t_s / 60.0).collect();
+    let broken = Broken::segments(forward);
+    let t = &broken.t_min;
     let shown = SHOWN.min(
         forward
             .first()
@@ -179,17 +232,15 @@ fn estimates(dir: &Path, forward: &[StepEstimate], out: &mut Vec<FigureEntry>) -
     for (stem, title, y_label, caption, pick) in quantities {
         let series: Vec<(Vec<f64>, Vec<f64>)> = (0..shown)
             .map(|i| {
-                forward
-                    .iter()
-                    .map(|e| pick(&e.calibration.photodiodes[i]))
-                    .unzip()
+                let at = |k: usize| pick(&forward[k].calibration.photodiodes[i]);
+                (broken.pick(|k| at(k).0), broken.pick(|k| at(k).1))
             })
             .collect();
         let labels: Vec<String> = (1..=shown).map(|i| format!("photodiode {i}")).collect();
         let panels: Vec<BoundsPanel> = series
             .iter()
             .zip(&labels)
-            .map(|((v, s), l)| BoundsPanel::new(l, y_label, &t, v, s).around(v))
+            .map(|((v, s), l)| BoundsPanel::new(l, y_label, t, v, s).around(v))
             .collect();
         series_with_bounds(
             dir,
@@ -271,8 +322,9 @@ fn magnitudes(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Resu
 }
 
 fn attitude_sigma(dir: &Path, forward: &[StepEstimate], out: &mut Vec<FigureEntry>) -> Result<()> {
-    let t: Vec<f64> = forward.iter().map(|e| e.t_s / 60.0).collect();
-    let axis = |k: usize| -> Vec<f64> { forward.iter().map(|e| e.attitude_sigma_deg[k]).collect() };
+    let broken = Broken::segments(forward);
+    let t = &broken.t_min;
+    let axis = |k: usize| -> Vec<f64> { broken.pick(|i| forward[i].attitude_sigma_deg[k]) };
     let (x, y, z) = (axis(0), axis(1), axis(2));
     let series = [
         Series::new("x", &x, Mark::Line),
@@ -342,4 +394,25 @@ pub fn write_index(
     }
     pdcal_report::index_html(dir, &format!("pdcal: {}", summary.dataset), &rows, figures)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_break_separates_segments_and_time_gaps() {
+        let t_s = [0.0, 60.0, 120.0, 1200.0, 1260.0];
+        let broken = Broken::new(&t_s, |i| i == 3);
+        assert_eq!(
+            broken.at,
+            [Some(0), Some(1), Some(2), None, Some(3), Some(4)]
+        );
+        assert_eq!(broken.t_min[3], 11.0);
+        let y = broken.pick(|i| i as f64);
+        assert!(y[3].is_nan() && y[4] == 3.0);
+        // Ten median spacings (600 s) decide a time gap.
+        assert_eq!(Broken::time_gaps(&t_s).at, broken.at);
+        assert!(Broken::time_gaps(&t_s[..3]).at.iter().all(Option::is_some));
+    }
 }
