@@ -336,7 +336,7 @@ fn attitude_sigma(dir: &Path, forward: &[StepEstimate], out: &mut Vec<FigureEntr
         dir,
         &Figure::new("fig12_attitude_sigma", "Attitude accuracy (1-sigma)"),
         &axes,
-        &t,
+        t,
         &series,
     )?;
     push(
