@@ -102,4 +102,7 @@ pub struct CalibrationRun {
     pub segments: Vec<SegmentReport>,
     /// The gap threshold, gyro hold and pairing tolerance the run used.
     pub segment_rules: GapRules,
+    /// Per photodiode, the time its accepted updates cover, s (each update counts the
+    /// length of the step to its row): the sunlit time the calibration used.
+    pub photodiode_time_used_s: Vec<f64>,
 }

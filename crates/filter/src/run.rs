@@ -275,6 +275,9 @@ pub struct ForwardPass<'a> {
     steps: usize,
     /// The segment of the last step's row.
     step_segment: usize,
+    /// Per photodiode, the time its accepted updates stand for, s: the step's length for
+    /// each row it updated the filter at.
+    photodiode_time_s: Vec<f64>,
     /// Closed segments, and the open one.
     segments: Vec<SegmentReport>,
     current: SegmentReport,
@@ -464,6 +467,7 @@ impl<'a> ForwardPass<'a> {
             acquired_sigma_deg: 0.0,
             steps: 0,
             step_segment: 0,
+            photodiode_time_s: vec![0.0; m],
             segments: Vec::new(),
             current: SegmentReport::open(0, tel.t_s[0]),
             row: vec![None; m],
@@ -710,7 +714,12 @@ impl<'a> ForwardPass<'a> {
             reference,
             provider,
         )?;
-        self.record_rejections(k);
+        let step_s = if self.propagated {
+            t_s - tel.t_s[k - 1]
+        } else {
+            0.0
+        };
+        self.record_rejections(k, step_s);
         let full = self.steps.is_multiple_of(FULL_GUARD_ROWS);
         if let Some(repair) = self.filter.guard_covariance(k, t_s, full)? {
             self.repairs.push(repair);
@@ -726,11 +735,14 @@ impl<'a> ForwardPass<'a> {
 
     /// The gated samples of the last update, counted per sensor (one magnetometer
     /// rejection per row) and in the innovation window.
-    fn record_rejections(&mut self, k: usize) {
+    fn record_rejections(&mut self, k: usize, step_s: f64) {
         let mut mag_gated = false;
         for r in self.filter.records() {
             self.window.push(r.accepted);
             if r.accepted {
+                if let Sensor::Photodiode(i) = r.sensor {
+                    self.photodiode_time_s[i] += step_s;
+                }
                 continue;
             }
             match r.sensor {
@@ -931,6 +943,7 @@ impl<'a> ForwardPass<'a> {
             covariance_repairs: self.repairs.clone(),
             segments: self.segments(),
             segment_rules: self.rules,
+            photodiode_time_used_s: self.photodiode_time_s.clone(),
         }
     }
 }

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 /// On-orbit photodiode calibration. With no command: simulate the RAX-2-like scenario,
@@ -108,10 +108,9 @@ pub fn run(cli: Cli) -> Result<()> {
             };
             let outcome = crate::calibrate::run_dir(&dataset, &out, &config)?;
             print_warnings(&outcome.warnings);
-            let summary_path = out.join("summary.json");
-            let summary = std::fs::read_to_string(&summary_path)
-                .with_context(|| format!("cannot read {}", summary_path.display()))?;
-            println!("{summary}");
+            let meta = pdcal_dataset::read_meta(&dataset)?;
+            let summary = crate::files::summary(&meta, &outcome);
+            print!("{}", crate::tables::console_summary(&summary));
             eprintln!(
                 "calibrated in {:.2} s -> {}",
                 outcome.runtime_s,

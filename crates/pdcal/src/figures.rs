@@ -392,7 +392,17 @@ pub fn write_index(
     if let Some(extra) = evaluation {
         rows.extend(extra.iter().cloned());
     }
-    pdcal_report::index_html(dir, &format!("pdcal: {}", summary.dataset), &rows, figures)?;
+    let tables = [
+        crate::tables::photodiode_table(summary),
+        crate::tables::segment_table(summary),
+    ];
+    pdcal_report::index_html_with_tables(
+        dir,
+        &format!("pdcal: {}", summary.dataset),
+        &tables,
+        &rows,
+        figures,
+    )?;
     Ok(())
 }
 

@@ -77,6 +77,43 @@ pub struct PdSummary {
     pub used: bool,
     /// The initial estimates.
     pub initial: PdInitial,
+    /// Angle between the calibrated and the nominal (initial) normal, deg.
+    pub normal_change_deg: f64,
+    /// Calibrated C against the initial C (the maximum output), %.
+    pub scale_change_percent: f64,
+    /// Sunlit time the calibration used: the time its accepted updates cover, min.
+    pub time_used_min: f64,
+    /// Why the result deserves a second look, when it does: `never lit`, `lit too little
+    /// (N min)`, `change beyond 3 sigma of the prior`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub flag: Option<String>,
+}
+
+/// A photodiode whose updates cover less than this is flagged as lit too little to
+/// calibrate, min (the evaluation's own "lit at least 5 minutes").
+pub const MIN_TIME_USED_MIN: f64 = 5.0;
+
+/// The flag of a photodiode ([`PdSummary::flag`]): never lit, lit too little, or changed by
+/// more than 3 sigma of the initial uncertainty (a mounting or a scale factor that far from
+/// the prior is more often a data problem than a discovery).
+fn photodiode_flag(
+    used: bool,
+    time_used_min: f64,
+    (normal_change_deg, scale_change_v): (f64, f64),
+    init: &pdcal_filter::PdCalibration,
+) -> Option<String> {
+    if !used {
+        return Some("never lit".to_owned());
+    }
+    if time_used_min < MIN_TIME_USED_MIN {
+        return Some(format!("lit too little ({time_used_min:.1} min)"));
+    }
+    let normal_sigma_deg = init
+        .elevation_sigma_deg
+        .max(init.azimuth_sigma_deg.unwrap_or(0.0));
+    let beyond = normal_change_deg > 3.0 * normal_sigma_deg
+        || scale_change_v.abs() > 3.0 * init.scale_sigma_v;
+    beyond.then(|| "change beyond 3 sigma of the prior".to_owned())
 }
 
 /// Initial values of one photodiode.
@@ -286,20 +323,29 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         .zip(&run.initial.photodiodes)
         .zip(&run.used_photodiodes)
         .enumerate()
-        .map(|(i, ((cal, init), used))| PdSummary {
-            index: i + 1,
-            scale_V: cal.scale_v,
-            scale_sigma_V: cal.scale_sigma_v,
-            azimuth_deg: cal.azimuth_deg,
-            azimuth_sigma_deg: cal.azimuth_sigma_deg,
-            elevation_deg: cal.elevation_deg,
-            elevation_sigma_deg: cal.elevation_sigma_deg,
-            used: *used,
-            initial: PdInitial {
-                scale_V: init.scale_v,
-                azimuth_deg: init.azimuth_deg,
-                elevation_deg: init.elevation_deg,
-            },
+        .map(|(i, ((cal, init), used))| {
+            let normal_change_deg = cal.n_body().angle(&init.n_body()).to_degrees();
+            let time_used_min = run.photodiode_time_used_s.get(i).copied().unwrap_or(0.0) / 60.0;
+            let change = (normal_change_deg, cal.scale_v - init.scale_v);
+            PdSummary {
+                index: i + 1,
+                scale_V: cal.scale_v,
+                scale_sigma_V: cal.scale_sigma_v,
+                azimuth_deg: cal.azimuth_deg,
+                azimuth_sigma_deg: cal.azimuth_sigma_deg,
+                elevation_deg: cal.elevation_deg,
+                elevation_sigma_deg: cal.elevation_sigma_deg,
+                used: *used,
+                initial: PdInitial {
+                    scale_V: init.scale_v,
+                    azimuth_deg: init.azimuth_deg,
+                    elevation_deg: init.elevation_deg,
+                },
+                normal_change_deg,
+                scale_change_percent: 100.0 * (cal.scale_v - init.scale_v) / init.scale_v,
+                time_used_min,
+                flag: photodiode_flag(*used, time_used_min, change, init),
+            }
         })
         .collect();
     let sv = &outcome.sun_vector;
@@ -532,4 +578,31 @@ pub fn write_summary_and_figures(
     }
     crate::figures::write_index(dir.path(), summary, rows.as_deref(), &figures)?;
     dir.commit()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flags_say_never_lit_too_little_and_implausible_change() {
+        let init = pdcal_filter::PdCalibration {
+            scale_v: 3.7,
+            scale_sigma_v: 0.5,
+            azimuth_deg: 0.0,
+            azimuth_sigma_deg: Some(10.0),
+            elevation_deg: 0.0,
+            elevation_sigma_deg: 10.0,
+        };
+        let flag = |used, minutes, change| photodiode_flag(used, minutes, change, &init);
+        assert_eq!(flag(false, 0.0, (0.0, 0.0)).as_deref(), Some("never lit"));
+        assert_eq!(
+            flag(true, 2.04, (1.0, 0.1)).as_deref(),
+            Some("lit too little (2.0 min)")
+        );
+        assert_eq!(flag(true, 20.0, (9.0, -0.2)), None);
+        let beyond = Some("change beyond 3 sigma of the prior");
+        assert_eq!(flag(true, 20.0, (31.0, 0.0)).as_deref(), beyond);
+        assert_eq!(flag(true, 20.0, (1.0, -1.6)).as_deref(), beyond);
+    }
 }

@@ -17,3 +17,4 @@ pub mod output;
 pub mod simulate;
 pub mod stream;
 pub mod sunvec;
+pub mod tables;

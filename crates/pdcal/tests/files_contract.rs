@@ -144,6 +144,28 @@ fn calibrate_and_evaluate_outputs_carry_the_contract_keys() {
     ] {
         assert!(out.join(name).is_file(), "{name} missing");
     }
+    // index.html opens with the result: a row per photodiode, then the segments, then
+    // the summary and the figures.
+    let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+    let at = |s: &str| {
+        html.find(s)
+            .unwrap_or_else(|| panic!("index.html lacks {s}"))
+    };
+    assert!(at("<h2>Photodiodes") < at("<h2>Segments") && at("<h2>Segments") < at("<h2>Summary"));
+    assert!(at("<h2>Summary") < at("<h2>Figures"));
+    let m = summary["photodiodes"].as_array().unwrap().len();
+    for i in 1..=m {
+        at(&format!("<td>pd{i:02}</td>"));
+    }
+    for key in ["normal_change_deg", "scale_change_percent", "time_used_min"] {
+        assert!(pd.get(key).is_some(), "summary.json photodiode lacks {key}");
+    }
+    assert!(
+        summary["segments"]
+            .as_array()
+            .is_some_and(|s| !s.is_empty())
+    );
+    assert!(summary["segment_rules"]["gap_threshold_s"].is_f64());
 }
 
 /// Outputs are written whole or not at all: a failing calibration leaves no directory.

@@ -6,6 +6,52 @@ use std::path::{Path, PathBuf};
 use crate::ReportError;
 use crate::render::{check_stem, write_files_atomically};
 
+/// A table of text cells under a title, for the top of an index page.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Table {
+    /// Heading above the table.
+    pub title: String,
+    /// Column names.
+    pub header: Vec<String>,
+    /// Rows of cells (a row shorter than the header leaves the rest empty).
+    pub rows: Vec<Vec<String>>,
+}
+
+impl Table {
+    /// A table titled `title` with columns `header`.
+    pub fn new(title: &str, header: &[&str], rows: Vec<Vec<String>>) -> Self {
+        Table {
+            title: title.to_owned(),
+            header: header.iter().map(|h| (*h).to_owned()).collect(),
+            rows,
+        }
+    }
+}
+
+/// [`index_html`] with `tables` first, before the summary rows: the result a user reads
+/// first (for a calibration, the photodiode table and the segments).
+pub fn index_html_with_tables<K, V, C, S>(
+    out_dir: &Path,
+    title: &str,
+    tables: &[Table],
+    summary_rows: &[(K, V)],
+    figures: &[(C, S)],
+) -> Result<PathBuf, ReportError>
+where
+    K: AsRef<str>,
+    V: AsRef<str>,
+    C: AsRef<str>,
+    S: AsRef<str>,
+{
+    for (_, stem) in figures {
+        check_stem(stem.as_ref())?;
+    }
+    let html = index_page(title, tables, summary_rows, figures);
+    let path = out_dir.join("index.html");
+    write_files_atomically(&[(&path, html.as_bytes())])?;
+    Ok(path)
+}
+
 /// Write `<out_dir>/index.html` (atomically): `title`, a two-column table of
 /// `summary_rows` (name, value), then each figure as `<stem>.png` with its caption, the image
 /// linking to `<stem>.svg`. Self-contained: inline CSS, no scripts, no external assets; the
@@ -26,16 +72,15 @@ where
     C: AsRef<str>,
     S: AsRef<str>,
 {
-    for (_, stem) in figures {
-        check_stem(stem.as_ref())?;
-    }
-    let html = index_page(title, summary_rows, figures);
-    let path = out_dir.join("index.html");
-    write_files_atomically(&[(&path, html.as_bytes())])?;
-    Ok(path)
+    index_html_with_tables(out_dir, title, &[], summary_rows, figures)
 }
 
-fn index_page<K, V, C, S>(title: &str, rows: &[(K, V)], figures: &[(C, S)]) -> String
+fn index_page<K, V, C, S>(
+    title: &str,
+    tables: &[Table],
+    rows: &[(K, V)],
+    figures: &[(C, S)],
+) -> String
 where
     K: AsRef<str>,
     V: AsRef<str>,
@@ -50,6 +95,9 @@ where
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n\
          <title>{title}</title>\n<style>\n{CSS}</style>\n</head>\n<body>\n<h1>{title}</h1>\n"
     );
+    for table in tables {
+        push_table(&mut h, table);
+    }
     if !rows.is_empty() {
         h.push_str("<h2>Summary</h2>\n<table>\n");
         for (k, v) in rows {
@@ -75,6 +123,20 @@ where
     }
     h.push_str("</body>\n</html>\n");
     h
+}
+
+fn push_table(h: &mut String, table: &Table) {
+    let _ = writeln!(h, "<h2>{}</h2>\n<table>", escape(&table.title));
+    let cells = |tag: &str, row: &[String]| -> String {
+        row.iter()
+            .map(|c| format!("<{tag}>{}</{tag}>", escape(c)))
+            .collect()
+    };
+    let _ = writeln!(h, "<tr>{}</tr>", cells("th", &table.header));
+    for row in &table.rows {
+        let _ = writeln!(h, "<tr>{}</tr>", cells("td", row));
+    }
+    h.push_str("</table>\n");
 }
 
 const CSS: &str =

@@ -59,7 +59,7 @@ mod style;
 pub use bounds::{BoundsPanel, N_SIGMA, series_with_bounds};
 pub use error::ReportError;
 pub use histogram::{BinRange, HistogramPanel, MAX_BINS, bin_counts, histograms, mean_std};
-pub use html::index_html;
+pub use html::{Table, index_html, index_html_with_tables};
 pub use lines::{LineAxes, Series, YScale, lines};
 pub use render::{Figure, MAX_SIDE_PX, MIN_SIDE_PX, Written};
 pub use sphere::{DirectionSet, az_el_deg, sphere_directions};
