@@ -41,6 +41,10 @@ enum Task {
         /// drawn from each seed.
         #[arg(long)]
         cut: Option<monte_carlo::Cut>,
+        /// Calibrate this many data sets of the same spacecraft (the same seed), a month
+        /// apart, jointly; the table compares with the best set calibrated alone.
+        #[arg(long, default_value_t = 1)]
+        sets: usize,
     },
     /// Simulate rax2-like with albedo and dark offsets hidden, diagnose from `cosine`.
     DiagnoseDemo,
@@ -57,7 +61,14 @@ fn main() -> ExitCode {
             photodiode_only,
             config,
             cut,
-        } => monte_carlo::run(seeds, &scenario, photodiode_only, config.as_deref(), cut),
+            sets,
+        } => monte_carlo::run(
+            seeds,
+            &scenario,
+            photodiode_only,
+            config.as_deref(),
+            (cut, sets),
+        ),
         Task::DiagnoseDemo => diagnose_demo::run(std::path::Path::new("out/diagnose-demo")),
         Task::Bench => bench(),
     };

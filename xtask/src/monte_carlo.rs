@@ -8,6 +8,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use pdcal::calibrate::{AlbedoModelType, RunConfig, albedo_model};
 use pdcal::evaluate::{Evaluation, evaluate};
 use pdcal::files::{Summary, summary};
+use pdcal_dataset::TruthSeries;
 use pdcal_filter::Mode;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -29,6 +30,9 @@ pub struct SeedResult {
     pub segments: (usize, usize),
     /// Why the attitude was first declared lost, and at which row.
     pub first_lost: Option<(usize, String)>,
+    /// With several sets: the smallest worst-normal (deg) and worst-scale (%) errors of the
+    /// sets calibrated one by one.
+    pub best_single: Option<(f64, f64)>,
     /// Final calibration-state errors inside 3 sigma (count inside, count).
     pub final_inside: (usize, usize),
     /// Photodiode residuals inside their 3-sigma bound.
@@ -87,32 +91,127 @@ impl Cut {
     }
 }
 
-fn one_seed(
+/// Days between the data sets of a joint run (`--sets N`).
+pub const SET_SPACING_DAYS: f64 = 30.0;
+
+/// The seed's data set `j` of `sets`: the scenario with its epoch `j` months later (the
+/// same seed, so the same hardware), cut into passes when asked.
+fn simulate_set(
     scenario: &pdcal_sim::Scenario,
     seed: u64,
-    config: &RunConfig,
-    albedo: &AlbedoModelType,
+    j: usize,
     cut: Option<Cut>,
-) -> Result<SeedResult> {
-    let mut sim = pdcal::simulate::run(scenario, seed)?;
+) -> Result<pdcal_sim::SimOutput> {
+    let mut scenario = scenario.clone();
+    if j > 0 {
+        let epoch = pdcal_dataset::EpochUtc::parse(&scenario.epoch_utc)
+            .map_err(|e| anyhow::anyhow!("scenario epoch_utc: {e}"))?
+            .epoch()
+            + hifitime::Unit::Day * (SET_SPACING_DAYS * j as f64);
+        let (y, mo, d, h, mi, s, _) = epoch.to_gregorian_utc();
+        scenario.epoch_utc = format!("{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}Z");
+        scenario.name = format!("{}-set{}", scenario.name, j + 1);
+    }
+    let mut sim = pdcal::simulate::run(&scenario, seed)?;
     if let Some(cut) = cut {
         let t = sim.telemetry.t_s.clone();
         sim.telemetry = sim.telemetry.select_rows(|k| cut.keeps(seed, t[k]));
         let t = sim.truth.t_s.clone();
         sim.truth = sim.truth.select_rows(|k| cut.keeps(seed, t[k]));
     }
-    let mut telemetry = sim.telemetry.clone();
-    if matches!(config.mode, Mode::PhotodiodeOnly) {
-        telemetry.mag_nt = None;
+    Ok(sim)
+}
+
+/// The truth of several sets on the joint time line.
+fn joint_truth(sets: &[pdcal_sim::SimOutput], joint: &pdcal::joint::Joint) -> TruthSeries {
+    let mut out = sets[0].truth.select_rows(|_| false);
+    for (sim, span) in sets.iter().zip(&joint.sets) {
+        let t = &sim.truth;
+        out.t_s.extend(t.t_s.iter().map(|x| x + span.offset_s));
+        out.q.extend_from_slice(&t.q);
+        out.w_body_rad_s.extend_from_slice(&t.w_body_rad_s);
+        out.gyro_bias_rad_s.extend_from_slice(&t.gyro_bias_rad_s);
+        out.sun_body.extend_from_slice(&t.sun_body);
+        out.eclipse.extend_from_slice(&t.eclipse);
+        out.r_gcrf_km.extend_from_slice(&t.r_gcrf_km);
+        out.mag_body_nt.extend_from_slice(&t.mag_body_nt);
     }
-    let outcome = pdcal::calibrate::run(&sim.meta, &telemetry, config, albedo)?;
-    let eval: Evaluation = evaluate(
+    out
+}
+
+/// Calibrates one set alone: its worst normal (deg) and scale (%) errors.
+fn single_set_errors(
+    sim: &pdcal_sim::SimOutput,
+    config: &RunConfig,
+    albedo: &AlbedoModelType,
+) -> Result<(f64, f64)> {
+    let outcome = pdcal::calibrate::run(&sim.meta, &sim.telemetry, config, albedo)?;
+    let eval = evaluate(
         &outcome.run.forward,
         &outcome.run.calibration,
         &sim.truth,
         &sim.constants,
     )?;
-    let s: Summary = summary(&sim.meta, &outcome);
+    Ok((eval.worst_normal_error_deg, eval.worst_scale_error_percent))
+}
+
+fn one_seed(
+    scenario: &pdcal_sim::Scenario,
+    seed: u64,
+    config: &RunConfig,
+    albedo: &AlbedoModelType,
+    (cut, sets): (Option<Cut>, usize),
+) -> Result<SeedResult> {
+    let sims: Vec<pdcal_sim::SimOutput> = (0..sets.max(1))
+        .map(|j| simulate_set(scenario, seed, j, cut))
+        .collect::<Result<_>>()?;
+    if sims.iter().any(|s| s.constants != sims[0].constants) {
+        anyhow::bail!("the sets of seed {seed} simulate different hardware");
+    }
+    let joint = pdcal::joint::join(
+        sims.iter()
+            .enumerate()
+            .map(|(j, s)| {
+                (
+                    format!("set{}", j + 1).into(),
+                    s.meta.clone(),
+                    s.telemetry.clone(),
+                )
+            })
+            .collect(),
+    )?;
+    let mut telemetry = joint.telemetry.clone();
+    if matches!(config.mode, Mode::PhotodiodeOnly) {
+        telemetry.mag_nt = None;
+    }
+    let outcome = pdcal::calibrate::run_with_references(
+        &joint.meta,
+        &telemetry,
+        joint.references.clone(),
+        config,
+        albedo,
+    )?;
+    let truth = joint_truth(&sims, &joint);
+    let eval: Evaluation = evaluate(
+        &outcome.run.forward,
+        &outcome.run.calibration,
+        &truth,
+        &sims[0].constants,
+    )?;
+    let best_single = if sims.len() > 1 {
+        let singles: Vec<(f64, f64)> = sims
+            .iter()
+            .map(|s| single_set_errors(s, config, albedo))
+            .collect::<Result<_>>()?;
+        Some((
+            singles.iter().map(|s| s.0).fold(f64::INFINITY, f64::min),
+            singles.iter().map(|s| s.1).fold(f64::INFINITY, f64::min),
+        ))
+    } else {
+        None
+    };
+
+    let s: Summary = summary(&joint.meta, &outcome);
     check_numbers(&outcome.run)?;
     let inside = (eval.consistency.final_states_within_3sigma
         * eval.consistency.final_states as f64)
@@ -132,6 +231,7 @@ fn one_seed(
                 .filter(|g| g.lost.is_some())
                 .count(),
         ),
+        best_single,
         first_lost: outcome
             .run
             .segments
@@ -189,7 +289,7 @@ pub fn run(
     scenario_name: &str,
     photodiode_only: bool,
     config_file: Option<&std::path::Path>,
-    cut: Option<Cut>,
+    (cut, sets): (Option<Cut>, usize),
 ) -> Result<()> {
     let scenario = pdcal::simulate::load_scenario(scenario_name)?;
     let mut config = match config_file {
@@ -207,7 +307,7 @@ pub fn run(
     let mut results: Vec<SeedResult> = (1..=n)
         .into_par_iter()
         .map(|seed| {
-            let r = one_seed(&scenario, seed, &config, &albedo, cut)
+            let r = one_seed(&scenario, seed, &config, &albedo, (cut, sets))
                 .with_context(|| format!("seed {seed}"));
             bar.inc(1);
             r
@@ -224,12 +324,18 @@ pub fn run(
     if let Some(cut) = cut {
         mode = format!("{mode}, passes of {} s every {} s", cut.on_s, cut.period_s);
     }
+    if sets > 1 {
+        mode = format!("{mode}, {sets} sets {SET_SPACING_DAYS} days apart calibrated jointly");
+    }
     let table = table(&scenario.name, &mode, &results);
     print!("{table}");
-    let tag = match cut {
+    let mut tag = match cut {
         Some(cut) => format!("-passes-{}-{}", cut.on_s, cut.period_s),
         None => String::new(),
     };
+    if sets > 1 {
+        tag = format!("{tag}-{sets}-sets");
+    }
     let dir = PathBuf::from("out/sim-calibrate").join(format!(
         "{}-{}{tag}",
         scenario.name,
@@ -284,6 +390,36 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
         s,
         "| attitude error RMS, sunlit from 60 s after each acquisition (deg) | {m:.3} | {w:.3} | <= 1 |"
     );
+    if r.iter().all(|x| x.best_single.is_some()) {
+        let best = |f: fn(&(f64, f64)) -> f64| {
+            r.iter()
+                .filter_map(|x| x.best_single.as_ref().map(f))
+                .collect::<Vec<f64>>()
+        };
+        let (m, _, w) = stats(best(|b| b.0).into_iter());
+        let _ = writeln!(
+            s,
+            "| best single set: normal error, worst photodiode (deg) | {m:.3} | {w:.3} | - |"
+        );
+        let (m, _, w) = stats(best(|b| b.1).into_iter());
+        let _ = writeln!(
+            s,
+            "| best single set: scale error, worst photodiode (%) | {m:.3} | {w:.3} | - |"
+        );
+        let no_worse = r
+            .iter()
+            .filter(|x| {
+                x.best_single.is_some_and(|b| {
+                    x.worst_normal_deg <= b.0 + 1e-9 && x.worst_scale_percent <= b.1 + 1e-9
+                })
+            })
+            .count();
+        let _ = writeln!(
+            s,
+            "| seeds whose joint errors are no worse than the best single set's | {no_worse} / {} | - | all |",
+            r.len()
+        );
+    }
     let (m, lo, hi) = stats(r.iter().map(|x| x.segments.0 as f64));
     let lost: usize = r.iter().map(|x| x.segments.1).sum();
     let _ = writeln!(

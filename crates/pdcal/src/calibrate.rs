@@ -1,6 +1,8 @@
 //! `pdcal calibrate`: a dataset in, the calibration and its evidence out.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
@@ -102,6 +104,20 @@ pub struct Outcome {
     pub runtime_s: f64,
     /// Physical-plausibility warnings on the input ([`crate::checks`]), one line each.
     pub warnings: Vec<String>,
+    /// The data sets of the calibration with their own residual statistics (empty for a
+    /// calibration of telemetry held in memory).
+    pub datasets: Vec<DatasetSummary>,
+}
+
+/// One data set of a calibration and the statistics of its own photodiode residuals
+/// (`summary.json` `datasets`).
+#[derive(Debug, Clone, Serialize)]
+pub struct DatasetSummary {
+    /// Where it sits among the sets.
+    #[serde(flatten)]
+    pub span: crate::joint::SetSpan,
+    /// Its photodiode residuals.
+    pub residuals: ResidualSummary,
 }
 
 /// The reflectivity map the filter uses: the paper's TOMS map.
@@ -119,8 +135,20 @@ pub fn run(
     config: &RunConfig,
     albedo: &AlbedoModel,
 ) -> Result<Outcome> {
-    let warnings = crate::checks::check_telemetry(telemetry)?;
     let references = pdcal_filter::step_references(meta, telemetry)?;
+    run_with_references(meta, telemetry, references, config, albedo)
+}
+
+/// [`run`] with the references given: a joint calibration's ([`crate::joint::Joint`]),
+/// each row's from its own set's orbit.
+pub fn run_with_references(
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+    references: Vec<StepReference>,
+    config: &RunConfig,
+    albedo: &AlbedoModel,
+) -> Result<Outcome> {
+    let warnings = crate::checks::check_telemetry(telemetry)?;
     let inputs = RunInputs {
         meta,
         telemetry,
@@ -140,20 +168,32 @@ pub fn run(
         sun_vector,
         runtime_s,
         warnings,
+        datasets: Vec::new(),
     })
 }
 
-/// `pdcal calibrate DATASET_DIR --out OUT_DIR [--config FILE.ron]`.
+/// `pdcal calibrate DATASET_DIR --out OUT_DIR [--config FILE.ron]`: [`run_dirs`] of one
+/// data set.
+pub fn run_dir(dataset: &Path, out: &Path, config: &RunConfig) -> Result<Outcome> {
+    Ok(run_dirs(&[dataset.to_path_buf()], out, config)?.0)
+}
+
+/// `pdcal calibrate DIR1 [DIR2 ...] --out OUT_DIR [--config FILE.ron]`: one calibration of
+/// one or more data sets of the same spacecraft ([`crate::joint`]).
 ///
 /// Streams ([`pdcal_filter::calibrate_streaming`]): the CSVs are written into the staging
-/// directory as the rows are produced, the smoother works segment by segment, and the
+/// directory as the rows are produced, the smoother works block by block, and the
 /// returned [`Outcome`]'s `run` holds the estimates and residuals of every
 /// [`crate::stream::stride_for`]-th row only (what the figures plot), no smoothed vector.
-pub fn run_dir(dataset: &Path, out: &Path, config: &RunConfig) -> Result<Outcome> {
+pub fn run_dirs(
+    datasets: &[PathBuf],
+    out: &Path,
+    config: &RunConfig,
+) -> Result<(Outcome, crate::files::Summary)> {
     let dir = OutputDir::create(out, "calibrate")?;
     // Only meta and telemetry: calibrate never reads truth.*.
-    let meta = pdcal_dataset::read_meta(dataset)?;
-    let mut telemetry = pdcal_dataset::read_telemetry(dataset, &meta)?;
+    let joint = crate::joint::join(crate::joint::read(datasets)?)?;
+    let (meta, mut telemetry, references) = (joint.meta, joint.telemetry, joint.references);
     let warnings = crate::checks::check_telemetry(&telemetry)?;
     // Screened here, not only inside the filter, so that the Sun-vector metrics and the
     // figures never see a wild sample either.
@@ -166,19 +206,20 @@ pub fn run_dir(dataset: &Path, out: &Path, config: &RunConfig) -> Result<Outcome
         &mut screened,
     );
     let albedo = albedo_model()?;
-    let references = pdcal_filter::step_references(&meta, &telemetry)?;
     let inputs = RunInputs {
         meta: &meta,
         telemetry: &telemetry,
         references: &references,
         albedo: Some(&albedo),
     };
+    let set_starts: Vec<usize> = joint.sets.iter().map(|s| s.first_row).collect();
     let mut sink = StreamSink::new(
         &dir,
         meta.photodiodes.len(),
         telemetry.len(),
         config.filter.smoother,
-    )?;
+    )?
+    .with_sets(&set_starts);
     let start = Instant::now();
     let model = pdcal_filter::paper_model(pdcal_filter::nominal_photodiodes(&meta), &config.filter);
     let mut run = pdcal_filter::calibrate_streaming(
@@ -213,8 +254,14 @@ pub fn run_dir(dataset: &Path, out: &Path, config: &RunConfig) -> Result<Outcome
         residuals: streamed.residual_summary,
         runtime_s,
         warnings,
+        datasets: joint
+            .sets
+            .into_iter()
+            .zip(streamed.set_residuals)
+            .map(|(span, residuals)| DatasetSummary { span, residuals })
+            .collect(),
     };
     let summary = crate::files::summary(&meta, &outcome);
     crate::files::write_summary_and_figures(dir, &telemetry, &outcome, &summary, None)?;
-    Ok(outcome)
+    Ok((outcome, summary))
 }

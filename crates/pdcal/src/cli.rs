@@ -36,8 +36,10 @@ pub enum Command {
     /// Calibrate a dataset: summary.json, calibration.ron, estimates.csv, residuals.csv,
     /// figures and index.html in OUT_DIR.
     Calibrate {
-        /// Dataset directory (dataset.ron, telemetry.csv).
-        dataset: PathBuf,
+        /// Dataset directories (dataset.ron, telemetry.csv): several data sets of one
+        /// spacecraft (downlinks weeks apart) are calibrated as one.
+        #[arg(required = true, num_args = 1..)]
+        datasets: Vec<PathBuf>,
         /// Output directory.
         #[arg(long)]
         out: PathBuf,
@@ -98,7 +100,7 @@ pub fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Some(Command::Calibrate {
-            dataset,
+            datasets,
             out,
             config,
         }) => {
@@ -106,10 +108,8 @@ pub fn run(cli: Cli) -> Result<()> {
                 Some(path) => crate::calibrate::load_config(&path)?,
                 None => crate::calibrate::RunConfig::default(),
             };
-            let outcome = crate::calibrate::run_dir(&dataset, &out, &config)?;
+            let (outcome, summary) = crate::calibrate::run_dirs(&datasets, &out, &config)?;
             print_warnings(&outcome.warnings);
-            let meta = pdcal_dataset::read_meta(&dataset)?;
-            let summary = crate::files::summary(&meta, &outcome);
             print!("{}", crate::tables::console_summary(&summary));
             eprintln!(
                 "calibrated in {:.2} s -> {}",

@@ -53,6 +53,10 @@ pub struct Summary {
     /// The segments: rows between gaps, silent gyros and lost attitudes, how each one's
     /// attitude was acquired, or why it was skipped.
     pub segments: Vec<SegmentReport>,
+    /// The data sets calibrated together, in time order, each with its place on the joint
+    /// time line and its own photodiode residual statistics.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub datasets: Vec<crate::calibrate::DatasetSummary>,
 }
 
 /// One photodiode in `summary.json`.
@@ -383,6 +387,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         warnings: outcome.warnings.clone(),
         segment_rules: run.segment_rules,
         segments: run.segments.clone(),
+        datasets: outcome.datasets.clone(),
     }
 }
 

@@ -13,6 +13,7 @@ pub mod diagnose;
 pub mod evaluate;
 pub mod figures;
 pub mod files;
+pub mod joint;
 pub mod output;
 pub mod simulate;
 pub mod stream;

@@ -40,6 +40,17 @@ pub struct Streamed {
     pub forward_sample: Vec<StepEstimate>,
     /// The residuals of those rows.
     pub residual_sample: Vec<ResidualRecord>,
+    /// Photodiode residual statistics per data set of a joint calibration
+    /// ([`StreamSink::with_sets`]; one entry otherwise).
+    pub set_residuals: Vec<ResidualSummary>,
+}
+
+/// Sums of the photodiode residuals of one data set: squares, inside 3 sigma, count.
+#[derive(Debug, Clone, Copy, Default)]
+struct ResidualSums {
+    sum_sq: f64,
+    inside: usize,
+    count: usize,
 }
 
 /// Streams the per-row outputs of a calibration into the staging directory.
@@ -63,6 +74,9 @@ pub struct StreamSink {
     pd_count: usize,
     pd_sum_sq: f64,
     pd_inside: usize,
+    /// First row of each data set, and its residual sums.
+    set_starts: Vec<usize>,
+    set_sums: Vec<ResidualSums>,
     error: Option<anyhow::Error>,
 }
 
@@ -95,8 +109,20 @@ impl StreamSink {
             pd_count: 0,
             pd_sum_sq: 0.0,
             pd_inside: 0,
+            set_starts: vec![0],
+            set_sums: vec![ResidualSums::default()],
             error: None,
         })
+    }
+
+    /// Keeps the residual statistics per data set too, the sets starting at the rows
+    /// `starts` (increasing, the first 0).
+    pub fn with_sets(mut self, starts: &[usize]) -> Self {
+        if !starts.is_empty() {
+            self.set_starts = starts.to_vec();
+            self.set_sums = vec![ResidualSums::default(); starts.len()];
+        }
+        self
     }
 
     fn keep(&mut self, result: Result<()>) {
@@ -185,6 +211,11 @@ impl StreamSink {
             residual_summary: summary,
             forward_sample: self.forward_sample,
             residual_sample: self.residual_sample,
+            set_residuals: self
+                .set_sums
+                .iter()
+                .map(|s| ResidualSummary::from_sums(s.sum_sq, s.inside, s.count))
+                .collect(),
         })
     }
 }
@@ -198,9 +229,15 @@ impl RunSink for StreamSink {
         self.keep(result);
         for r in residuals {
             if matches!(r.sensor, Sensor::Photodiode(_)) {
+                let inside = usize::from(r.residual.abs() <= r.bound_3sigma);
                 self.pd_count += 1;
                 self.pd_sum_sq += r.residual * r.residual;
-                self.pd_inside += usize::from(r.residual.abs() <= r.bound_3sigma);
+                self.pd_inside += inside;
+                let set = self.set_starts.partition_point(|&s| s <= r.index).max(1) - 1;
+                let sums = &mut self.set_sums[set];
+                sums.count += 1;
+                sums.sum_sq += r.residual * r.residual;
+                sums.inside += inside;
             }
         }
         if !self.smoother {

@@ -1,0 +1,216 @@
+//! Several data sets of one spacecraft calibrated as one (`pdcal calibrate DIR1 DIR2 ...`):
+//! the sets are put on one time line (seconds from the earliest set's epoch), each keeps
+//! its own orbit for its references, and the filter sees the time between sets as a gap:
+//! the calibration states carry over with their random walk grown over it, the attitude
+//! and the gyro bias's correlations are re-acquired in each set.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use pdcal_dataset::{DatasetMeta, OrbitSpec, Telemetry, TemperatureColumn};
+use pdcal_filter::StepReference;
+use serde::Serialize;
+
+/// Two nominal angles closer than this are the same mounting, deg.
+const SAME_ANGLE_DEG: f64 = 1e-9;
+
+/// One data set of a joint calibration (`summary.json` `datasets`).
+#[derive(Debug, Clone, Serialize)]
+pub struct SetSpan {
+    /// dataset.ron `name`.
+    pub name: String,
+    /// The directory it was read from.
+    pub dir: String,
+    /// Its epoch.
+    pub epoch_utc: String,
+    /// Its epoch on the joint time line, s after the earliest set's epoch.
+    pub offset_s: f64,
+    /// Its first row in the joint telemetry (the rows of `estimates.csv` count from there).
+    pub first_row: usize,
+    /// Its rows.
+    pub rows: usize,
+}
+
+/// The data sets on one time line.
+pub struct Joint {
+    /// The earliest set's metadata, named after all of them.
+    pub meta: DatasetMeta,
+    /// Every set's rows, in time order.
+    pub telemetry: Telemetry,
+    /// Every row's references, each from its own set's orbit.
+    pub references: Vec<StepReference>,
+    /// The sets, in time order.
+    pub sets: Vec<SetSpan>,
+}
+
+/// Reads the data sets in `dirs` (never their truth) and joins them ([`join`]).
+pub fn read(dirs: &[PathBuf]) -> Result<Vec<(PathBuf, DatasetMeta, Telemetry)>> {
+    dirs.iter()
+        .map(|dir| {
+            let meta = pdcal_dataset::read_meta(dir)?;
+            let telemetry = pdcal_dataset::read_telemetry(dir, &meta)?;
+            Ok((dir.clone(), meta, telemetry))
+        })
+        .collect()
+}
+
+/// Joins data sets of one spacecraft: sorted by epoch, checked to share the photodiode
+/// layout and the kind of orbit and not to overlap in time, their rows on the earliest
+/// epoch's time line with each set's references from its own orbit.
+pub fn join(mut sets: Vec<(PathBuf, DatasetMeta, Telemetry)>) -> Result<Joint> {
+    if sets.is_empty() {
+        bail!("no data set to calibrate");
+    }
+    sets.sort_by_key(|s| s.1.epoch_utc.epoch());
+    for pair in sets.windows(2) {
+        same_layout(&pair[0], &pair[1])?;
+    }
+    let first_epoch = sets[0].1.epoch_utc.epoch();
+    let mut spans = Vec::with_capacity(sets.len());
+    let mut references = Vec::new();
+    let mut parts = Vec::with_capacity(sets.len());
+    let mut end_s = f64::NEG_INFINITY;
+    for (dir, meta, telemetry) in &sets {
+        let refs = pdcal_filter::step_references(meta, telemetry)
+            .with_context(|| format!("{}: references", dir.display()))?;
+        let offset_s = (meta.epoch_utc.epoch() - first_epoch).to_seconds();
+        if let Some(&t0) = telemetry.t_s.first()
+            && offset_s + t0 <= end_s
+        {
+            bail!(
+                "{}: its first row (t_s = {t0} s after {}) is not after the last row of the \
+                 data set before it: data sets of one calibration must not overlap in time",
+                dir.display(),
+                meta.epoch_utc.as_str()
+            );
+        }
+        end_s = telemetry.t_s.last().map_or(end_s, |t| offset_s + t);
+        spans.push(SetSpan {
+            name: meta.name.clone(),
+            dir: dir.display().to_string(),
+            epoch_utc: meta.epoch_utc.as_str().to_owned(),
+            offset_s,
+            first_row: references.len(),
+            rows: telemetry.len(),
+        });
+        references.extend(refs);
+        parts.push((offset_s, telemetry));
+    }
+    let mut meta = sets[0].1.clone();
+    if sets.len() > 1 {
+        meta.name = sets
+            .iter()
+            .map(|s| s.1.name.as_str())
+            .collect::<Vec<_>>()
+            .join(" + ");
+    }
+    Ok(Joint {
+        meta,
+        telemetry: concat(&parts),
+        references,
+        sets: spans,
+    })
+}
+
+/// The first difference between two sets' photodiode layouts or orbit kinds, as an error.
+fn same_layout(
+    (dir_a, a, _): &(PathBuf, DatasetMeta, Telemetry),
+    (dir_b, b, _): &(PathBuf, DatasetMeta, Telemetry),
+) -> Result<()> {
+    let name = |dir: &Path| dir.join("dataset.ron").display().to_string();
+    if a.photodiodes.len() != b.photodiodes.len() {
+        bail!(
+            "{} has {} photodiodes, {} has {}: data sets of one calibration must share the \
+             photodiode layout",
+            name(dir_b),
+            b.photodiodes.len(),
+            name(dir_a),
+            a.photodiodes.len()
+        );
+    }
+    for (i, (pa, pb)) in a.photodiodes.iter().zip(&b.photodiodes).enumerate() {
+        for (what, va, vb) in [
+            ("azimuth_deg", pa.azimuth_deg, pb.azimuth_deg),
+            ("elevation_deg", pa.elevation_deg, pb.elevation_deg),
+        ] {
+            if (va - vb).abs() > SAME_ANGLE_DEG {
+                bail!(
+                    "{}: photodiode {} {what} = {vb}, but {} has {va}: data sets of one \
+                     calibration must share the photodiode layout",
+                    name(dir_b),
+                    i + 1,
+                    name(dir_a)
+                );
+            }
+        }
+    }
+    let kind = |o: &OrbitSpec| match o {
+        OrbitSpec::Tle { .. } => "a TLE",
+        OrbitSpec::PositionColumns => "position columns",
+    };
+    if kind(&a.orbit) != kind(&b.orbit) {
+        bail!(
+            "{}: the orbit is {}, but {} has {}: data sets of one calibration must give the \
+             orbit the same way",
+            name(dir_b),
+            kind(&b.orbit),
+            name(dir_a),
+            kind(&a.orbit)
+        );
+    }
+    Ok(())
+}
+
+/// The rows of every part, times shifted by its offset; a column one part lacks is blank
+/// there (the magnetometer of a set that has none, a temperature another set did not log).
+fn concat(parts: &[(f64, &Telemetry)]) -> Telemetry {
+    let any_mag = parts.iter().any(|(_, t)| t.mag_nt.is_some());
+    let all_positions = parts.iter().all(|(_, t)| t.r_gcrf_km.is_some());
+    let m = parts.first().map_or(0, |(_, t)| t.pd_v.len());
+    let mut names: Vec<String> = Vec::new();
+    for (_, t) in parts {
+        for c in &t.temperature_c {
+            if !names.contains(&c.name) {
+                names.push(c.name.clone());
+            }
+        }
+    }
+    let mut out = Telemetry {
+        t_s: Vec::new(),
+        gyro_rad_s: Vec::new(),
+        mag_nt: any_mag.then(Vec::new),
+        pd_v: vec![Vec::new(); m],
+        r_gcrf_km: all_positions.then(Vec::new),
+        temperature_c: names
+            .iter()
+            .map(|name| TemperatureColumn {
+                name: name.clone(),
+                values: Vec::new(),
+            })
+            .collect(),
+    };
+    for (offset_s, t) in parts {
+        let rows = t.len();
+        out.t_s.extend(t.t_s.iter().map(|x| x + offset_s));
+        out.gyro_rad_s.extend_from_slice(&t.gyro_rad_s);
+        if let Some(mag) = out.mag_nt.as_mut() {
+            match &t.mag_nt {
+                Some(m) => mag.extend_from_slice(m),
+                None => mag.extend(std::iter::repeat_n(None, rows)),
+            }
+        }
+        for (column, theirs) in out.pd_v.iter_mut().zip(&t.pd_v) {
+            column.extend_from_slice(theirs);
+        }
+        if let (Some(r), Some(theirs)) = (out.r_gcrf_km.as_mut(), &t.r_gcrf_km) {
+            r.extend_from_slice(theirs);
+        }
+        for column in &mut out.temperature_c {
+            match t.temperature_c.iter().find(|c| c.name == column.name) {
+                Some(theirs) => column.values.extend_from_slice(&theirs.values),
+                None => column.values.extend(std::iter::repeat_n(None, rows)),
+            }
+        }
+    }
+    out
+}

@@ -1,0 +1,120 @@
+//! `pdcal calibrate DIR1 DIR2 --out OUT`: two downlinks of one spacecraft a month apart
+//! calibrated as one (the second's epoch first on the command line, to show the order does
+//! not matter); sets of different layouts or overlapping in time are refused with the
+//! first difference named.
+
+use std::path::{Path, PathBuf};
+
+use pdcal::calibrate::{RunConfig, run_dirs};
+use pdcal_sim::Scenario;
+
+/// A 40-minute rax2-like set starting at `epoch_utc`, seed 8 (the same hardware each time).
+fn simulate(dir: &Path, epoch_utc: &str) {
+    let mut s = Scenario::rax2_like().unwrap();
+    s.duration_s = 2400.0;
+    s.epoch_utc = epoch_utc.to_owned();
+    pdcal::simulate::run_to_dir(&s, 8, dir).unwrap();
+}
+
+fn two_sets(tmp: &Path) -> (PathBuf, PathBuf) {
+    let (a, b) = (tmp.join("nov"), tmp.join("dec"));
+    simulate(&a, "2011-11-04T18:00:00Z");
+    simulate(&b, "2011-12-04T18:00:00Z");
+    (a, b)
+}
+
+#[test]
+fn two_downlinks_a_month_apart_are_one_calibration() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (nov, dec) = two_sets(tmp.path());
+    let out = tmp.path().join("joint");
+    let (outcome, summary) =
+        run_dirs(&[dec.clone(), nov.clone()], &out, &RunConfig::default()).unwrap();
+    // In time order, the December set on the joint time line 30 days on.
+    assert_eq!(summary.datasets.len(), 2);
+    let (first, second) = (&summary.datasets[0], &summary.datasets[1]);
+    assert_eq!(first.span.dir, nov.display().to_string());
+    assert_eq!(first.span.first_row, 0);
+    assert_eq!(second.span.first_row, first.span.rows);
+    assert_eq!(second.span.offset_s, 30.0 * 86400.0);
+    for set in &summary.datasets {
+        assert!(set.residuals.count > 1000, "{set:?}");
+        assert!(set.residuals.fraction_within_3sigma > 0.98, "{set:?}");
+    }
+    // Each set is at least one segment with its own acquisition; none spans both.
+    let boundary = second.span.first_row;
+    assert!(summary.segments.len() >= 2);
+    assert!(
+        summary
+            .segments
+            .iter()
+            .all(|s| s.last_row < boundary || s.first_row >= boundary)
+    );
+    assert!(
+        summary
+            .segments
+            .iter()
+            .any(|s| s.first_row >= boundary && s.acquired_row.is_some())
+    );
+    assert_eq!(
+        summary.dataset,
+        format!("{} + {}", first.span.name, second.span.name)
+    );
+    // Calibrated against the truth both sets share.
+    let constants = pdcal_dataset::read_truth(&nov, &pdcal_dataset::read_meta(&nov).unwrap())
+        .unwrap()
+        .unwrap()
+        .1;
+    for (t, e) in constants
+        .photodiodes
+        .iter()
+        .zip(&outcome.run.calibration.photodiodes)
+    {
+        assert!((t.scale_v - e.scale_v).abs() < 4.0 * e.scale_sigma_v.max(0.01));
+    }
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(json["datasets"].as_array().unwrap().len(), 2);
+    assert!(json["datasets"][1]["residuals"]["photodiode_rms_V"].is_f64());
+}
+
+#[test]
+fn sets_of_another_layout_or_overlapping_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (nov, dec) = two_sets(tmp.path());
+    // Photodiode 3 mounted differently in the December dataset.ron.
+    let path = dec.join("dataset.ron");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let moved = text.replacen("azimuth_deg: -17.0", "azimuth_deg: -27.0", 1);
+    assert_ne!(moved, text);
+    std::fs::write(&path, moved).unwrap();
+    let Err(err) = run_dirs(
+        &[nov.clone(), dec.clone()],
+        &tmp.path().join("o1"),
+        &RunConfig::default(),
+    ) else {
+        panic!("another layout must be refused");
+    };
+    assert_eq!(
+        format!("{err:#}"),
+        format!(
+            "{}: photodiode 3 azimuth_deg = -27, but {} has -17: data sets of one calibration \
+             must share the photodiode layout",
+            path.display(),
+            nov.join("dataset.ron").display()
+        )
+    );
+    assert!(!tmp.path().join("o1").exists());
+    // The same set twice overlaps itself.
+    let Err(err) = run_dirs(
+        &[nov.clone(), nov],
+        &tmp.path().join("o2"),
+        &RunConfig::default(),
+    ) else {
+        panic!("overlapping sets must be refused");
+    };
+    assert!(
+        format!("{err:#}").contains("must not overlap in time"),
+        "{err:#}"
+    );
+}
