@@ -144,7 +144,18 @@ pub fn find_start(
     let mut view = AlbedoView::new();
     let options = SunVectorOptions::default();
     let sin_min_angle = config.initial_min_sun_field_angle_deg.to_radians().sin();
-    let mut reason = "no sample in full Sun";
+    // The reason of the row that came furthest through the checks: a row failing an
+    // earlier check must not hide why a better row failed.
+    const REASONS: [&str; 6] = [
+        "no sample in full Sun",
+        "no photodiode sample in full Sun",
+        "no gyro sample near a sunlit photodiode sample",
+        "no magnetometer sample near a sunlit photodiode sample",
+        "Sun and field too close to parallel",
+        "photodiode Sun vector not observable",
+    ];
+    let mut furthest = 0;
+    let mut reached = |stage: usize| furthest = furthest.max(stage);
     for k in rows.clone() {
         let reference = &inputs.references[k];
         if reference.sun_fraction < config.min_sun_fraction {
@@ -154,19 +165,19 @@ pub fn find_start(
             .filter(|&i| inputs.used[i] && tel.pd_v[i][k].is_some())
             .collect();
         if sampled.is_empty() {
-            reason = "no photodiode sample in full Sun";
+            reached(1);
             continue;
         }
         let Some((gyro_t_s, gyro_rad_s)) = nearest_gyro(tel, &rows, k, inputs.rules.gyro_hold_s)
         else {
-            reason = "no gyro sample near a sunlit photodiode sample";
+            reached(2);
             continue;
         };
         let field = match (inputs.use_mag, paired_field(inputs, &rows, k, &gyro_rad_s)) {
             (false, _) => None,
             (true, Some(f)) => Some(f),
             (true, None) => {
-                reason = "no magnetometer sample near a sunlit photodiode sample";
+                reached(3);
                 continue;
             }
         };
@@ -177,7 +188,7 @@ pub fn find_start(
                 .cross(&reference.sun_gcrf_unit)
                 .norm();
             if sin_angle < sin_min_angle || f.body_nt.norm() == 0.0 {
-                reason = "Sun and field too close to parallel";
+                reached(4);
                 continue;
             }
         }
@@ -188,7 +199,7 @@ pub fn find_start(
             .collect();
         let mut known = vec![0.0; pds.len()];
         let Some(mut sun_body) = sun_direction(&pds, &outputs, &known, &options)? else {
-            reason = "photodiode Sun vector not observable";
+            reached(5);
             continue;
         };
         let mut q = attitude(&sun_body, field.as_ref(), reference, config)?;
@@ -215,7 +226,7 @@ pub fn find_start(
             gyro_t_s,
         }));
     }
-    Ok(Err(reason.to_owned()))
+    Ok(Err(REASONS[furthest].to_owned()))
 }
 
 /// A magnetometer sample paired with a photodiode row.

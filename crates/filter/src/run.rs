@@ -497,7 +497,8 @@ impl<'a> ForwardPass<'a> {
     /// skipped and the search goes on in the next. `Err(reason)` of the last segment tried
     /// when the data end first.
     fn acquire(&mut self) -> Result<Result<(), String>, FilterError> {
-        let mut reason = "no rows left".to_owned();
+        // Why each segment tried was skipped, with how many times.
+        let mut reasons: Vec<(String, usize)> = Vec::new();
         while self.next < self.telemetry.len() {
             let first = self.next;
             let end = self.segment_end(first);
@@ -551,12 +552,24 @@ impl<'a> ForwardPass<'a> {
                     };
                     self.current.skipped = Some(why.clone());
                     self.close_segment(last, ended_by);
-                    reason = why;
+                    match reasons.iter_mut().find(|(r, _)| *r == why) {
+                        Some((_, n)) => *n += 1,
+                        None => reasons.push((why, 1)),
+                    }
                     self.next = end;
                 }
             }
         }
-        Ok(Err(reason))
+        let text = match reasons.as_slice() {
+            [] => "no rows left".to_owned(),
+            [(why, 1)] => why.clone(),
+            _ => reasons
+                .iter()
+                .map(|(why, n)| format!("{n} segments: {why}"))
+                .collect::<Vec<_>>()
+                .join("; "),
+        };
+        Ok(Err(text))
     }
 
     /// The first row after the gap that ends the data segment holding row `first` (the

@@ -19,7 +19,8 @@
 //! (both lines overshoot it) and at a kink (a photodiode's output where the eclipse exit
 //! ramp meets the cosine's decline: one side's line reaches it). `tol = outlier_sigmas *
 //! sigma` (the sensor's noise) plus, for the gyro, the plausible angular acceleration times
-//! the largest time to a neighbour. A sample with fewer than two neighbours is not judged.
+//! the largest time to a neighbour. A sample with fewer than two neighbours within
+//! [`NEIGHBOUR_REACH_S`] is not judged.
 //! A wild neighbour widens the range, so a burst of wild samples hides each one: a value
 //! farther from the column's median than [`ABSURD_FACTOR`] times (the column's robust
 //! spread plus `tol`) is rejected whatever its neighbours, as is a non-finite one. Smaller
@@ -32,6 +33,13 @@ use crate::filter::Sensor;
 
 /// Rows searched on each side of a sample for its neighbours.
 pub const WINDOW: usize = 4;
+
+/// Neighbours farther than this from a sample in time do not judge it, s: the test
+/// assumes the signal is smooth between them, which a tumbling spacecraft's body-frame
+/// field and Sun outputs are over a few seconds, not over the tens of seconds between
+/// flight frames or across a gap (there only the absurd-value test and the filter's
+/// innovation gate act).
+pub const NEIGHBOUR_REACH_S: f64 = 10.0;
 
 /// Rows listed per sensor and kind of rejection (the count is always complete).
 pub const LISTED_ROWS: usize = 100;
@@ -339,8 +347,9 @@ fn flag_scalars(
                 continue;
             }
         }
-        let before = Side::gather((k.saturating_sub(WINDOW)..k).rev(), &value, t);
-        let after = Side::gather(k + 1..len.min(k + 1 + WINDOW), &value, t);
+        let near = |j: &usize| (t[*j] - t[k]).abs() <= NEIGHBOUR_REACH_S;
+        let before = Side::gather((k.saturating_sub(WINDOW)..k).rev().filter(near), &value, t);
+        let after = Side::gather((k + 1..len.min(k + 1 + WINDOW)).filter(near), &value, t);
         if before.count + after.count < 2 {
             continue;
         }

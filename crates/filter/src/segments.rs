@@ -128,15 +128,19 @@ pub struct GapRules {
 
 impl GapRules {
     /// The rules for `telemetry`: the config's values, else derived from the spacings.
+    /// The thresholds scale the upper quartile of the spacings, not the median: flight
+    /// frames that sample the magnetometer 2 s after the photodiodes, 42 s apart, have a
+    /// median spacing of 2 s, but 40 s between frames is their rhythm, not a gap.
     pub fn new(config: &SegmentConfig, telemetry: &Telemetry) -> Self {
-        let row_step_s = median_spacing(telemetry.t_s.iter().copied()).unwrap_or(1.0);
+        let row_rhythm_s = spacing_quantile(telemetry.t_s.iter().copied(), 0.75).unwrap_or(1.0);
+        let gyro_rhythm_s = spacing_quantile(gyro_times(telemetry), 0.75).unwrap_or(row_rhythm_s);
         let gyro_step_s = gyro_step_s(telemetry);
         let derived = |step: f64| (GAP_SPACINGS * step).max(GAP_FLOOR_S);
         GapRules {
             gap_threshold_s: config
                 .gap_threshold_s
-                .unwrap_or_else(|| derived(row_step_s)),
-            gyro_hold_s: config.gyro_hold_s.unwrap_or_else(|| derived(gyro_step_s)),
+                .unwrap_or_else(|| derived(row_rhythm_s)),
+            gyro_hold_s: config.gyro_hold_s.unwrap_or_else(|| derived(gyro_rhythm_s)),
             gyro_step_s,
             pairing_tolerance_s: config.pairing_tolerance_s,
         }
@@ -158,25 +162,36 @@ impl GapRules {
 
 /// Median spacing of consecutive times, `None` with fewer than two.
 pub fn median_spacing(times: impl Iterator<Item = f64>) -> Option<f64> {
+    spacing_quantile(times, 0.5)
+}
+
+/// The `q` quantile (0..1, lower value at a tie) of the spacings of consecutive times,
+/// `None` with fewer than two.
+pub fn spacing_quantile(times: impl Iterator<Item = f64>, q: f64) -> Option<f64> {
     let times: Vec<f64> = times.collect();
     let mut dts: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).collect();
     if dts.is_empty() {
         return None;
     }
     dts.sort_by(f64::total_cmp);
-    Some(dts[dts.len() / 2])
+    let at = ((dts.len() as f64 * q) as usize).min(dts.len() - 1);
+    Some(dts[at])
+}
+
+/// Times of the rows with a gyro sample.
+fn gyro_times(telemetry: &Telemetry) -> impl Iterator<Item = f64> + '_ {
+    telemetry
+        .t_s
+        .iter()
+        .zip(&telemetry.gyro_rad_s)
+        .filter(|(_, g)| g.is_some())
+        .map(|(t, _)| *t)
 }
 
 /// Median spacing of the gyro's own samples (rows with a gyro sample), s; the row spacing
 /// when fewer than two rows have one, 1 s with fewer than two rows.
 pub fn gyro_step_s(telemetry: &Telemetry) -> f64 {
-    let sampled = telemetry
-        .t_s
-        .iter()
-        .zip(&telemetry.gyro_rad_s)
-        .filter(|(_, g)| g.is_some())
-        .map(|(t, _)| *t);
-    median_spacing(sampled)
+    median_spacing(gyro_times(telemetry))
         .or_else(|| median_spacing(telemetry.t_s.iter().copied()))
         .unwrap_or(1.0)
 }
@@ -354,6 +369,14 @@ mod tests {
         let tel = telemetry((0..20).map(|k| k as f64 * 42.0).collect(), 1);
         let rules = GapRules::new(&SegmentConfig::default(), &tel);
         assert!((rules.gap_threshold_s - 420.0).abs() < 1e-9);
+        // Frames of two rows 2 s apart (photodiodes, then the magnetometer), 42 s apart:
+        // the frames' rhythm, not the 2 s inside them, sets the threshold.
+        let t = (0..40)
+            .map(|k| (k / 2) as f64 * 42.0 + (k % 2) as f64 * 2.0)
+            .collect();
+        let rules = GapRules::new(&SegmentConfig::default(), &telemetry(t, 1));
+        assert!((rules.gap_threshold_s - 400.0).abs() < 1e-9);
+        assert!((rules.gyro_hold_s - 400.0).abs() < 1e-9);
     }
 
     #[test]

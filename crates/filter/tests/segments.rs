@@ -310,3 +310,92 @@ fn a_silent_gyro_ends_its_segment() {
         "{normal_deg} deg, {scale_pct} %"
     );
 }
+
+#[test]
+fn sparse_flight_frames_calibrate_honestly() {
+    // Real CubeSat frames: a pass every 130 min with 1 to 15 frames 42 s apart, the
+    // magnetometer sampled 2 s after the photodiodes in its own row; 12 hours.
+    let mut scenario = pdcal_sim::Scenario::rax2_like().unwrap();
+    scenario.duration_s = 12.0 * 3600.0;
+    let sim = pdcal_sim::simulate(&scenario, 2).unwrap();
+    let t = sim.telemetry.t_s.clone();
+    let (pass_s, frame_s) = (7800.0, 42.0);
+    let frames = |pass: usize| 1 + (pass * 7) % 15;
+    let in_frame = |t: f64| {
+        let pass = (t / pass_s).floor();
+        let into = t - pass * pass_s;
+        let frame = (into / frame_s).floor();
+        let offset = into - frame * frame_s;
+        ((frame as usize) < frames(pass as usize)).then_some(offset)
+    };
+    let keep = |k: usize| matches!(in_frame(t[k]), Some(o) if o == 0.0 || o == 2.0);
+    let mut tel = sim.telemetry.select_rows(keep);
+    for k in 0..tel.len() {
+        if in_frame(tel.t_s[k]) == Some(0.0) {
+            tel.mag_nt.as_mut().unwrap()[k] = None;
+        } else {
+            tel.pd_v.iter_mut().for_each(|c| c[k] = None);
+        }
+    }
+    let refs = step_references(&sim.meta, &tel).unwrap();
+    let albedo = AlbedoModel::from_choice(&MapChoice::TomsMean1p25x1).unwrap();
+    let inputs = RunInputs {
+        meta: &sim.meta,
+        telemetry: &tel,
+        references: &refs,
+        albedo: Some(&albedo),
+    };
+    let run = pdcal_filter::calibrate(&inputs, &FilterConfig::default(), &Mode::Full).unwrap();
+    // The frames' rhythm is not a gap; the passes are.
+    assert!(run.segment_rules.gap_threshold_s >= 400.0);
+    assert!(
+        run.segments
+            .iter()
+            .filter(|s| s.acquired_row.is_some())
+            .count()
+            > 10
+    );
+    assert!(
+        run.segments
+            .iter()
+            .all(|s| s.acquired_row.is_some() || s.skipped.is_some())
+    );
+    // Every acquisition paired the photodiode row with the magnetometer row after it.
+    for s in run.segments.iter().filter(|s| s.acquired_row.is_some()) {
+        assert_eq!(s.paired_field_row, s.acquired_row.map(|r| r + 1), "{s:#?}");
+    }
+    // Honest: every calibrated parameter within 3 sigma of the truth.
+    for (t, e) in sim
+        .constants
+        .photodiodes
+        .iter()
+        .zip(&run.calibration.photodiodes)
+    {
+        let n = normal_from_az_el(t.azimuth_deg.to_radians(), t.elevation_deg.to_radians());
+        let sigma_deg = e
+            .elevation_sigma_deg
+            .max(e.azimuth_sigma_deg.unwrap_or(0.0));
+        assert!(
+            n.angle(&e.n_body()).to_degrees() < 3.0 * sigma_deg,
+            "{e:?} {t:?}"
+        );
+        assert!(
+            (e.scale_v - t.scale_v).abs() < 3.0 * e.scale_sigma_v,
+            "{e:?} {t:?}"
+        );
+    }
+    let pd: Vec<_> = run
+        .residuals
+        .iter()
+        .filter(|r| matches!(r.sensor, pdcal_filter::Sensor::Photodiode(_)))
+        .collect();
+    let inside = pd
+        .iter()
+        .filter(|r| r.residual.abs() <= r.bound_3sigma)
+        .count();
+    assert!(
+        inside as f64 >= 0.95 * pd.len() as f64,
+        "{inside} of {}",
+        pd.len()
+    );
+}
