@@ -64,7 +64,7 @@ mod telemetry;
 mod temperature;
 mod truth;
 
-pub use error::{DatasetError, ErrorKind, QUOTE_MAX_CHARS, quote};
+pub use error::{DatasetError, ErrorKind, QUOTE_MAX_CHARS, clip, quote};
 pub use files::{
     Dataset, DatasetWriter, begin_dataset, read_dataset, read_meta, read_telemetry, read_truth,
     render_dataset, write_dataset,
