@@ -1,5 +1,6 @@
 //! telemetry.csv: the measured time series, held column-wise.
 
+use std::io::Read;
 use std::path::Path;
 
 use nalgebra::Vector3;
@@ -83,7 +84,7 @@ fn pd_index(name: &str) -> Option<usize> {
     digits.parse().ok().or(Some(usize::MAX))
 }
 
-fn layout(rows: &CsvRows<'_>, meta: &DatasetMeta) -> Result<Layout, DatasetError> {
+fn layout<R: Read>(rows: &CsvRows<'_, R>, meta: &DatasetMeta) -> Result<Layout, DatasetError> {
     let n = meta.photodiodes.len();
     let positions = matches!(meta.orbit, OrbitSpec::PositionColumns);
     let known = |h: &str| {
@@ -166,8 +167,8 @@ fn layout(rows: &CsvRows<'_>, meta: &DatasetMeta) -> Result<Layout, DatasetError
 /// Checks a `temp_*_C` header against dataset.ron: a per-photodiode column needs its
 /// photodiode, a panel column a photodiode on that panel (a panel nobody refers to is
 /// almost surely a misspelling, and its data would be silently unused).
-fn check_temperature_header(
-    rows: &CsvRows<'_>,
+fn check_temperature_header<R: Read>(
+    rows: &CsvRows<'_, R>,
     meta: &DatasetMeta,
     col: usize,
     h: &str,
@@ -226,7 +227,15 @@ pub(crate) fn parse_telemetry(
     text: &str,
     meta: &DatasetMeta,
 ) -> Result<Telemetry, DatasetError> {
-    let mut rows = CsvRows::open(file, text)?;
+    telemetry_from_rows(CsvRows::open(file, text)?, meta)
+}
+
+/// The telemetry of `rows` (from text in memory, or streamed from the file so that a large
+/// file is never held whole as text).
+pub(crate) fn telemetry_from_rows<R: Read>(
+    mut rows: CsvRows<'_, R>,
+    meta: &DatasetMeta,
+) -> Result<Telemetry, DatasetError> {
     let lay = layout(&rows, meta)?;
     let mut tm = Telemetry {
         pd_v: vec![Vec::new(); lay.pd.len()],
