@@ -5,9 +5,9 @@ use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
 use crate::error::{DatasetError, ErrorKind, text_of};
-use crate::table::CsvRows;
 use crate::meta::{DatasetMeta, parse_meta, render_meta};
 use crate::publish::{Publication, PublishError, PublishErrorKind};
+use crate::table::CsvRows;
 use crate::telemetry::{Telemetry, render_telemetry, telemetry_from_rows};
 use crate::truth::{
     TruthConstants, TruthSeries, parse_truth_constants, parse_truth_series, render_truth_constants,
@@ -86,7 +86,12 @@ fn check_text_file(file: &Path) -> Result<bool, DatasetError> {
         };
         if n == 0 {
             if carry > 0 {
-                return Err(DatasetError::at(file, line, Some(column), ErrorKind::NotUtf8));
+                return Err(DatasetError::at(
+                    file,
+                    line,
+                    Some(column),
+                    ErrorKind::NotUtf8,
+                ));
             }
             break;
         }
@@ -121,7 +126,12 @@ fn check_text_file(file: &Path) -> Result<bool, DatasetError> {
         carry = match bad {
             None => 0,
             Some((_, Some(_))) => {
-                return Err(DatasetError::at(file, line, Some(column), ErrorKind::NotUtf8));
+                return Err(DatasetError::at(
+                    file,
+                    line,
+                    Some(column),
+                    ErrorKind::NotUtf8,
+                ));
             }
             Some((up_to, None)) => {
                 buf.copy_within(up_to..end, 0);

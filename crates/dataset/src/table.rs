@@ -206,7 +206,10 @@ impl<'a, R: Read> CsvRows<'a, R> {
 }
 
 /// Index of `name` in `header`; refuses a name that appears twice.
-pub(crate) fn find<R: Read>(rows: &CsvRows<'_, R>, name: &str) -> Result<Option<usize>, DatasetError> {
+pub(crate) fn find<R: Read>(
+    rows: &CsvRows<'_, R>,
+    name: &str,
+) -> Result<Option<usize>, DatasetError> {
     let mut hits = rows.header.iter().enumerate().filter(|(_, h)| *h == name);
     let first = hits.next().map(|(i, _)| i);
     match hits.next() {

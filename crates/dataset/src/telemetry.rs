@@ -7,6 +7,7 @@ use nalgebra::Vector3;
 
 use crate::error::{DatasetError, ErrorKind};
 use crate::meta::{DatasetMeta, OrbitSpec};
+use crate::samples::Samples;
 use crate::table::{CsvRows, find, push_row, require, require3};
 use crate::temperature::{
     TEMPERATURE_RANGE_C, TemperatureColumn, TemperatureKey, photodiode_temperature_column,
@@ -44,8 +45,8 @@ pub struct Telemetry {
     /// Magnetometer, body frame, nT; `None` when the file has no `mag_*` columns
     /// (photodiode-only mode).
     pub mag_nt: Option<Vec<Option<Vector3<f64>>>>,
-    /// Photodiode outputs, V: `pd_v[i][k]` is photodiode `i + 1` at sample `k`.
-    pub pd_v: Vec<Vec<Option<f64>>>,
+    /// Photodiode outputs, V: `pd_v[i].get(k)` is photodiode `i + 1` at sample `k`.
+    pub pd_v: Vec<Samples>,
     /// Position, GCRF, km; present exactly when the orbit is `PositionColumns`.
     pub r_gcrf_km: Option<Vec<Option<Vector3<f64>>>>,
     /// The `temp_*_C` columns in file order, degrees Celsius; empty when there are none.
@@ -238,7 +239,7 @@ pub(crate) fn telemetry_from_rows<R: Read>(
 ) -> Result<Telemetry, DatasetError> {
     let lay = layout(&rows, meta)?;
     let mut tm = Telemetry {
-        pd_v: vec![Vec::new(); lay.pd.len()],
+        pd_v: vec![Samples::new(); lay.pd.len()],
         mag_nt: lay.mag.map(|_| Vec::new()),
         r_gcrf_km: lay.r.map(|_| Vec::new()),
         temperature_c: (lay.temperature.iter())
@@ -363,7 +364,7 @@ pub(crate) fn render_telemetry(tm: &Telemetry) -> String {
         let mut cells = vec![tm.t_s.get(k).copied()];
         cells.extend(split(tm.gyro_rad_s.get(k).copied().flatten()));
         cells.extend(column(&tm.mag_nt, k).into_iter().flatten());
-        cells.extend(tm.pd_v.iter().map(|pd| pd.get(k).copied().flatten()));
+        cells.extend(tm.pd_v.iter().map(|pd| pd.get(k)));
         cells.extend(column(&tm.r_gcrf_km, k).into_iter().flatten());
         cells.extend(
             tm.temperature_c

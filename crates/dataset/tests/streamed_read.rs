@@ -32,7 +32,10 @@ const HEADER: &str = "t_s,gyro_x_rad_s,gyro_y_rad_s,gyro_z_rad_s,pd01_V\n";
 fn text(rows: usize) -> String {
     let mut out = HEADER.to_owned();
     for k in 0..rows {
-        out.push_str(&format!("{k},0.0125,-0.0250,0.0375,{}\n", 1.0 + k as f64 * 1e-3));
+        out.push_str(&format!(
+            "{k},0.0125,-0.0250,0.0375,{}\n",
+            1.0 + k as f64 * 1e-3
+        ));
     }
     out
 }
@@ -88,7 +91,11 @@ fn bytes_that_are_not_utf8_are_placed_in_any_buffer() {
         bytes.insert(at, 0xff);
         let e = read(&bytes).unwrap_err();
         let (line, column) = line_col(&text, at);
-        assert_eq!((e.line(), e.column()), (Some(line), Some(column)), "byte {at}");
+        assert_eq!(
+            (e.line(), e.column()),
+            (Some(line), Some(column)),
+            "byte {at}"
+        );
         assert!(matches!(e.kind(), ErrorKind::NotUtf8));
     }
     // A character cut off by the end of the file.

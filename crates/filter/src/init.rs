@@ -8,7 +8,7 @@ use pdcal_attitude::{Quat, VectorPair, q_method};
 use pdcal_dataset::Telemetry;
 use pdcal_photodiode::{Photodiode, SunEstimate, SunVectorOptions, estimate_sun_vector};
 
-use crate::{FilterConfig, FilterError, StepReference};
+use crate::{FilterConfig, FilterError, References, StepReference};
 
 /// A lit photodiode whose maximum output stays below this fraction of the median maximum
 /// of the lit photodiodes never faced the Sun near its normal (its maximum is a grazing or
@@ -39,12 +39,7 @@ pub fn initial_scales(
     let maxima: Vec<f64> = telemetry
         .pd_v
         .iter()
-        .map(|col| {
-            col.iter()
-                .flatten()
-                .copied()
-                .fold(f64::NEG_INFINITY, f64::max)
-        })
+        .map(|col| col.iter().flatten().fold(f64::NEG_INFINITY, f64::max))
         .collect();
     let used: Vec<bool> = maxima.iter().map(|&m| m > threshold_v).collect();
     let mut lit: Vec<f64> = maxima
@@ -91,7 +86,7 @@ pub struct StartInputs<'a> {
     /// Telemetry.
     pub telemetry: &'a Telemetry,
     /// One reference per row.
-    pub references: &'a [StepReference],
+    pub references: References<'a>,
     /// Photodiodes with the initial scales and normals (`noise_v` = photodiode sigma).
     pub photodiodes: &'a [Photodiode],
     /// Which photodiodes take part.
@@ -122,7 +117,7 @@ pub fn find_start(inputs: &StartInputs<'_>, config: &FilterConfig) -> Result<Sta
     let sin_min_angle = config.initial_min_sun_field_angle_deg.to_radians().sin();
     let mut reason = "no sample in full Sun";
     for k in 0..tel.len() {
-        let reference = &inputs.references[k];
+        let reference = &inputs.references.at(k)?;
         if reference.sun_fraction < config.min_sun_fraction || tel.gyro_rad_s[k].is_none() {
             continue;
         }
@@ -147,7 +142,7 @@ pub fn find_start(inputs: &StartInputs<'_>, config: &FilterConfig) -> Result<Sta
         }
         for (i, out) in outputs.iter_mut().enumerate() {
             *out = if inputs.used[i] {
-                tel.pd_v[i][k].unwrap_or(0.0)
+                tel.pd_v[i].get(k).unwrap_or(0.0)
             } else {
                 0.0
             };

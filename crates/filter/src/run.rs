@@ -20,7 +20,7 @@ use crate::layout::{ATTITUDE, StateLayout};
 use crate::output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
 use crate::screen::{Channel, Rejections, ScreenTolerances, find_outliers, remove_outliers};
 use crate::smoother::SmootherStore;
-use crate::{FilterError, StepReference};
+use crate::{FilterError, References, StepReference};
 
 /// What a run reads: the dataset's metadata and telemetry (never its truth), one reference
 /// per telemetry row, and optionally the albedo model.
@@ -31,7 +31,7 @@ pub struct RunInputs<'a> {
     /// telemetry.csv.
     pub telemetry: &'a Telemetry,
     /// Sun, field, eclipse fraction and frames at every telemetry row.
-    pub references: &'a [StepReference],
+    pub references: References<'a>,
     /// Albedo model (the paper's Eq. 13); `None` runs without albedo.
     pub albedo: Option<&'a AlbedoModel>,
 }
@@ -201,7 +201,7 @@ pub const FULL_GUARD_ROWS: usize = 1024;
 /// [`calibrate_with_model`] and the streaming run.
 pub struct ForwardPass<'a> {
     telemetry: Cow<'a, Telemetry>,
-    references: &'a [StepReference],
+    references: References<'a>,
     albedo: Option<&'a AlbedoModel>,
     prior: Option<&'a Calibration>,
     use_mag: bool,
@@ -452,7 +452,7 @@ impl<'a> ForwardPass<'a> {
             return Ok(None);
         }
         let t_s = tel.t_s[k];
-        let reference = &self.references[k];
+        let reference = &self.references.at(k)?;
         check_reference(k, t_s, reference)?;
         let gyro = tel.gyro_rad_s[k];
         self.propagated = k > self.start;
@@ -467,7 +467,7 @@ impl<'a> ForwardPass<'a> {
             self.last_gyro = gyro;
         }
         for (slot, column) in self.row.iter_mut().zip(&tel.pd_v) {
-            *slot = column[k];
+            *slot = column.get(k);
         }
         for (held, column) in self
             .temperatures_c

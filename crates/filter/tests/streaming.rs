@@ -36,7 +36,7 @@ fn streaming_equals_in_memory_bit_for_bit() {
     let inputs = RunInputs {
         meta: &meta,
         telemetry: &tel,
-        references: &refs,
+        references: (&refs).into(),
         albedo: None,
     };
     let config = FilterConfig::default();

@@ -11,7 +11,7 @@ pub type AlbedoModelType = AlbedoModel;
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_filter::screen::ScreenTolerances;
 use pdcal_filter::{
-    Algebra, Calibration, CalibrationRun, FilterConfig, Mode, Rejections, RunInputs, StepReference,
+    Algebra, Calibration, CalibrationRun, FilterConfig, Mode, References, Rejections, RunInputs,
 };
 
 use crate::files::ResidualSummary;
@@ -92,8 +92,6 @@ fn other_kind_of_file(text: &str) -> Option<&'static str> {
 pub struct Outcome {
     /// The filter run (forward, smoother, residuals, calibration).
     pub run: CalibrationRun,
-    /// References per telemetry row (for metrics and figures).
-    pub references: Vec<StepReference>,
     /// Sun-vector magnitude and direction metrics (Figs. 8-11).
     pub sun_vector: SunVectorMetrics,
     /// Photodiode residual statistics over every row.
@@ -124,24 +122,35 @@ pub fn run(
     let inputs = RunInputs {
         meta,
         telemetry,
-        references: &references,
+        references: (&references).into(),
         albedo: Some(albedo),
     };
     let start = Instant::now();
     let run = pdcal_filter::calibrate(&inputs, &config.filter, &config.mode)
         .context("calibration filter")?;
     let runtime_s = start.elapsed().as_secs_f64();
-    let sun_vector =
-        crate::sunvec::metrics(meta, telemetry, &references, &run, albedo, &config.filter)?;
+    let sun_vector = crate::sunvec::metrics(
+        meta,
+        telemetry,
+        inputs.references,
+        &run,
+        albedo,
+        &config.filter,
+    )?;
     Ok(Outcome {
         residuals: crate::files::residual_summary(&run.residuals),
         run,
-        references,
         sun_vector,
         runtime_s,
         warnings,
     })
 }
+
+/// Rows up to which [`run_dir`] computes the references once and stores them (176 bytes a
+/// row, 23 MB at most); above, each row's is computed when it is reached, so that memory
+/// does not grow with the rows, at the price of computing it three times (the forward
+/// pass, the smoother's replay, the Sun-vector metrics). The same values either way.
+pub const STORED_REFERENCE_ROWS: usize = 1 << 17;
 
 /// `pdcal calibrate DATASET_DIR --out OUT_DIR [--config FILE.ron]`.
 ///
@@ -166,11 +175,23 @@ pub fn run_dir(dataset: &Path, out: &Path, config: &RunConfig) -> Result<Outcome
         &mut screened,
     );
     let albedo = albedo_model()?;
-    let references = pdcal_filter::step_references(&meta, &telemetry)?;
+    let reference_model = pdcal_filter::reference_model(&meta, &telemetry)?;
+    let stored = if telemetry.len() <= STORED_REFERENCE_ROWS {
+        Some(pdcal_filter::step_references(&meta, &telemetry)?)
+    } else {
+        None
+    };
+    let references = match &stored {
+        Some(stored) => References::Stored(stored),
+        None => References::Computed {
+            model: &reference_model,
+            t_s: &telemetry.t_s,
+        },
+    };
     let inputs = RunInputs {
         meta: &meta,
         telemetry: &telemetry,
-        references: &references,
+        references,
         albedo: Some(&albedo),
     };
     let mut sink = StreamSink::new(
@@ -200,7 +221,7 @@ pub fn run_dir(dataset: &Path, out: &Path, config: &RunConfig) -> Result<Outcome
     let sun_vector = crate::sunvec::metrics_along(
         &meta,
         &telemetry,
-        &references,
+        references,
         &run,
         &streamed.attitudes,
         &albedo,
@@ -208,7 +229,6 @@ pub fn run_dir(dataset: &Path, out: &Path, config: &RunConfig) -> Result<Outcome
     )?;
     let outcome = Outcome {
         run,
-        references,
         sun_vector,
         residuals: streamed.residual_summary,
         runtime_s,

@@ -200,7 +200,11 @@ impl Thermal {
         if self.noise_c > Self::MAX_NOISE_C {
             return Err(invalid(
                 "temperature.noise_C",
-                format!("{} C is above {} C", number(self.noise_c), Self::MAX_NOISE_C),
+                format!(
+                    "{} C is above {} C",
+                    number(self.noise_c),
+                    Self::MAX_NOISE_C
+                ),
             ));
         }
         check_period(
@@ -623,7 +627,10 @@ fn check_positive(field: &str, v: f64) -> Result<(), ScenarioError> {
     if v.is_finite() && v > 0.0 {
         Ok(())
     } else {
-        Err(invalid(field, format!("{} must be finite and positive", number(v))))
+        Err(invalid(
+            field,
+            format!("{} must be finite and positive", number(v)),
+        ))
     }
 }
 
