@@ -66,7 +66,7 @@ fn a_bad_cell_past_the_first_buffer_is_placed_as_in_the_text() {
     // A multi-byte character across the first buffer boundary, inside a cell.
     // Whatever the byte there, the character lands in some cell.
     let mut text = text(8000);
-    text.insert_str((1 << 16) - 1, "é");
+    text.insert((1 << 16) - 1, 'é');
     let from_text = telemetry_from_str(&text, &meta()).unwrap_err();
     let streamed = read(text.as_bytes()).unwrap_err();
     assert_eq!(place(&streamed), place(&from_text));
