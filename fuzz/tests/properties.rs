@@ -186,9 +186,7 @@ fn config_ron_never_panics_and_places_errors() {
     assert_holds(Target::ConfigRon, Promises::Placement);
 }
 
-// Quoting: one test per target, so that each known failure is marked on its own with its
-// cause (the scenario and config readers). Drop an `ignore` when its cause is fixed;
-// `cargo test -p pdcal-fuzz -- --ignored` runs them now.
+// Quoting: one test per target, so that a failure names its reader.
 #[test]
 fn dataset_pair_errors_quote_at_most_the_limit() {
     assert_holds(Target::DatasetPair, Promises::Quoting);
@@ -210,15 +208,11 @@ fn truth_csv_errors_quote_at_most_the_limit() {
 }
 
 #[test]
-#[ignore = "scenario messages quote whole values: epoch_utc (pdcal_ephem::time::parse_utc) and \
-            huge numbers printed in full by `{v}` in crates/sim/src/scenario.rs"]
 fn scenario_ron_errors_quote_at_most_the_limit() {
     assert_holds(Target::ScenarioRon, Promises::Quoting);
 }
 
 #[test]
-#[ignore = "config messages pass ron's own text through, which quotes whole tokens \
-            (`Found invalid std identifier \"...\"`, crates/filter FilterError::Ron)"]
 fn config_ron_errors_quote_at_most_the_limit() {
     assert_holds(Target::ConfigRon, Promises::Quoting);
 }

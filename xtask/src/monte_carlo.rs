@@ -184,13 +184,12 @@ fn one_seed(
     if matches!(config.mode, Mode::PhotodiodeOnly) {
         telemetry.mag_nt = None;
     }
-    let outcome = pdcal::calibrate::run_with_references(
-        &joint.meta,
-        &telemetry,
-        joint.references.clone(),
-        config,
-        albedo,
-    )?;
+    let references = match joint.references.clone() {
+        Some(references) => references,
+        None => pdcal_filter::step_references(&joint.meta, &joint.telemetry)?,
+    };
+    let outcome =
+        pdcal::calibrate::run_with_references(&joint.meta, &telemetry, references, config, albedo)?;
     let truth = joint_truth(&sims, &joint);
     let eval: Evaluation = evaluate(
         &outcome.run.forward,

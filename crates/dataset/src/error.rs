@@ -343,27 +343,7 @@ impl fmt::Display for DatasetError {
 // print it twice in an `anyhow` chain).
 impl std::error::Error for DatasetError {}
 
-/// Characters of an offending value quoted in a message; longer values are cut, so that a
-/// 50 MB cell does not become a 50 MB error message.
-pub const QUOTE_MAX_CHARS: usize = 80;
-
-/// `text` for a message, unquoted (a library's own message quoting the input): at most
-/// [`QUOTE_MAX_CHARS`] characters of it, and the full length when cut.
-pub fn clip(text: &str) -> String {
-    match text.char_indices().nth(QUOTE_MAX_CHARS) {
-        None => text.to_owned(),
-        Some((cut, _)) => format!("{}... ({} bytes)", &text[..cut], text.len()),
-    }
-}
-
-/// `text` quoted for a message: Rust string syntax, at most [`QUOTE_MAX_CHARS`] characters
-/// of it, and the full length when cut (`"aaaa..."... (52428800 bytes)`).
-pub fn quote(text: &str) -> String {
-    match text.char_indices().nth(QUOTE_MAX_CHARS) {
-        None => format!("{text:?}"),
-        Some((cut, _)) => format!("{:?}... ({} bytes)", &text[..cut], text.len()),
-    }
-}
+pub use pdcal_ephem::text::{QUOTE_MAX_CHARS, clip, quote};
 
 /// 1-based line and character column of byte offset `offset` in `text`.
 pub(crate) fn line_col(text: &str, offset: usize) -> (usize, usize) {

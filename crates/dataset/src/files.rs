@@ -1,13 +1,14 @@
 //! The file system side: reading a dataset directory and writing one whole or not at all.
 
 use std::fs;
-use std::io::Write;
+use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
 use crate::error::{DatasetError, ErrorKind, text_of};
 use crate::meta::{DatasetMeta, parse_meta, render_meta};
 use crate::publish::{Publication, PublishError, PublishErrorKind};
-use crate::telemetry::{Telemetry, parse_telemetry, render_telemetry};
+use crate::table::CsvRows;
+use crate::telemetry::{Telemetry, render_telemetry, telemetry_from_rows};
 use crate::truth::{
     TruthConstants, TruthSeries, parse_truth_constants, parse_truth_series, render_truth_constants,
     render_truth_series,
@@ -47,9 +48,101 @@ pub fn read_meta(dir: &Path) -> Result<DatasetMeta, DatasetError> {
 }
 
 /// Reads and validates `dir/telemetry.csv` against its dataset.ron.
+///
+/// The file is streamed, not held whole as text (a week at 1 Hz is hundreds of MB): one
+/// pass checks that it is UTF-8 and not blank, as [`text_of`] does for the other files and
+/// with the same errors, then the CSV reader parses it a buffer at a time.
 pub fn read_telemetry(dir: &Path, meta: &DatasetMeta) -> Result<Telemetry, DatasetError> {
     let file = dir.join(TELEMETRY_CSV);
-    parse_telemetry(&file, &read_text(&file)?, meta)
+    let bom = check_text_file(&file)?;
+    let mut source = fs::File::open(&file).map_err(|e| io_error(&file, "cannot read", e))?;
+    if bom {
+        source
+            .seek(SeekFrom::Start(BOM.len() as u64))
+            .map_err(|e| io_error(&file, "cannot read", e))?;
+    }
+    telemetry_from_rows(CsvRows::from_reader(&file, source)?, meta)
+}
+
+const BOM: &str = "\u{feff}";
+
+/// [`text_of`]'s checks on a file read a buffer at a time: UTF-8 (the error at the line and
+/// column of the first bad byte, a leading byte-order mark counted as a character as there)
+/// and not blank once a leading byte-order mark is removed. True when the file starts with
+/// one.
+fn check_text_file(file: &Path) -> Result<bool, DatasetError> {
+    let read_error = |e| io_error(file, "cannot read", e);
+    let mut source = fs::File::open(file).map_err(read_error)?;
+    let mut buf = vec![0_u8; 1 << 16];
+    // Bytes of a character cut by the end of the previous read, kept at the buffer's start.
+    let mut carry = 0;
+    let (mut line, mut column) = (1_usize, 1_usize);
+    let (mut blank, mut bom, mut at_start) = (true, false, true);
+    loop {
+        let n = match source.read(&mut buf[carry..]) {
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(read_error(e)),
+        };
+        if n == 0 {
+            if carry > 0 {
+                return Err(DatasetError::at(
+                    file,
+                    line,
+                    Some(column),
+                    ErrorKind::NotUtf8,
+                ));
+            }
+            break;
+        }
+        let end = carry + n;
+        let (valid, bad) = match std::str::from_utf8(&buf[..end]) {
+            Ok(text) => (text, None),
+            Err(e) => {
+                let up_to = e.valid_up_to();
+                // The prefix up to `valid_up_to` is UTF-8 by definition.
+                let text = std::str::from_utf8(&buf[..up_to]).unwrap_or_default();
+                (text, Some((up_to, e.error_len())))
+            }
+        };
+        let mut text = valid;
+        if at_start && !text.is_empty() {
+            at_start = false;
+            if let Some(rest) = text.strip_prefix(BOM) {
+                bom = true;
+                column += 1;
+                text = rest;
+            }
+        }
+        blank = blank && text.trim().is_empty();
+        for &b in text.as_bytes() {
+            if b == b'\n' {
+                line += 1;
+                column = 1;
+            } else if b & 0xC0 != 0x80 {
+                column += 1;
+            }
+        }
+        carry = match bad {
+            None => 0,
+            Some((_, Some(_))) => {
+                return Err(DatasetError::at(
+                    file,
+                    line,
+                    Some(column),
+                    ErrorKind::NotUtf8,
+                ));
+            }
+            Some((up_to, None)) => {
+                buf.copy_within(up_to..end, 0);
+                end - up_to
+            }
+        };
+    }
+    if blank {
+        return Err(DatasetError::whole_file(file, ErrorKind::Empty));
+    }
+    Ok(bom)
 }
 
 /// Reads `dir/truth.csv` and `dir/truth.ron`: `None` when neither exists (flight data), an

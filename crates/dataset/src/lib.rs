@@ -59,12 +59,13 @@ mod files;
 mod meta;
 pub mod publish;
 mod ron_text;
+mod samples;
 mod table;
 mod telemetry;
 mod temperature;
 mod truth;
 
-pub use error::{DatasetError, ErrorKind, QUOTE_MAX_CHARS, quote};
+pub use error::{DatasetError, ErrorKind, QUOTE_MAX_CHARS, clip, quote};
 pub use files::{
     Dataset, DatasetWriter, begin_dataset, read_dataset, read_meta, read_telemetry, read_truth,
     render_dataset, write_dataset,
@@ -73,6 +74,7 @@ pub use meta::{
     DatasetMeta, EpochUtc, FORMAT_VERSION, NoiseHints, NominalMount, OrbitSpec, meta_from_str,
 };
 pub use pdcal_effects::{Effect, EffectId};
+pub use samples::Samples;
 pub use telemetry::{Telemetry, columns, photodiode_column, telemetry_from_str};
 pub use temperature::{
     HeldTemperatures, TEMPERATURE_RANGE_C, TemperatureColumn, is_panel_name,

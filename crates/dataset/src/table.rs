@@ -1,6 +1,7 @@
 //! CSV reading shared by telemetry.csv and truth.csv: header, rows, and cells parsed into
 //! numbers with the row and column of every fault; plus the float format of the writer.
 
+use std::io::Read;
 use std::path::Path;
 
 use csv::{ReaderBuilder, StringRecord, Trim};
@@ -8,11 +9,12 @@ use nalgebra::Vector3;
 
 use crate::error::{DatasetError, ErrorKind};
 
-/// A CSV text being read row by row. Cells are trimmed of surrounding blanks, so
-/// `t_s, gyro_x_rad_s` is read like `t_s,gyro_x_rad_s`; blank lines are skipped.
-pub(crate) struct CsvRows<'a> {
+/// A CSV text being read row by row, from memory or streamed from a file (`R`). Cells are
+/// trimmed of surrounding blanks, so `t_s, gyro_x_rad_s` is read like `t_s,gyro_x_rad_s`;
+/// blank lines are skipped.
+pub(crate) struct CsvRows<'a, R = &'a [u8]> {
     file: &'a Path,
-    reader: csv::Reader<&'a [u8]>,
+    reader: csv::Reader<R>,
     record: StringRecord,
     /// The header cells.
     pub header: Vec<String>,
@@ -26,11 +28,20 @@ impl<'a> CsvRows<'a> {
         if text.trim().is_empty() {
             return Err(DatasetError::whole_file(file, ErrorKind::Empty));
         }
+        CsvRows::from_reader(file, text.as_bytes())
+    }
+}
+
+impl<'a, R: Read> CsvRows<'a, R> {
+    /// [`CsvRows::open`] on text the caller has checked to be UTF-8 and not blank
+    /// (`files::check_text_file`), read as it is needed.
+    pub fn from_reader(file: &'a Path, source: R) -> Result<Self, DatasetError> {
         let reader = ReaderBuilder::new()
             .has_headers(false)
             .flexible(true)
             .trim(Trim::All)
-            .from_reader(text.as_bytes());
+            .buffer_capacity(1 << 16)
+            .from_reader(source);
         let mut rows = Self {
             file,
             reader,
@@ -195,7 +206,10 @@ impl<'a> CsvRows<'a> {
 }
 
 /// Index of `name` in `header`; refuses a name that appears twice.
-pub(crate) fn find(rows: &CsvRows<'_>, name: &str) -> Result<Option<usize>, DatasetError> {
+pub(crate) fn find<R: Read>(
+    rows: &CsvRows<'_, R>,
+    name: &str,
+) -> Result<Option<usize>, DatasetError> {
     let mut hits = rows.header.iter().enumerate().filter(|(_, h)| *h == name);
     let first = hits.next().map(|(i, _)| i);
     match hits.next() {
@@ -210,7 +224,11 @@ pub(crate) fn find(rows: &CsvRows<'_>, name: &str) -> Result<Option<usize>, Data
 }
 
 /// Index of a required column.
-pub(crate) fn require(rows: &CsvRows<'_>, name: &str, hint: &str) -> Result<usize, DatasetError> {
+pub(crate) fn require<R: Read>(
+    rows: &CsvRows<'_, R>,
+    name: &str,
+    hint: &str,
+) -> Result<usize, DatasetError> {
     find(rows, name)?.ok_or_else(|| {
         rows.header_row_error(ErrorKind::MissingColumn {
             name: name.to_owned(),
@@ -220,7 +238,10 @@ pub(crate) fn require(rows: &CsvRows<'_>, name: &str, hint: &str) -> Result<usiz
 }
 
 /// Indices of three required columns.
-pub(crate) fn require3(rows: &CsvRows<'_>, names: [&str; 3]) -> Result<[usize; 3], DatasetError> {
+pub(crate) fn require3<R: Read>(
+    rows: &CsvRows<'_, R>,
+    names: [&str; 3],
+) -> Result<[usize; 3], DatasetError> {
     Ok([
         require(rows, names[0], "")?,
         require(rows, names[1], "")?,

@@ -1,11 +1,13 @@
 //! telemetry.csv: the measured time series, held column-wise.
 
+use std::io::Read;
 use std::path::Path;
 
 use nalgebra::Vector3;
 
 use crate::error::{DatasetError, ErrorKind};
 use crate::meta::{DatasetMeta, OrbitSpec};
+use crate::samples::Samples;
 use crate::table::{CsvRows, find, push_row, require, require3};
 use crate::temperature::{
     TEMPERATURE_RANGE_C, TemperatureColumn, TemperatureKey, photodiode_temperature_column,
@@ -43,8 +45,8 @@ pub struct Telemetry {
     /// Magnetometer, body frame, nT; `None` when the file has no `mag_*` columns
     /// (photodiode-only mode).
     pub mag_nt: Option<Vec<Option<Vector3<f64>>>>,
-    /// Photodiode outputs, V: `pd_v[i][k]` is photodiode `i + 1` at sample `k`.
-    pub pd_v: Vec<Vec<Option<f64>>>,
+    /// Photodiode outputs, V: `pd_v[i].get(k)` is photodiode `i + 1` at sample `k`.
+    pub pd_v: Vec<Samples>,
     /// Position, GCRF, km; present exactly when the orbit is `PositionColumns`.
     pub r_gcrf_km: Option<Vec<Option<Vector3<f64>>>>,
     /// The `temp_*_C` columns in file order, degrees Celsius; empty when there are none.
@@ -67,7 +69,7 @@ impl Telemetry {
     /// a continuous set, in tests and validation runs).
     pub fn select_rows(&self, keep: impl Fn(usize) -> bool) -> Telemetry {
         let rows: Vec<usize> = (0..self.len()).filter(|&k| keep(k)).collect();
-        let pick = |column: &[Option<f64>]| rows.iter().map(|&k| column[k]).collect();
+        let pick = |column: &Samples| rows.iter().map(|&k| column.get(k)).collect();
         let pick3 =
             |column: &[Option<Vector3<f64>>]| rows.iter().map(|&k| column[k]).collect::<Vec<_>>();
         Telemetry {
@@ -81,7 +83,7 @@ impl Telemetry {
                 .iter()
                 .map(|c| TemperatureColumn {
                     name: c.name.clone(),
-                    values: pick(&c.values),
+                    values: rows.iter().map(|&k| c.values[k]).collect(),
                 })
                 .collect(),
         }
@@ -107,7 +109,7 @@ fn pd_index(name: &str) -> Option<usize> {
     digits.parse().ok().or(Some(usize::MAX))
 }
 
-fn layout(rows: &CsvRows<'_>, meta: &DatasetMeta) -> Result<Layout, DatasetError> {
+fn layout<R: Read>(rows: &CsvRows<'_, R>, meta: &DatasetMeta) -> Result<Layout, DatasetError> {
     let n = meta.photodiodes.len();
     let positions = matches!(meta.orbit, OrbitSpec::PositionColumns);
     let known = |h: &str| {
@@ -190,8 +192,8 @@ fn layout(rows: &CsvRows<'_>, meta: &DatasetMeta) -> Result<Layout, DatasetError
 /// Checks a `temp_*_C` header against dataset.ron: a per-photodiode column needs its
 /// photodiode, a panel column a photodiode on that panel (a panel nobody refers to is
 /// almost surely a misspelling, and its data would be silently unused).
-fn check_temperature_header(
-    rows: &CsvRows<'_>,
+fn check_temperature_header<R: Read>(
+    rows: &CsvRows<'_, R>,
     meta: &DatasetMeta,
     col: usize,
     h: &str,
@@ -250,10 +252,18 @@ pub(crate) fn parse_telemetry(
     text: &str,
     meta: &DatasetMeta,
 ) -> Result<Telemetry, DatasetError> {
-    let mut rows = CsvRows::open(file, text)?;
+    telemetry_from_rows(CsvRows::open(file, text)?, meta)
+}
+
+/// The telemetry of `rows` (from text in memory, or streamed from the file so that a large
+/// file is never held whole as text).
+pub(crate) fn telemetry_from_rows<R: Read>(
+    mut rows: CsvRows<'_, R>,
+    meta: &DatasetMeta,
+) -> Result<Telemetry, DatasetError> {
     let lay = layout(&rows, meta)?;
     let mut tm = Telemetry {
-        pd_v: vec![Vec::new(); lay.pd.len()],
+        pd_v: vec![Samples::new(); lay.pd.len()],
         mag_nt: lay.mag.map(|_| Vec::new()),
         r_gcrf_km: lay.r.map(|_| Vec::new()),
         temperature_c: (lay.temperature.iter())
@@ -378,7 +388,7 @@ pub(crate) fn render_telemetry(tm: &Telemetry) -> String {
         let mut cells = vec![tm.t_s.get(k).copied()];
         cells.extend(split(tm.gyro_rad_s.get(k).copied().flatten()));
         cells.extend(column(&tm.mag_nt, k).into_iter().flatten());
-        cells.extend(tm.pd_v.iter().map(|pd| pd.get(k).copied().flatten()));
+        cells.extend(tm.pd_v.iter().map(|pd| pd.get(k)));
         cells.extend(column(&tm.r_gcrf_km, k).into_iter().flatten());
         cells.extend(
             tm.temperature_c

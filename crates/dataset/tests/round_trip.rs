@@ -18,7 +18,7 @@ fn full_dataset_round_trips_bit_for_bit() {
     assert_eq!(back, ds);
     // Bit-level: -0.0, subnormals and extremes survive, empty cells stay empty.
     assert_eq!(bits(&back), bits(&ds));
-    assert_eq!(back.telemetry.pd_v[0][0], None);
+    assert_eq!(back.telemetry.pd_v[0].get(0), None);
     assert_eq!(back.telemetry.gyro_rad_s[4], None);
     assert!(back.telemetry.gyro_rad_s[1].unwrap().x.is_sign_negative());
 }
@@ -144,7 +144,7 @@ fn refuses_to_write_what_it_could_not_read() {
     let out = dir.path().join("set");
 
     let mut ds = minimal_dataset(5);
-    ds.telemetry.pd_v[1][2] = Some(f64::NAN);
+    ds.telemetry.pd_v[1].set(2, Some(f64::NAN));
     let err = write_dataset(&out, &ds).unwrap_err();
     // Row index 2 is line 4 (header on line 1); pd02_V is column 6 (t_s, gyro x3, pd01).
     assert_eq!(

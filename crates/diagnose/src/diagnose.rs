@@ -874,7 +874,7 @@ fn filter_run(
     let run_inputs = RunInputs {
         meta: inputs.meta,
         telemetry,
-        references: inputs.references,
+        references: inputs.references.into(),
         albedo,
     };
     Ok(calibrate_with_model(

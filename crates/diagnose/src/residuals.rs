@@ -370,7 +370,7 @@ fn row_samples(
         mag,
         sun_magnitude: None,
     };
-    if tel.pd_v.iter().all(|c| c[k].is_none()) {
+    if tel.pd_v.iter().all(|c| c.get(k).is_none()) {
         return Ok(out);
     }
     inputs
@@ -403,7 +403,7 @@ fn row_samples(
     let mut outputs = vec![0.0; photodiodes.len()];
     let mut complete = true;
     for (i, pd) in photodiodes.iter().enumerate() {
-        let Some(y) = tel.pd_v[i][k] else {
+        let Some(y) = tel.pd_v[i].get(k) else {
             complete = false;
             continue;
         };

@@ -101,7 +101,7 @@ fn antenna_shadow_is_unexplained_and_located() {
         for (k, s) in sim.truth.sun_body.iter().enumerate() {
             let azimuth_deg = s.y.atan2(s.x).to_degrees();
             if (20.0..50.0).contains(&azimuth_deg)
-                && let Some(v) = sim.telemetry.pd_v[SHADOWED][k].as_mut()
+                && let Some(v) = sim.telemetry.pd_v[SHADOWED].get_mut(k)
             {
                 *v *= 0.4;
                 hit += 1;
@@ -228,7 +228,7 @@ fn a_hot_photodiode_dropping_is_unexplained_and_located() {
         let hot: Vec<bool> = temperature.iter().map(|t| *t > threshold_c).collect();
         let mut hit = 0;
         for (k, is_hot) in hot.iter().enumerate() {
-            if *is_hot && let Some(v) = sim.telemetry.pd_v[FAULTY][k].as_mut() {
+            if *is_hot && let Some(v) = sim.telemetry.pd_v[FAULTY].get_mut(k) {
                 *v *= 0.7;
                 hit += 1;
             }
@@ -253,7 +253,7 @@ fn a_hot_photodiode_dropping_is_unexplained_and_located() {
 #[test]
 fn a_dead_channel_never_ends_the_diagnosis() {
     let mut sim = simulate(&scenario(vec![albedo()], SHORT_S), 7).expect("simulation");
-    for v in sim.telemetry.pd_v[0].iter_mut().flatten() {
+    for v in sim.telemetry.pd_v[0].values_mut() {
         *v = 0.0;
     }
     let d = diagnose_with_map(&sim, MapChoice::TomsMean1p25x1, BaseModel::Paper);

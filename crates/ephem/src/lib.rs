@@ -86,6 +86,7 @@ pub mod igrf;
 pub mod orbit;
 pub mod reference;
 pub mod sun;
+pub mod text;
 pub mod time;
 pub mod tle;
 

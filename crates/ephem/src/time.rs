@@ -16,17 +16,20 @@ use thiserror::Error;
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum TimeError {
     /// The text is not `YYYY-MM-DDTHH:MM:SS[.fraction]Z`.
-    #[error("`{input}` is not an ISO 8601 UTC time (YYYY-MM-DDTHH:MM:SS[.f]Z): {reason}")]
+    #[error(
+        "`{}` is not an ISO 8601 UTC time (YYYY-MM-DDTHH:MM:SS[.f]Z): {reason}",
+        crate::text::clip(.input)
+    )]
     Format {
-        /// The text as given.
+        /// The text as given (the message quotes at most `text::QUOTE_MAX_CHARS` of it).
         input: String,
         /// What is wrong with it.
         reason: &'static str,
     },
     /// The fields parse but do not name a real UTC instant (e.g. month 13, Feb 30).
-    #[error("`{input}` is not a valid UTC date and time: {reason}")]
+    #[error("`{}` is not a valid UTC date and time: {reason}", crate::text::clip(.input))]
     Invalid {
-        /// The text as given.
+        /// The text as given (the message quotes at most `text::QUOTE_MAX_CHARS` of it).
         input: String,
         /// hifitime's reason.
         reason: String,

@@ -18,7 +18,7 @@ fn bench(c: &mut Criterion) {
     let inputs = RunInputs {
         meta: &sim.meta,
         telemetry: &sim.telemetry,
-        references: &references,
+        references: (&references).into(),
         albedo: Some(&albedo),
     };
     let forward = FilterConfig {

@@ -149,10 +149,8 @@ pub struct Calibration {
 impl Calibration {
     /// Parses `calibration.ron` text and checks that every number is finite.
     pub fn from_ron_str(text: &str) -> Result<Self, FilterError> {
-        let cal: Calibration = ron::from_str(text).map_err(|e| FilterError::Ron {
-            what: "calibration",
-            message: e.to_string(),
-        })?;
+        let cal: Calibration =
+            ron::from_str(text).map_err(|e| FilterError::ron_parse("calibration", &e))?;
         if cal.format_version != CALIBRATION_FORMAT_VERSION {
             return Err(FilterError::Config {
                 field: "format_version",

@@ -206,10 +206,8 @@ fn default_parameter_sigmas() -> Vec<ParameterSigma> {
 impl FilterConfig {
     /// Parses RON text (unknown fields are errors) and validates.
     pub fn from_ron_str(text: &str) -> Result<Self, FilterError> {
-        let config: FilterConfig = ron::from_str(text).map_err(|e| FilterError::Ron {
-            what: "filter config",
-            message: e.to_string(),
-        })?;
+        let config: FilterConfig =
+            ron::from_str(text).map_err(|e| FilterError::ron_parse("filter config", &e))?;
         config.validate()?;
         Ok(config)
     }

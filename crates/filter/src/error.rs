@@ -6,7 +6,7 @@ use thiserror::Error;
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum FilterError {
     /// A configuration field is out of range.
-    #[error("filter config: {field} = {value}: {rule}")]
+    #[error("filter config: {field} = {}: {rule}", pdcal_ephem::text::number(*.value))]
     Config {
         /// Field name as in the RON file.
         field: &'static str,
@@ -119,5 +119,21 @@ pub(crate) fn check_len(
             expected,
             found,
         })
+    }
+}
+
+impl FilterError {
+    /// A RON text of `what` that does not parse: ron's span, then its message with any
+    /// token it quotes cut like every quoted value (ron repeats whole identifiers and
+    /// strings of the input).
+    pub(crate) fn ron_parse(what: &'static str, e: &ron::error::SpannedError) -> Self {
+        FilterError::Ron {
+            what,
+            message: format!(
+                "{}: {}",
+                e.span,
+                pdcal_ephem::text::clip(&e.code.to_string())
+            ),
+        }
     }
 }

@@ -11,7 +11,7 @@ use pdcal_dataset::Telemetry;
 use pdcal_photodiode::{Photodiode, SunEstimate, SunVectorOptions, estimate_sun_vector};
 
 use crate::segments::GapRules;
-use crate::{FilterConfig, FilterError, StepReference};
+use crate::{FilterConfig, FilterError, References, StepReference};
 
 /// A lit photodiode whose maximum output stays below this fraction of the median maximum
 /// of the lit photodiodes never faced the Sun near its normal (its maximum is a grazing or
@@ -42,12 +42,7 @@ pub fn initial_scales(
     let maxima: Vec<f64> = telemetry
         .pd_v
         .iter()
-        .map(|col| {
-            col.iter()
-                .flatten()
-                .copied()
-                .fold(f64::NEG_INFINITY, f64::max)
-        })
+        .map(|col| col.iter().flatten().fold(f64::NEG_INFINITY, f64::max))
         .collect();
     let used: Vec<bool> = maxima.iter().map(|&m| m > threshold_v).collect();
     let mut lit: Vec<f64> = maxima
@@ -101,7 +96,7 @@ pub struct StartInputs<'a> {
     /// Telemetry.
     pub telemetry: &'a Telemetry,
     /// One reference per row.
-    pub references: &'a [StepReference],
+    pub references: References<'a>,
     /// Photodiodes with the current scales and normals (`noise_v` = photodiode sigma).
     pub photodiodes: &'a [Photodiode],
     /// Which photodiodes take part.
@@ -157,12 +152,12 @@ pub fn find_start(
     let mut furthest = 0;
     let mut reached = |stage: usize| furthest = furthest.max(stage);
     for k in rows.clone() {
-        let reference = &inputs.references[k];
+        let reference = &inputs.references.at(k)?;
         if reference.sun_fraction < config.min_sun_fraction {
             continue;
         }
         let sampled: Vec<usize> = (0..inputs.photodiodes.len())
-            .filter(|&i| inputs.used[i] && tel.pd_v[i][k].is_some())
+            .filter(|&i| inputs.used[i] && tel.pd_v[i].get(k).is_some())
             .collect();
         if sampled.is_empty() {
             reached(1);
@@ -195,7 +190,7 @@ pub fn find_start(
         let pds: Vec<Photodiode> = sampled.iter().map(|&i| inputs.photodiodes[i]).collect();
         let outputs: Vec<f64> = sampled
             .iter()
-            .map(|&i| tel.pd_v[i][k].unwrap_or(0.0))
+            .map(|&i| tel.pd_v[i].get(k).unwrap_or(0.0))
             .collect();
         let mut known = vec![0.0; pds.len()];
         let Some(mut sun_body) = sun_direction(&pds, &outputs, &known, &options)? else {
@@ -264,7 +259,7 @@ fn paired_field(
     Some(PairedField {
         row: j,
         body_nt: rotation * b,
-        reference_nt: inputs.references[j].b_gcrf_nt,
+        reference_nt: inputs.references.at(j).ok()?.b_gcrf_nt,
         sigma_rad: noise.hypot(inputs.bias_sigma_rad_s * dt.abs()),
     })
 }

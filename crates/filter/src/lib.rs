@@ -8,7 +8,8 @@
 //! smoother, the calibration file type ([`Calibration`]) and the run's plain-data outputs
 //! ([`CalibrationRun`]). It reads the dataset only through `pdcal-dataset`'s `DatasetMeta`
 //! and `Telemetry`, never the truth; reference vectors come in as [`StepReference`]s (one per
-//! telemetry row, from `pdcal-ephem`) and albedo as `pdcal-albedo`'s model.
+//! telemetry row, from `pdcal-ephem`; stored or computed per row, [`References`]) and albedo
+//! as `pdcal-albedo`'s model.
 //!
 //! # State and singularity-free normals
 //!
@@ -112,7 +113,7 @@ pub use filter::{
 pub use guard::{CovarianceRepair, RepairKind, RepairLog};
 pub use layout::StateLayout;
 pub use output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
-pub use references::{orbit_source, step_references};
+pub use references::{References, orbit_source, reference_model, step_references};
 pub use run::{
     ForwardPass, RunInputs, RunSink, SMOOTHER_BLOCK_ROWS, calibrate, calibrate_streaming,
     calibrate_with_model, nominal_photodiodes, nominal_step_s, paper_model,

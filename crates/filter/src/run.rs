@@ -23,7 +23,7 @@ use crate::segments::{
     Acquisition, GapRules, InnovationWindow, SegmentBreak, SegmentReport, attitude_sigma_rad,
 };
 use crate::smoother::SmootherStore;
-use crate::{FilterError, StepReference};
+use crate::{FilterError, References, StepReference};
 
 /// What a run reads: the dataset's metadata and telemetry (never its truth), one reference
 /// per telemetry row, and optionally the albedo model.
@@ -34,7 +34,7 @@ pub struct RunInputs<'a> {
     /// telemetry.csv.
     pub telemetry: &'a Telemetry,
     /// Sun, field, eclipse fraction and frames at every telemetry row.
-    pub references: &'a [StepReference],
+    pub references: References<'a>,
     /// Albedo model (the paper's Eq. 13); `None` runs without albedo.
     pub albedo: Option<&'a AlbedoModel>,
 }
@@ -240,7 +240,7 @@ pub const FULL_GUARD_ROWS: usize = 1024;
 /// by [`calibrate_with_model`] and the streaming run.
 pub struct ForwardPass<'a> {
     telemetry: Cow<'a, Telemetry>,
-    references: &'a [StepReference],
+    references: References<'a>,
     albedo: Option<&'a AlbedoModel>,
     prior: Option<&'a Calibration>,
     config: FilterConfig,
@@ -671,7 +671,7 @@ impl<'a> ForwardPass<'a> {
             return Ok(None);
         }
         let t_s = tel.t_s[k];
-        let reference = &self.references[k];
+        let reference = &self.references.at(k)?;
         check_reference(k, t_s, reference)?;
         let gyro = tel.gyro_rad_s[k];
         self.propagated = !self.fresh;
@@ -695,7 +695,7 @@ impl<'a> ForwardPass<'a> {
             self.last_gyro_t_s = t_s;
         }
         for (slot, column) in self.row.iter_mut().zip(&tel.pd_v) {
-            *slot = column[k];
+            *slot = column.get(k);
         }
         self.hold_temperatures(k);
         let tel: &Telemetry = &self.telemetry;
@@ -790,8 +790,12 @@ impl<'a> ForwardPass<'a> {
     fn attitude_sigma_deg(&self, k: usize) -> f64 {
         let p = self.filter.covariance();
         let p_aa = p.fixed_view::<3, 3>(ATTITUDE, ATTITUDE).into_owned();
-        let sun_body =
-            (!self.use_mag).then(|| self.filter.q().to_body(&self.references[k].sun_gcrf_unit));
+        let sun_body = if self.use_mag {
+            None
+        } else {
+            let sun = self.references.at(k).ok().map(|r| r.sun_gcrf_unit);
+            sun.map(|s| self.filter.q().to_body(&s))
+        };
         attitude_sigma_rad(&p_aa, sun_body.as_ref()).to_degrees()
     }
 

@@ -231,7 +231,7 @@ pub fn find_outliers(telemetry: &Telemetry, tol: &ScreenTolerances) -> Vec<(Chan
         flag_scalars(
             t,
             column.len(),
-            |k| column[k],
+            |k| column.get(k),
             |_| tol.photodiode_v,
             &mut flags,
         );
@@ -273,8 +273,8 @@ pub fn remove_outliers(telemetry: &mut Telemetry, outliers: &[(Channel, usize)])
                 }
             }
             Channel::Photodiode(i) => {
-                if let Some(cell) = telemetry.pd_v.get_mut(i).and_then(|c| c.get_mut(k)) {
-                    *cell = None;
+                if let Some(column) = telemetry.pd_v.get_mut(i) {
+                    column.set(k, None);
                 }
             }
         }

@@ -14,7 +14,7 @@ fn run(case: &Case, config: &FilterConfig, mode: &Mode) -> CalibrationRun {
     let inputs = RunInputs {
         meta: &meta,
         telemetry: &tel,
-        references: &refs,
+        references: (&refs).into(),
         albedo: None,
     };
     calibrate(&inputs, config, mode).expect("calibration runs")
@@ -116,7 +116,7 @@ fn noise_free_data_converges_to_truth() {
     let inputs = RunInputs {
         meta: &meta,
         telemetry: &tel,
-        references: &refs,
+        references: (&refs).into(),
         albedo: None,
     };
     let run = calibrate(&inputs, &config, &Mode::Full).unwrap();
@@ -191,13 +191,15 @@ fn gate_rejects_an_injected_outlier() {
     let (meta, mut tel, refs, _) = case.build();
     // A 3 V spike on pd01 at a row where the photodiode is lit.
     let k = (300..400)
-        .find(|&k| tel.pd_v[0][k].is_some_and(|v| v > 2.0))
+        .find(|&k| tel.pd_v[0].get(k).is_some_and(|v| v > 2.0))
         .expect("pd01 lit in the window");
-    tel.pd_v[0][k] = tel.pd_v[0][k].map(|v| v + 3.0);
+    if let Some(v) = tel.pd_v[0].get_mut(k) {
+        *v += 3.0;
+    }
     let inputs = RunInputs {
         meta: &meta,
         telemetry: &tel,
-        references: &refs,
+        references: (&refs).into(),
         albedo: None,
     };
     // By default the screening against the neighbouring samples takes it out first.
@@ -283,7 +285,7 @@ fn photodiode_only_mode_converges() {
     let inputs = RunInputs {
         meta: &meta,
         telemetry: &tel,
-        references: &refs,
+        references: (&refs).into(),
         albedo: None,
     };
     let run = calibrate(&inputs, &config, &Mode::Full).unwrap();
@@ -312,7 +314,7 @@ fn smoother_is_no_worse_than_the_filter() {
     let inputs = RunInputs {
         meta: &meta,
         telemetry: &tel,
-        references: &refs,
+        references: (&refs).into(),
         albedo: None,
     };
     let run = calibrate(&inputs, &FilterConfig::default(), &Mode::Full).unwrap();

@@ -81,7 +81,7 @@ fn drive(case: &Case, filter: &mut Filter, steps: usize, mut check: impl FnMut(u
             );
         }
         for (i, slot) in row.iter_mut().enumerate() {
-            *slot = tel.pd_v[i][k];
+            *slot = tel.pd_v[i].get(k);
         }
         let mag_nt = tel.mag_nt.as_ref().and_then(|m| m[k]);
         filter

@@ -2,7 +2,7 @@
 //! position columns (the same orbit written out), and the error without the columns.
 
 use pdcal_dataset::OrbitSpec;
-use pdcal_filter::{FilterError, step_references};
+use pdcal_filter::{FilterError, References, reference_model, step_references};
 
 #[test]
 fn position_columns_give_the_tle_s_references() {
@@ -33,4 +33,32 @@ fn position_columns_give_the_tle_s_references() {
     let err = step_references(&meta, &telemetry).unwrap_err();
     assert_eq!(err, FilterError::MissingPositionColumns);
     assert!(err.to_string().contains("r_x_km, r_y_km, r_z_km"), "{err}");
+}
+
+/// `References::Computed` gives every row the value `step_references` stores, in any order
+/// of access (the smoother's replays go back), and an error past the last row.
+#[test]
+fn computed_references_equal_the_stored_ones() {
+    let mut scenario = pdcal_sim::Scenario::rax2_like().unwrap();
+    scenario.duration_s = 60.0;
+    let sim = pdcal_sim::simulate(&scenario, 2).unwrap();
+    let stored = step_references(&sim.meta, &sim.telemetry).unwrap();
+    let model = reference_model(&sim.meta, &sim.telemetry).unwrap();
+    let computed = References::Computed {
+        model: &model,
+        t_s: &sim.telemetry.t_s,
+    };
+    assert_eq!(computed.len(), stored.len());
+    for k in (0..stored.len()).rev().chain(0..stored.len()) {
+        assert_eq!(computed.at(k).unwrap(), stored[k], "row {k}");
+    }
+    let past = stored.len();
+    assert!(matches!(
+        computed.at(past),
+        Err(FilterError::LengthMismatch { .. })
+    ));
+    assert!(matches!(
+        References::from(&stored).at(past),
+        Err(FilterError::LengthMismatch { .. })
+    ));
 }

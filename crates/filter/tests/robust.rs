@@ -61,7 +61,7 @@ fn run_checked(telemetry: &Telemetry, mut corrupt: impl FnMut(usize, &mut Forwar
     let inputs = RunInputs {
         meta: &f.meta,
         telemetry,
-        references: &f.references,
+        references: (&f.references).into(),
         albedo: Some(&f.albedo),
     };
     let config = forward_only();
@@ -129,11 +129,11 @@ fn spike_row_and_photodiode() -> (usize, usize) {
         .expect("a sunlit row after 2001");
     let pd = (0..f.telemetry.pd_v.len())
         .max_by(|&a, &b| {
-            let v = |i: usize| f.telemetry.pd_v[i][row].unwrap_or(0.0);
+            let v = |i: usize| f.telemetry.pd_v[i].get(row).unwrap_or(0.0);
             v(a).total_cmp(&v(b))
         })
         .unwrap();
-    assert!(f.telemetry.pd_v[pd][row].unwrap() > 1.0);
+    assert!(f.telemetry.pd_v[pd].get(row).unwrap() > 1.0);
     (row, pd)
 }
 
@@ -164,7 +164,7 @@ fn with_spike(channel: Channel, spike: Spike, row: usize) -> Telemetry {
             cell.y = wild(cell.y, 20_000.0);
         }
         Channel::Photodiode(i) => {
-            let cell = tel.pd_v[i][row].as_mut().unwrap();
+            let cell = tel.pd_v[i].get_mut(row).unwrap();
             // 1.5 V more: still inside the photodiode's 0..C range.
             *cell = wild(*cell, 1.5);
         }
@@ -265,12 +265,12 @@ fn spikes_in_every_sensor_leave_the_smoothed_run_as_it_was() {
     let mut tel = f.telemetry.clone();
     tel.gyro_rad_s[row] = Some(Vector3::new(1e300, 0.0, 0.0));
     tel.mag_nt.as_mut().unwrap()[row + 1] = Some(Vector3::new(0.0, 1e300, 0.0));
-    tel.pd_v[pd][row + 2] = Some(1e300);
+    tel.pd_v[pd].set(row + 2, Some(1e300));
     let run = |telemetry: &Telemetry| {
         let inputs = RunInputs {
             meta: &f.meta,
             telemetry,
-            references: &f.references,
+            references: (&f.references).into(),
             albedo: Some(&f.albedo),
         };
         calibrate(&inputs, &FilterConfig::default(), &Mode::Full).unwrap()

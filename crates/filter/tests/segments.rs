@@ -67,7 +67,7 @@ fn run_checked(
     let inputs = RunInputs {
         meta: &f.meta,
         telemetry: &telemetry,
-        references: &references,
+        references: (&references).into(),
         albedo: Some(&f.albedo),
     };
     let pds = f
@@ -214,7 +214,7 @@ fn magnetometer_in_other_rows_is_paired_with_the_gyro() {
         if k % 2 == 0 {
             split.mag_nt.as_mut().unwrap()[k] = None;
         } else {
-            split.pd_v.iter_mut().for_each(|c| c[k] = None);
+            split.pd_v.iter_mut().for_each(|c| c.set(k, None));
         }
     }
     let run = run_checked(&split, &on_off, &forward_only(), |_, _| {});
@@ -334,7 +334,7 @@ fn sparse_flight_frames_calibrate_honestly() {
         if in_frame(tel.t_s[k]) == Some(0.0) {
             tel.mag_nt.as_mut().unwrap()[k] = None;
         } else {
-            tel.pd_v.iter_mut().for_each(|c| c[k] = None);
+            tel.pd_v.iter_mut().for_each(|c| c.set(k, None));
         }
     }
     let refs = step_references(&sim.meta, &tel).unwrap();
@@ -342,7 +342,7 @@ fn sparse_flight_frames_calibrate_honestly() {
     let inputs = RunInputs {
         meta: &sim.meta,
         telemetry: &tel,
-        references: &refs,
+        references: (&refs).into(),
         albedo: Some(&albedo),
     };
     let run = pdcal_filter::calibrate(&inputs, &FilterConfig::default(), &Mode::Full).unwrap();

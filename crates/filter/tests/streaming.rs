@@ -70,7 +70,7 @@ fn compare(
     let inputs = RunInputs {
         meta,
         telemetry: tel,
-        references: refs,
+        references: refs.into(),
         albedo: None,
     };
     let config = FilterConfig::default();

@@ -13,7 +13,7 @@ pub type AlbedoModelType = AlbedoModel;
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_filter::screen::ScreenTolerances;
 use pdcal_filter::{
-    Algebra, Calibration, CalibrationRun, FilterConfig, Mode, Rejections, RunInputs, StepReference,
+    Algebra, Calibration, CalibrationRun, FilterConfig, Mode, References, Rejections, RunInputs,
 };
 
 use crate::files::ResidualSummary;
@@ -94,8 +94,6 @@ fn other_kind_of_file(text: &str) -> Option<&'static str> {
 pub struct Outcome {
     /// The filter run (forward, smoother, residuals, calibration).
     pub run: CalibrationRun,
-    /// References per telemetry row (for metrics and figures).
-    pub references: Vec<StepReference>,
     /// Sun-vector magnitude and direction metrics (Figs. 8-11).
     pub sun_vector: SunVectorMetrics,
     /// Photodiode residual statistics over every row.
@@ -104,8 +102,8 @@ pub struct Outcome {
     pub runtime_s: f64,
     /// Physical-plausibility warnings on the input ([`crate::checks`]), one line each.
     pub warnings: Vec<String>,
-    /// The data sets of the calibration with their own residual statistics (empty for a
-    /// calibration of telemetry held in memory).
+    /// The data sets of a joint calibration with their own residual statistics (empty for
+    /// one data set).
     pub datasets: Vec<DatasetSummary>,
 }
 
@@ -144,7 +142,7 @@ pub fn run(
 pub fn run_with_references(
     meta: &DatasetMeta,
     telemetry: &Telemetry,
-    references: Vec<StepReference>,
+    references: Vec<pdcal_filter::StepReference>,
     config: &RunConfig,
     albedo: &AlbedoModel,
 ) -> Result<Outcome> {
@@ -152,25 +150,37 @@ pub fn run_with_references(
     let inputs = RunInputs {
         meta,
         telemetry,
-        references: &references,
+        references: (&references).into(),
         albedo: Some(albedo),
     };
     let start = Instant::now();
     let run = pdcal_filter::calibrate(&inputs, &config.filter, &config.mode)
         .context("calibration filter")?;
     let runtime_s = start.elapsed().as_secs_f64();
-    let sun_vector =
-        crate::sunvec::metrics(meta, telemetry, &references, &run, albedo, &config.filter)?;
+    let sun_vector = crate::sunvec::metrics(
+        meta,
+        telemetry,
+        inputs.references,
+        &run,
+        albedo,
+        &config.filter,
+    )?;
     Ok(Outcome {
         residuals: crate::files::residual_summary(&run.residuals),
         run,
-        references,
         sun_vector,
         runtime_s,
         warnings,
         datasets: Vec::new(),
     })
 }
+
+/// Rows up to which [`run_dirs`] computes the references once and stores them (176 bytes
+/// a row, 23 MB at most); above, each row's is computed when it is reached, so that memory
+/// does not grow with the rows, at the price of computing it three times (the forward
+/// pass, the smoother's replay, the Sun-vector metrics). The same values either way. A
+/// joint calibration of several sets stores them always (each set has its own orbit).
+pub const STORED_REFERENCE_ROWS: usize = 1 << 17;
 
 /// `pdcal calibrate DATASET_DIR --out OUT_DIR [--config FILE.ron]`: [`run_dirs`] of one
 /// data set.
@@ -193,7 +203,7 @@ pub fn run_dirs(
     let dir = OutputDir::create(out, "calibrate")?;
     // Only meta and telemetry: calibrate never reads truth.*.
     let joint = crate::joint::join(crate::joint::read(datasets)?)?;
-    let (meta, mut telemetry, references) = (joint.meta, joint.telemetry, joint.references);
+    let (meta, mut telemetry) = (joint.meta, joint.telemetry);
     let warnings = crate::checks::check_telemetry(&telemetry)?;
     // Screened here, not only inside the filter, so that the Sun-vector metrics and the
     // figures never see a wild sample either.
@@ -206,10 +216,25 @@ pub fn run_dirs(
         &mut screened,
     );
     let albedo = albedo_model()?;
+    let reference_model = pdcal_filter::reference_model(&meta, &telemetry)?;
+    let stored = match joint.references {
+        Some(joint) => Some(joint),
+        None if telemetry.len() <= STORED_REFERENCE_ROWS => {
+            Some(pdcal_filter::step_references(&meta, &telemetry)?)
+        }
+        None => None,
+    };
+    let references = match &stored {
+        Some(stored) => References::Stored(stored),
+        None => References::Computed {
+            model: &reference_model,
+            t_s: &telemetry.t_s,
+        },
+    };
     let inputs = RunInputs {
         meta: &meta,
         telemetry: &telemetry,
-        references: &references,
+        references,
         albedo: Some(&albedo),
     };
     let set_starts: Vec<usize> = joint.sets.iter().map(|s| s.first_row).collect();
@@ -241,7 +266,7 @@ pub fn run_dirs(
     let sun_vector = crate::sunvec::metrics_along(
         &meta,
         &telemetry,
-        &references,
+        references,
         &run,
         &streamed.attitudes,
         &albedo,
@@ -249,17 +274,20 @@ pub fn run_dirs(
     )?;
     let outcome = Outcome {
         run,
-        references,
         sun_vector,
         residuals: streamed.residual_summary,
         runtime_s,
         warnings,
-        datasets: joint
-            .sets
-            .into_iter()
-            .zip(streamed.set_residuals)
-            .map(|(span, residuals)| DatasetSummary { span, residuals })
-            .collect(),
+        // Listed for a joint calibration only: one set is the summary itself.
+        datasets: match joint.sets.len() {
+            1 => Vec::new(),
+            _ => joint
+                .sets
+                .into_iter()
+                .zip(streamed.set_residuals)
+                .map(|(span, residuals)| DatasetSummary { span, residuals })
+                .collect(),
+        },
     };
     let summary = crate::files::summary(&meta, &outcome);
     crate::files::write_summary_and_figures(dir, &telemetry, &outcome, &summary, None)?;

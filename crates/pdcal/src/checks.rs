@@ -98,7 +98,7 @@ pub fn check_telemetry(telemetry: &Telemetry) -> Result<Vec<String>> {
     for (i, column) in telemetry.pd_v.iter().enumerate() {
         let name = photodiode_column(i + 1);
         let sampled = column.iter().flatten().count();
-        match stuck_value(column.iter().flatten().copied()) {
+        match stuck_value(column.iter().flatten()) {
             Some((0.0, n)) => warnings.push(format!(
                 "{f} ({name}): 0 on all {n} sampled rows, a dead channel; it is not calibrated"
             )),

@@ -113,7 +113,7 @@ pub fn raw_outputs_figure(dir: &Path, telemetry: &Telemetry, title: &str) -> Res
     let columns: Vec<Vec<f64>> = telemetry
         .pd_v
         .iter()
-        .map(|c| broken.pick(|i| c[i * stride].unwrap_or(f64::NAN)))
+        .map(|c| broken.pick(|i| c.get(i * stride).unwrap_or(f64::NAN)))
         .collect();
     let names: Vec<String> = (1..=columns.len()).map(|i| format!("pd{i:02}")).collect();
     let series: Vec<Series> = columns

@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use pdcal_dataset::{DatasetMeta, OrbitSpec, Telemetry, TemperatureColumn};
+use pdcal_dataset::{DatasetMeta, OrbitSpec, Samples, Telemetry, TemperatureColumn};
 use pdcal_filter::StepReference;
 use serde::Serialize;
 
@@ -37,8 +37,10 @@ pub struct Joint {
     pub meta: DatasetMeta,
     /// Every set's rows, in time order.
     pub telemetry: Telemetry,
-    /// Every row's references, each from its own set's orbit.
-    pub references: Vec<StepReference>,
+    /// With several sets, every row's references, each from its own set's orbit; `None`
+    /// for one set, whose references the caller computes from `meta` (stored or per row,
+    /// as memory allows).
+    pub references: Option<Vec<StepReference>>,
     /// The sets, in time order.
     pub sets: Vec<SetSpan>,
 }
@@ -70,9 +72,14 @@ pub fn join(mut sets: Vec<(PathBuf, DatasetMeta, Telemetry)>) -> Result<Joint> {
     let mut references = Vec::new();
     let mut parts = Vec::with_capacity(sets.len());
     let mut end_s = f64::NEG_INFINITY;
+    let several = sets.len() > 1;
+    let mut first_row = 0;
     for (dir, meta, telemetry) in &sets {
-        let refs = pdcal_filter::step_references(meta, telemetry)
-            .with_context(|| format!("{}: references", dir.display()))?;
+        if several {
+            let refs = pdcal_filter::step_references(meta, telemetry)
+                .with_context(|| format!("{}: references", dir.display()))?;
+            references.extend(refs);
+        }
         let offset_s = (meta.epoch_utc.epoch() - first_epoch).to_seconds();
         if let Some(&t0) = telemetry.t_s.first()
             && offset_s + t0 <= end_s
@@ -90,10 +97,10 @@ pub fn join(mut sets: Vec<(PathBuf, DatasetMeta, Telemetry)>) -> Result<Joint> {
             dir: dir.display().to_string(),
             epoch_utc: meta.epoch_utc.as_str().to_owned(),
             offset_s,
-            first_row: references.len(),
+            first_row,
             rows: telemetry.len(),
         });
-        references.extend(refs);
+        first_row += telemetry.len();
         parts.push((offset_s, telemetry));
     }
     let mut meta = sets[0].1.clone();
@@ -107,7 +114,7 @@ pub fn join(mut sets: Vec<(PathBuf, DatasetMeta, Telemetry)>) -> Result<Joint> {
     Ok(Joint {
         meta,
         telemetry: concat(&parts),
-        references,
+        references: several.then_some(references),
         sets: spans,
     })
 }
@@ -179,7 +186,7 @@ fn concat(parts: &[(f64, &Telemetry)]) -> Telemetry {
         t_s: Vec::new(),
         gyro_rad_s: Vec::new(),
         mag_nt: any_mag.then(Vec::new),
-        pd_v: vec![Vec::new(); m],
+        pd_v: vec![Samples::new(); m],
         r_gcrf_km: all_positions.then(Vec::new),
         temperature_c: names
             .iter()
@@ -200,7 +207,7 @@ fn concat(parts: &[(f64, &Telemetry)]) -> Telemetry {
             }
         }
         for (column, theirs) in out.pd_v.iter_mut().zip(&t.pd_v) {
-            column.extend_from_slice(theirs);
+            theirs.iter().for_each(|v| column.push(v));
         }
         if let (Some(r), Some(theirs)) = (out.r_gcrf_km.as_mut(), &t.r_gcrf_km) {
             r.extend_from_slice(theirs);

@@ -23,6 +23,7 @@
 //! replaced, the link stays.
 
 use std::fs;
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
@@ -102,14 +103,28 @@ impl Manifest {
         })
     }
 
-    /// The manifest entry of one file in `dir`.
+    /// The manifest entry of one file in `dir`, read a buffer at a time (a week's
+    /// estimates are over a GB).
     pub fn entry(dir: &Path, name: &str) -> Result<ManifestFile> {
         let path = dir.join(name);
-        let bytes = fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?;
+        let cannot = || format!("cannot read {}", path.display());
+        let mut file = fs::File::open(&path).with_context(cannot)?;
+        let mut buf = vec![0_u8; 1 << 16];
+        let (mut bytes, mut hash) = (0_u64, FNV1A_64_START);
+        loop {
+            let n = match file.read(&mut buf) {
+                Ok(0) => break,
+                Ok(n) => n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(e) => return Err(e).with_context(cannot),
+            };
+            bytes += n as u64;
+            hash = fnv1a_64(hash, &buf[..n]);
+        }
         Ok(ManifestFile {
             name: name.to_owned(),
-            bytes: bytes.len() as u64,
-            fnv1a_64: format!("{:016x}", fnv1a_64(&bytes)),
+            bytes,
+            fnv1a_64: format!("{hash:016x}"),
         })
     }
 
@@ -158,9 +173,12 @@ fn list_files(root: &Path, prefix: &str, out: &mut Vec<ManifestFile>) -> Result<
     Ok(())
 }
 
-/// FNV-1a, 64 bit.
-fn fnv1a_64(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+/// FNV-1a, 64 bit: the hash before any byte.
+const FNV1A_64_START: u64 = 0xcbf2_9ce4_8422_2325;
+
+/// FNV-1a, 64 bit, continued from `hash` over `bytes`.
+fn fnv1a_64(hash: u64, bytes: &[u8]) -> u64 {
+    bytes.iter().fold(hash, |h, &b| {
         (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
     })
 }
@@ -292,4 +310,25 @@ pub fn add_file(dir: &Path, name: &str, bytes: &[u8]) -> Result<()> {
     manifest.files.push(Manifest::entry(dir, name)?);
     manifest.files.sort_by(|a, b| a.name.cmp(&b.name));
     manifest.write(dir)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The published FNV-1a 64 test vectors, and a file over several read buffers hashed
+    /// as one piece.
+    #[test]
+    fn the_checksum_is_fnv1a_64_over_the_whole_file() {
+        assert_eq!(fnv1a_64(FNV1A_64_START, b""), 0xcbf2_9ce4_8422_2325);
+        assert_eq!(fnv1a_64(FNV1A_64_START, b"a"), 0xaf63_dc4c_8601_ec8c);
+        assert_eq!(fnv1a_64(FNV1A_64_START, b"foobar"), 0x8594_4171_f739_67e8);
+        let dir = tempfile::tempdir().unwrap();
+        let bytes: Vec<u8> = (0..200_000_u32).map(|i| (i * 7 % 251) as u8).collect();
+        fs::write(dir.path().join("big"), &bytes).unwrap();
+        let entry = Manifest::entry(dir.path(), "big").unwrap();
+        assert_eq!(entry.bytes, 200_000);
+        let whole = fnv1a_64(FNV1A_64_START, &bytes);
+        assert_eq!(entry.fnv1a_64, format!("{whole:016x}"));
+    }
 }

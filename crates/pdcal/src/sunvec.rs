@@ -10,7 +10,7 @@ use nalgebra::Vector3;
 use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView};
 use pdcal_attitude::Quat;
 use pdcal_dataset::{DatasetMeta, Telemetry};
-use pdcal_filter::{Calibration, CalibrationRun, FilterConfig, StepReference};
+use pdcal_filter::{Calibration, CalibrationRun, FilterConfig, References};
 use pdcal_photodiode::{Photodiode, SunEstimate, SunVectorOptions, estimate_sun_vector};
 
 /// Per-sample Sun-vector magnitudes and direction changes, over the samples in full Sun
@@ -55,7 +55,7 @@ pub const UNCALIBRATED_SCALE_SIGMA_FRACTION: f64 = 0.05;
 pub fn metrics(
     meta: &DatasetMeta,
     telemetry: &Telemetry,
-    references: &[StepReference],
+    references: References<'_>,
     run: &CalibrationRun,
     albedo: &AlbedoModel,
     config: &FilterConfig,
@@ -70,7 +70,7 @@ pub fn metrics(
 pub fn metrics_along(
     meta: &DatasetMeta,
     telemetry: &Telemetry,
-    references: &[StepReference],
+    references: References<'_>,
     run: &CalibrationRun,
     attitudes: &[(usize, Quat)],
     albedo: &AlbedoModel,
@@ -95,7 +95,7 @@ pub fn metrics_along(
     let (mut outputs, mut known_initial, mut known_cal) =
         (vec![0.0; m], vec![0.0; m], vec![0.0; m]);
     for &(k, q) in attitudes {
-        let reference = &references[k];
+        let reference = references.at(k)?;
         if reference.sun_fraction < config.min_sun_fraction
             || !read_outputs(telemetry, k, &calibrated_ok, &mut outputs)
         {
@@ -140,7 +140,7 @@ pub fn metrics_along(
 /// squares then treats as dark); false when a photodiode in use was not sampled.
 fn read_outputs(telemetry: &Telemetry, k: usize, in_use: &[bool], outputs: &mut [f64]) -> bool {
     for ((out, column), used) in outputs.iter_mut().zip(&telemetry.pd_v).zip(in_use) {
-        match (column[k], used) {
+        match (column.get(k), used) {
             (_, false) => *out = 0.0,
             (Some(v), true) => *out = v,
             (None, true) => return false,

@@ -89,7 +89,7 @@ fn stuck_sensors_are_errors_and_a_dead_photodiode_a_warning() {
         format!("{err:#}").starts_with("telemetry.csv (mag_z_nT): stuck at 25000.0 on all "),
         "{err:#}"
     );
-    let err = check(|t| t.pd_v[4].iter_mut().flatten().for_each(|v| *v = 2.5)).unwrap_err();
+    let err = check(|t| t.pd_v[4].values_mut().for_each(|v| *v = 2.5)).unwrap_err();
     assert_eq!(
         format!("{err:#}"),
         format!(
@@ -99,7 +99,7 @@ fn stuck_sensors_are_errors_and_a_dead_photodiode_a_warning() {
             rows()
         )
     );
-    let warnings = check(|t| t.pd_v[4].iter_mut().flatten().for_each(|v| *v = 0.0)).unwrap();
+    let warnings = check(|t| t.pd_v[4].values_mut().for_each(|v| *v = 0.0)).unwrap();
     assert_eq!(
         warnings,
         [format!(
@@ -113,7 +113,7 @@ fn stuck_sensors_are_errors_and_a_dead_photodiode_a_warning() {
 fn photodiode_outputs_beyond_any_full_scale() {
     // ADC counts written as volts: the whole column is far above any scale.
     let err = check(|t| {
-        for v in t.pd_v[2].iter_mut().flatten() {
+        for v in t.pd_v[2].values_mut() {
             *v = *v * 1000.0 + 100.0;
         }
     })
@@ -128,7 +128,7 @@ fn photodiode_outputs_beyond_any_full_scale() {
         "{text}"
     );
     // One spike: a warning, the run goes on.
-    let warnings = check(|t| t.pd_v[2][1000] = Some(1e300)).unwrap();
+    let warnings = check(|t| t.pd_v[2].set(1000, Some(1e300))).unwrap();
     assert_eq!(
         warnings,
         [format!(

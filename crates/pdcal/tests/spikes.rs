@@ -16,11 +16,11 @@ fn wild_cells_are_listed_with_their_rows_in_the_summary() {
     let row = 2001;
     let pd = (0..ds.telemetry.pd_v.len())
         .max_by(|&a, &b| {
-            let v = |i: usize| ds.telemetry.pd_v[i][row].unwrap_or(0.0);
+            let v = |i: usize| ds.telemetry.pd_v[i].get(row).unwrap_or(0.0);
             v(a).total_cmp(&v(b))
         })
         .unwrap();
-    ds.telemetry.pd_v[pd][row] = Some(1e300);
+    ds.telemetry.pd_v[pd].set(row, Some(1e300));
     ds.telemetry.gyro_rad_s[row + 10].as_mut().unwrap().z = 1e300;
     ds.telemetry.mag_nt.as_mut().unwrap()[row + 20]
         .as_mut()

@@ -10,6 +10,7 @@ use std::str::FromStr;
 use nalgebra::{Matrix3, Vector3};
 use pdcal_albedo::MapChoice;
 use pdcal_dataset::{Effect, EffectId, NominalMount};
+use pdcal_ephem::text::{clip, number, quote};
 use serde::{Deserialize, Serialize};
 
 use crate::dynamics::{DEFAULT_MAX_STEP_S, RigidBody};
@@ -180,14 +181,18 @@ impl Thermal {
             {
                 return Err(invalid(
                     field,
-                    format!("{v} is not within -{0} .. {0} C", Self::MAX_ABS_C),
+                    format!("{} is not within -{1} .. {1} C", number(v), Self::MAX_ABS_C),
                 ));
             }
         }
         if self.hot_c < self.cold_c {
             return Err(invalid(
                 "temperature.hot_C",
-                format!("{} is below cold_C = {}", self.hot_c, self.cold_c),
+                format!(
+                    "{} is below cold_C = {}",
+                    number(self.hot_c),
+                    number(self.cold_c)
+                ),
             ));
         }
         check_positive("temperature.tau_s", self.tau_s)?;
@@ -195,7 +200,11 @@ impl Thermal {
         if self.noise_c > Self::MAX_NOISE_C {
             return Err(invalid(
                 "temperature.noise_C",
-                format!("{} C is above {} C", self.noise_c, Self::MAX_NOISE_C),
+                format!(
+                    "{} C is above {} C",
+                    number(self.noise_c),
+                    Self::MAX_NOISE_C
+                ),
             ));
         }
         check_period(
@@ -390,7 +399,7 @@ impl Scenario {
             .map_err(|e| ScenarioError::Ron {
                 line: e.span.start.line,
                 column: e.span.start.col,
-                message: e.code.to_string(),
+                message: clip(&e.code.to_string()),
             })?;
         scenario.validate()?;
         Ok(scenario)
@@ -507,7 +516,10 @@ impl Scenario {
             {
                 return Err(invalid(
                     &format!("photodiodes.nominal[{i}].panel"),
-                    format!("{panel:?} is not a panel name (a-z, 0-9, _; not pd and a digit)"),
+                    format!(
+                        "{} is not a panel name (a-z, 0-9, _; not pd and a digit)",
+                        quote(panel)
+                    ),
                 ));
             }
         }
@@ -516,7 +528,7 @@ impl Scenario {
         {
             return Err(invalid(
                 "photodiodes.fov_half_angle_deg",
-                format!("{fov} is not in (0, 90]"),
+                format!("{} is not in (0, 90]", number(fov)),
             ));
         }
         check_non_negative("photodiodes.noise_V", pd.noise_v)?;
@@ -602,7 +614,7 @@ fn check_period(field: &str, period: f64, duration_s: f64) -> Result<(), Scenari
     if !(period >= 1e-6 && period.is_finite()) {
         return Err(invalid(
             field,
-            format!("{period} s is not a period of at least 1 us"),
+            format!("{} s is not a period of at least 1 us", number(period)),
         ));
     }
     if duration_s / period > MAX_ROWS {
@@ -615,7 +627,10 @@ fn check_positive(field: &str, v: f64) -> Result<(), ScenarioError> {
     if v.is_finite() && v > 0.0 {
         Ok(())
     } else {
-        Err(invalid(field, format!("{v} must be finite and positive")))
+        Err(invalid(
+            field,
+            format!("{} must be finite and positive", number(v)),
+        ))
     }
 }
 
@@ -625,7 +640,7 @@ fn check_non_negative(field: &str, v: f64) -> Result<(), ScenarioError> {
     } else {
         Err(invalid(
             field,
-            format!("{v} must be finite and non-negative"),
+            format!("{} must be finite and non-negative", number(v)),
         ))
     }
 }

@@ -4,8 +4,9 @@ use nalgebra::{Matrix3, Vector3, Vector4};
 use pdcal_albedo::{AlbedoError, AlbedoModel, AlbedoView, MapChoice, MapError};
 use pdcal_attitude::Quat;
 use pdcal_dataset::{
-    Dataset, DatasetMeta, Effect, EpochUtc, FORMAT_VERSION, NoiseHints, OrbitSpec, Telemetry,
-    TemperatureColumn, TruePd, TruthConstants, TruthSeries, photodiode_temperature_column,
+    Dataset, DatasetMeta, Effect, EpochUtc, FORMAT_VERSION, NoiseHints, OrbitSpec, Samples,
+    Telemetry, TemperatureColumn, TruePd, TruthConstants, TruthSeries,
+    photodiode_temperature_column,
 };
 use pdcal_ephem::igrf::IgrfError;
 use pdcal_ephem::{OrbitError, ReferenceError, ReferenceModel, TimeError, TleOrbit};
@@ -389,7 +390,7 @@ impl Series {
                 t_s: Vec::with_capacity(rows),
                 gyro_rad_s: Vec::with_capacity(rows),
                 mag_nt: Some(Vec::with_capacity(rows)),
-                pd_v: vec![Vec::with_capacity(rows); n_pd],
+                pd_v: vec![Samples::with_capacity(rows); n_pd],
                 r_gcrf_km: None,
                 temperature_c: Vec::new(),
             },

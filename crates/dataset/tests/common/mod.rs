@@ -3,8 +3,8 @@
 
 use nalgebra::{Vector3, Vector4};
 use pdcal_dataset::{
-    Dataset, DatasetMeta, Effect, EpochUtc, NoiseHints, NominalMount, OrbitSpec, Telemetry, TruePd,
-    TruthConstants, TruthSeries,
+    Dataset, DatasetMeta, Effect, EpochUtc, NoiseHints, NominalMount, OrbitSpec, Samples,
+    Telemetry, TruePd, TruthConstants, TruthSeries,
 };
 
 /// The RAX-2-like TLE of docs/rax2-scenario.md (valid checksums).
@@ -95,7 +95,7 @@ pub fn full_dataset(rows: usize) -> Dataset {
     let mut s = Stream::new(7);
     let mut tm = Telemetry {
         mag_nt: Some(Vec::new()),
-        pd_v: vec![Vec::new(); n],
+        pd_v: vec![Samples::new(); n],
         ..Telemetry::default()
     };
     for k in 0..rows {
@@ -187,7 +187,7 @@ pub fn minimal_dataset(rows: usize) -> Dataset {
         noise: None,
     };
     let mut tm = Telemetry {
-        pd_v: vec![Vec::new(); 3],
+        pd_v: vec![Samples::new(); 3],
         r_gcrf_km: Some(Vec::new()),
         ..Telemetry::default()
     };

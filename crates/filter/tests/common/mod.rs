@@ -130,7 +130,7 @@ impl Case {
         let m = self.nominal.len();
         let mut tel = Telemetry {
             mag_nt: self.with_mag.then(Vec::new),
-            pd_v: vec![Vec::with_capacity(self.steps); m],
+            pd_v: vec![pdcal_dataset::Samples::with_capacity(self.steps); m],
             ..Telemetry::default()
         };
         let mut refs = Vec::with_capacity(self.steps);

@@ -1,0 +1,60 @@
+//! Input text quoted in error messages, cut to a bounded length.
+//!
+//! Here, in the lowest crate every file reader depends on (the dataset, scenario and
+//! configuration readers and this crate's own time parser), so that all of them cut the
+//! same way with one implementation; `pdcal-dataset` re-exports it.
+
+/// Characters of an offending value quoted in a message; longer values are cut, so that a
+/// 50 MB cell does not become a 50 MB error message.
+pub const QUOTE_MAX_CHARS: usize = 80;
+
+/// `text` for a message, unquoted (a library's own message quoting the input): at most
+/// [`QUOTE_MAX_CHARS`] characters of it, and the full length when cut.
+pub fn clip(text: &str) -> String {
+    match text.char_indices().nth(QUOTE_MAX_CHARS) {
+        None => text.to_owned(),
+        Some((cut, _)) => format!("{}... ({} bytes)", &text[..cut], text.len()),
+    }
+}
+
+/// `text` quoted for a message: Rust string syntax, at most [`QUOTE_MAX_CHARS`] characters
+/// of it, and the full length when cut (`"aaaa..."... (52428800 bytes)`).
+pub fn quote(text: &str) -> String {
+    match text.char_indices().nth(QUOTE_MAX_CHARS) {
+        None => format!("{text:?}"),
+        Some((cut, _)) => format!("{:?}... ({} bytes)", &text[..cut], text.len()),
+    }
+}
+
+/// A number for a message: `Display` writes every digit (`1e300` is 301 characters), so it
+/// is cut like any quoted value.
+pub fn number(value: f64) -> String {
+    clip(&value.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn short_text_is_kept_and_long_text_cut_with_its_length() {
+        assert_eq!(clip("abc"), "abc");
+        assert_eq!(quote("abc"), "\"abc\"");
+        let long = "x".repeat(200);
+        assert_eq!(
+            clip(&long),
+            format!("{}... (200 bytes)", "x".repeat(QUOTE_MAX_CHARS))
+        );
+        assert_eq!(
+            quote(&long),
+            format!("\"{}\"... (200 bytes)", "x".repeat(QUOTE_MAX_CHARS))
+        );
+    }
+
+    #[test]
+    fn huge_numbers_are_cut() {
+        assert_eq!(number(1.5), "1.5");
+        assert!(number(1e300).chars().count() < QUOTE_MAX_CHARS + 20);
+        assert!(number(-1e-300).chars().count() < QUOTE_MAX_CHARS + 20);
+    }
+}
