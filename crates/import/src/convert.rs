@@ -267,9 +267,13 @@ pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Importe
             ErrorKind::NoRows { dropped },
         ));
     };
-    // The epoch as dataset.ron will hold it (microseconds), so that t_s counts from exactly
-    // the instant the file names.
-    let epoch_text = time::format_utc(first);
+    // The epoch as dataset.ron will hold it (microseconds, none when whole), so that t_s
+    // counts from exactly the instant the file names.
+    let full = time::format_utc(first);
+    let epoch_text = match full.strip_suffix(".000000Z") {
+        Some(whole) => format!("{whole}Z"),
+        None => full,
+    };
     let epoch_utc = EpochUtc::parse(&epoch_text).map_err(|kind| {
         let kind = ErrorKind::BadTime {
             value: epoch_text.clone(),
