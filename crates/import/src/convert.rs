@@ -196,11 +196,11 @@ pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Importe
                 continue;
             }
             map.time
-                .from_number(value)
+                .read_number(value)
                 .map_err(|TimeFault(w)| bad_time(w))?
         } else {
             map.time
-                .from_text(cell)
+                .read_text(cell)
                 .map_err(|TimeFault(w)| bad_time(w))?
         };
         if let (Some(&previous), Some(&previous_line)) = (epochs.last(), lines.last())

@@ -132,6 +132,8 @@ impl PhotodiodeColumn {
 }
 
 /// Where the orbit comes from.
+// One per map, read once: boxing the columns would only make the RON types harder to read.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub enum OrbitMap {

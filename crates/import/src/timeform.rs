@@ -76,7 +76,7 @@ impl TimeReader {
     }
 
     /// The epoch of a numeric cell `value` (finite, checked by the caller).
-    pub(crate) fn from_number(&self, value: f64) -> Result<Epoch, TimeFault> {
+    pub(crate) fn read_number(&self, value: f64) -> Result<Epoch, TimeFault> {
         // Bounded before hifitime sees it: a number of 1e300 seconds saturates or overflows
         // inside hifitime's Duration, which must not decide what this reader says.
         const WIDEST_S: f64 = 1.0e11;
@@ -95,7 +95,7 @@ impl TimeReader {
     }
 
     /// The epoch of a text cell (form `Iso`).
-    pub(crate) fn from_text(&self, text: &str) -> Result<Epoch, TimeFault> {
+    pub(crate) fn read_text(&self, text: &str) -> Result<Epoch, TimeFault> {
         let t = parse_utc(text).map_err(TimeFault)?;
         self.check(t)
     }
@@ -141,7 +141,7 @@ mod tests {
     use super::*;
 
     fn at(form: TimeForm, value: f64) -> Epoch {
-        match TimeReader::new(&form).unwrap().from_number(value) {
+        match TimeReader::new(&form).unwrap().read_number(value) {
             Ok(t) => t,
             Err(TimeFault(why)) => panic!("{why}"),
         }
@@ -163,7 +163,7 @@ mod tests {
         );
         let text = TimeReader::new(&TimeForm::Iso)
             .unwrap()
-            .from_text("2011-11-04T18:29:45Z")
+            .read_text("2011-11-04T18:29:45Z")
             .unwrap_or_else(|TimeFault(w)| panic!("{w}"));
         for (name, t) in [
             ("unix", unix),
@@ -192,14 +192,14 @@ mod tests {
     fn a_time_in_another_form_is_implausible() {
         let unix = TimeReader::new(&TimeForm::Unix).unwrap();
         // Milliseconds read as seconds: year 43813.
-        let Err(TimeFault(why)) = unix.from_number(1_320_431_385_000.0) else {
+        let Err(TimeFault(why)) = unix.read_number(1_320_431_385_000.0) else {
             panic!("milliseconds accepted as Unix seconds");
         };
         assert!(why.contains("milliseconds"), "{why}");
-        assert!(unix.from_number(1e300).is_err());
+        assert!(unix.read_number(1e300).is_err());
         let iso = TimeReader::new(&TimeForm::Iso).unwrap();
-        assert!(iso.from_number(1_320_431_385.0).is_err());
-        assert!(iso.from_text("1320431385").is_err());
+        assert!(iso.read_number(1_320_431_385.0).is_err());
+        assert!(iso.read_text("1320431385").is_err());
         assert!(
             TimeReader::new(&TimeForm::Seconds {
                 epoch_utc: "yesterday".into()
