@@ -24,3 +24,9 @@ for variant in tle positions; do
         cat "$here/telemetry-csv/$variant.csv"
     } >"$here/dataset-pair/$variant.bin"
 done
+# The import-map seeds: the maps of fixtures/import (made by `cargo xtask
+# make-import-fixture`) and the first 40 rows of its export, which every input is read against.
+mkdir -p "$here/import-map"
+cp "$here/../../fixtures/import/map.ron" "$here/../../fixtures/import/map-positions.ron" \
+    "$here/import-map/"
+head -n 41 "$here/../../fixtures/import/export.csv" >"$here/fixed/export.csv"

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use pdcal_dataset::{DatasetError, ErrorKind};
 use pdcal_filter::FilterError;
+use pdcal_import::{ErrorKind as ImportKind, ImportError};
 use pdcal_sim::ScenarioError;
 
 use crate::Verdict;
@@ -130,6 +131,64 @@ fn dataset_place(kind: &ErrorKind, is_ron: bool) -> Place {
         | ErrorKind::DuplicateColumn { .. }
         | ErrorKind::UnexpectedPositionColumn { .. } => Place::LineAndColumn,
         _ => Place::Line,
+    }
+}
+
+/// Checks a result of `pdcal::import::import_files`; `files` are the map and the export
+/// written, with their bytes. An error that is not the import's own (the dataset writer
+/// refusing what the import built) does not name either file and is a finding.
+pub(crate) fn import(result: anyhow::Result<()>, files: &[(PathBuf, &[u8])]) -> Verdict {
+    let Err(e) = result else {
+        return Verdict::Accepted;
+    };
+    let message = format!("{e:#}");
+    let mut problems = Vec::new();
+    let own = e
+        .chain()
+        .find_map(|c| c.downcast_ref::<ImportError>())
+        .filter(|i| !matches!(i.kind(), ImportKind::Output(_)));
+    let located = own.and_then(|i| files.iter().find(|(p, _)| p == i.file()).map(|f| (i, f)));
+    let Some((e, (path, bytes))) = located else {
+        problems.push(Problem::FileNotNamed);
+        return Verdict::Rejected { message, problems };
+    };
+    let Some(rest) = message.strip_prefix(&path.display().to_string()) else {
+        problems.push(Problem::FileNotNamed);
+        return Verdict::Rejected { message, problems };
+    };
+    let is_map = path.extension().is_some_and(|x| x == "ron");
+    let placed = match import_place(e.kind(), is_map) {
+        Place::File => true,
+        Place::LineOrField => {
+            (e.line().is_some() && e.column().is_some()) || e.field().is_some_and(|f| !f.is_empty())
+        }
+        Place::Line => e.line().is_some(),
+        Place::LineAndColumn => e.line().is_some() && e.column().is_some(),
+    };
+    if !placed {
+        problems.push(Problem::NoPosition);
+    }
+    if let Some(line) = e.line() {
+        // Map columns count characters; export columns count cells, bounded only below.
+        let column_bound = is_map || matches!(e.kind(), ImportKind::NotUtf8);
+        if let Some(p) = outside(bytes, line, e.column(), column_bound) {
+            problems.push(p);
+        }
+    }
+    problems.extend(long_quote(rest, bytes));
+    Verdict::Rejected { message, problems }
+}
+
+fn import_place(kind: &ImportKind, is_map: bool) -> Place {
+    match kind {
+        ImportKind::Empty | ImportKind::NoRows { .. } => Place::File,
+        ImportKind::NotUtf8 => Place::LineAndColumn,
+        ImportKind::Ron { .. }
+        | ImportKind::UnknownField { .. }
+        | ImportKind::MissingField { .. } => Place::LineAndColumn,
+        _ if is_map => Place::LineOrField,
+        ImportKind::WrongCellCount { .. } | ImportKind::Csv { .. } => Place::Line,
+        _ => Place::LineAndColumn,
     }
 }
 
@@ -316,6 +375,34 @@ mod tests {
         let e = pdcal_dataset::meta_from_str("").unwrap_err();
         let elsewhere = dataset(Err(e), &[(PathBuf::from("dir/dataset.ron"), b"")]);
         assert_eq!(elsewhere.problems(), [Problem::FileNotNamed]);
+    }
+
+    #[test]
+    fn an_import_error_is_placed_in_the_map_or_the_export() {
+        let dir = std::env::temp_dir().join(format!("pdcal-check-import-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let map = dir.join("map.ron");
+        let csv = dir.join("export.csv");
+        let map_text = crate::Target::ImportMap.seeds()[0];
+        let good = std::str::from_utf8(map_text).unwrap();
+        let bad = good.replace("\"adc_ch05\"", "\"adc_ch5\"");
+        std::fs::write(&map, &bad).unwrap();
+        std::fs::write(&csv, crate::FIXED_EXPORT_CSV).unwrap();
+        let result = pdcal::import::import_files(&csv, &map).map(drop);
+        let files = [
+            (map.clone(), bad.as_bytes()),
+            (csv.clone(), crate::FIXED_EXPORT_CSV),
+        ];
+        let verdict = import(result, &files);
+        assert!(
+            matches!(&verdict, Verdict::Rejected { problems, .. } if problems.is_empty()),
+            "{verdict:?}"
+        );
+        // The same error checked against other files: the file it names was not written.
+        let result = pdcal::import::import_files(&csv, &map).map(drop);
+        let verdict = import(result, &files[1..]);
+        assert_eq!(verdict.problems(), [Problem::FileNotNamed]);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

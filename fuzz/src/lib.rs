@@ -40,17 +40,21 @@ pub enum Target {
     /// A config file through `pdcal::calibrate::load_config` (`--config FILE.ron`: a filter
     /// configuration or a previous calibration.ron).
     ConfigRon,
+    /// An import column map through `pdcal::import::import_files` (`pdcal import --map`),
+    /// run on a fixed small export (`seeds/fixed/export.csv`).
+    ImportMap,
 }
 
 impl Target {
     /// Every target, in the order of `fuzz/README.md`.
-    pub const ALL: [Target; 6] = [
+    pub const ALL: [Target; 7] = [
         Target::DatasetPair,
         Target::DatasetRon,
         Target::TelemetryCsv,
         Target::TruthCsv,
         Target::ScenarioRon,
         Target::ConfigRon,
+        Target::ImportMap,
     ];
 
     /// The name on the command line and of the seed directory `fuzz/seeds/NAME`.
@@ -62,6 +66,7 @@ impl Target {
             Target::TruthCsv => "truth-csv",
             Target::ScenarioRon => "scenario-ron",
             Target::ConfigRon => "config-ron",
+            Target::ImportMap => "import-map",
         }
     }
 
@@ -88,6 +93,10 @@ impl Target {
                 include_bytes!("../seeds/config-ron/filter.ron"),
                 include_bytes!("../seeds/config-ron/calibration.ron"),
             ],
+            Target::ImportMap => vec![
+                include_bytes!("../seeds/import-map/map.ron"),
+                include_bytes!("../seeds/import-map/map-positions.ron"),
+            ],
         }
     }
 }
@@ -96,6 +105,8 @@ const TLE_META: &[u8] = include_bytes!("../seeds/dataset-ron/tle.ron");
 const POSITIONS_META: &[u8] = include_bytes!("../seeds/dataset-ron/positions.ron");
 /// truth.ron of the seed dataset, matching [`TLE_META`]'s photodiodes.
 const FIXED_TRUTH_RON: &[u8] = include_bytes!("../seeds/fixed/truth.ron");
+/// The export the import maps are read against: the first rows of `fixtures/import/export.csv`.
+pub(crate) const FIXED_EXPORT_CSV: &[u8] = include_bytes!("../seeds/fixed/export.csv");
 
 /// What a reader made of one input.
 #[derive(Debug)]
@@ -177,6 +188,14 @@ pub fn exercise(target: Target, input: &[u8], scratch: &Path) -> Verdict {
             let path = write("config.ron", input);
             let result = pdcal::calibrate::load_config(&path).map(drop);
             check::config(result, &path, input)
+        }
+        Target::ImportMap => {
+            let files = [
+                (write("map.ron", input), input),
+                (write("export.csv", FIXED_EXPORT_CSV), FIXED_EXPORT_CSV),
+            ];
+            let result = pdcal::import::import_files(&files[1].0, &files[0].0).map(drop);
+            check::import(result, &files)
         }
     }
 }

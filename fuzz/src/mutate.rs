@@ -128,6 +128,11 @@ const NAMES: &[&str] = &[
     "noise",
     "smoother",
     "duration_s",
+    "column",
+    "unit",
+    "counts",
+    "sentinels",
+    "form",
 ];
 
 /// One kind of damage.

@@ -186,6 +186,11 @@ fn config_ron_never_panics_and_places_errors() {
     assert_holds(Target::ConfigRon, Promises::Placement);
 }
 
+#[test]
+fn import_map_never_panics_and_places_errors() {
+    assert_holds(Target::ImportMap, Promises::Placement);
+}
+
 // Quoting: one test per target, so that a failure names its reader.
 #[test]
 fn dataset_pair_errors_quote_at_most_the_limit() {
@@ -205,6 +210,11 @@ fn telemetry_csv_errors_quote_at_most_the_limit() {
 #[test]
 fn truth_csv_errors_quote_at_most_the_limit() {
     assert_holds(Target::TruthCsv, Promises::Quoting);
+}
+
+#[test]
+fn import_map_errors_quote_at_most_the_limit() {
+    assert_holds(Target::ImportMap, Promises::Quoting);
 }
 
 #[test]

@@ -6,6 +6,8 @@
 //! - `diagnose-demo`: simulates rax2-like with albedo and dark offsets hidden, diagnoses
 //!   it from the `cosine` base, prints the rounds and gaps; outputs in `out/diagnose-demo/`.
 //! - `bench`: runs the criterion benches that `docs/performance.md` quotes.
+//! - `make-import-fixture`: rewrites `fixtures/import/` (export.csv and its maps) from the
+//!   simulator, seeded (`pdcal::import_fixture`).
 
 mod diagnose_demo;
 mod monte_carlo;
@@ -50,6 +52,8 @@ enum Task {
     DiagnoseDemo,
     /// Run the criterion benches quoted in docs/performance.md.
     Bench,
+    /// Rewrite fixtures/import/ (export.csv, map.ron, map-positions.ron) from the simulator.
+    MakeImportFixture,
 }
 
 fn main() -> ExitCode {
@@ -71,6 +75,7 @@ fn main() -> ExitCode {
         ),
         Task::DiagnoseDemo => diagnose_demo::run(std::path::Path::new("out/diagnose-demo")),
         Task::Bench => bench(),
+        Task::MakeImportFixture => make_import_fixture(),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -96,5 +101,19 @@ fn bench() -> anyhow::Result<()> {
             "cargo bench -p {package} --bench {bench} failed"
         );
     }
+    Ok(())
+}
+
+fn make_import_fixture() -> anyhow::Result<()> {
+    // The workspace root, so the task writes the same place from any working directory.
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/import");
+    let fixture = pdcal::import_fixture::write(&dir)?;
+    println!(
+        "wrote {} ({} bytes export, {} data rows of {} simulated)",
+        dir.display(),
+        fixture.export_csv.len(),
+        fixture.export_csv.lines().count() - 1,
+        fixture.sim.telemetry.len()
+    );
     Ok(())
 }

@@ -33,6 +33,18 @@ pub enum Command {
         #[arg(long)]
         plots: Option<PathBuf>,
     },
+    /// Turn a ground-segment CSV export into a dataset directory, as a column map says
+    /// (docs/import.md).
+    Import {
+        /// The export, CSV with a header row.
+        source: PathBuf,
+        /// The column map (RON): time form, columns and units, mounting, orbit, sentinels.
+        #[arg(long)]
+        map: PathBuf,
+        /// Output dataset directory.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Calibrate a dataset: summary.json, calibration.ron, estimates.csv, residuals.csv,
     /// figures and index.html in OUT_DIR.
     Calibrate {
@@ -95,6 +107,20 @@ pub fn run(cli: Cli) -> Result<()> {
                 scenario.name,
                 output.telemetry.len(),
                 output.true_photodiodes.len(),
+                out.display()
+            );
+            Ok(())
+        }
+        Some(Command::Import { source, map, out }) => {
+            let imported = crate::import::run_to_dir(&source, &map, &out)?;
+            for line in crate::import::report_lines(&imported.report) {
+                println!("{line}");
+            }
+            println!(
+                "imported {}: {} samples, {} photodiodes -> {}",
+                source.display(),
+                imported.dataset.telemetry.len(),
+                imported.dataset.meta.photodiodes.len(),
                 out.display()
             );
             Ok(())

@@ -13,6 +13,8 @@ pub mod diagnose;
 pub mod evaluate;
 pub mod figures;
 pub mod files;
+pub mod import;
+pub mod import_fixture;
 pub mod joint;
 pub mod output;
 pub mod simulate;

@@ -1,0 +1,334 @@
+//! The crate's error: which file (the map or the export), where in it, and what is wrong.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use pdcal_dataset::{DatasetError, QUOTE_MAX_CHARS, quote};
+
+/// An import that cannot be done, with the place of the fault.
+///
+/// Display follows the dataset reader's editor convention `FILE:LINE:COLUMN (NAME): what`:
+/// `map.ron:14:19 (photodiodes[2].column): column "css_3" is not in export.csv's header
+/// (line 1) ...`, `export.csv:57:4 (css_3): "abc" is not a number (photodiodes[2] of
+/// map.ron:14)`. In the map the column is the character column; in the export it is the
+/// cell number. Parts that are unknown are left out.
+#[derive(Debug)]
+pub struct ImportError(Box<Inner>);
+
+#[derive(Debug)]
+struct Inner {
+    file: PathBuf,
+    line: Option<usize>,
+    column: Option<usize>,
+    field: Option<String>,
+    kind: ErrorKind,
+}
+
+/// What is wrong; [`ImportError`] adds where.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ErrorKind {
+    /// The bytes are not UTF-8 text.
+    #[error("not UTF-8 text")]
+    NotUtf8,
+    /// The file has no content (only whitespace at most).
+    #[error("file is empty")]
+    Empty,
+    /// A RON syntax or type error in the map.
+    #[error("{message}")]
+    Ron {
+        /// ron's description, clipped.
+        message: String,
+    },
+    /// A map field that the format does not define.
+    #[error("unknown field `{name}`, expected one of {expected}")]
+    UnknownField {
+        /// The field found (clipped).
+        name: String,
+        /// The fields allowed there.
+        expected: String,
+    },
+    /// A required map field is absent.
+    #[error("missing field `{name}`")]
+    MissingField {
+        /// The field that is required.
+        name: String,
+    },
+    /// `format_version` is not one this reader knows.
+    #[error("format_version {found} is not supported (this reader knows {known})")]
+    UnsupportedVersion {
+        /// The version in the map.
+        found: u32,
+        /// The version this crate reads.
+        known: u32,
+    },
+    /// A column the map names that the export's header does not have.
+    #[error(
+        "column {} is not in {csv}'s header (line {header_line}), which has {}",
+        quote(.name),
+        .available
+    )]
+    UnknownColumn {
+        /// The name in the map.
+        name: String,
+        /// The export's file name.
+        csv: String,
+        /// The header's line in the export (1 unless blank lines precede it).
+        header_line: usize,
+        /// The header's names, clipped.
+        available: String,
+    },
+    /// A column the map names appears more than once in the export's header.
+    #[error(
+        "column {} appears twice in the header (cells {first} and {second}), so the map's \
+         reference to it is ambiguous",
+        quote(.name)
+    )]
+    AmbiguousColumn {
+        /// The header name.
+        name: String,
+        /// 1-based cell of the first occurrence.
+        first: usize,
+        /// 1-based cell of the second.
+        second: usize,
+    },
+    /// An empty column name in the map.
+    #[error("the column name is empty")]
+    EmptyColumnName,
+    /// A unit the map gives that is not one of those allowed for the quantity.
+    #[error("unit {} is not a unit of {quantity}: use one of {allowed}", quote(.unit))]
+    UnknownUnit {
+        /// The unit text.
+        unit: String,
+        /// What the column measures (`angular rate`).
+        quantity: &'static str,
+        /// The units allowed, comma-separated.
+        allowed: String,
+    },
+    /// A column spec with both or neither of `unit` and `counts`.
+    #[error("give exactly one of `unit: \"...\"` or `counts: (gain: .., offset: .., unit: ..)`")]
+    UnitOrCounts,
+    /// A number in the map that is not finite or not allowed (zero gain).
+    #[error("{value} is not allowed: {rule}")]
+    BadMapNumber {
+        /// The number as Rust prints it.
+        value: String,
+        /// The rule.
+        rule: &'static str,
+    },
+    /// A value of the map that the dataset format refuses (a mounting angle out of range, a
+    /// TLE checksum, a noise hint); the message is the dataset reader's.
+    #[error("{message}")]
+    Dataset {
+        /// The dataset reader's message.
+        message: String,
+    },
+    /// TLE lines that SGP4 cannot initialise.
+    #[error("the TLE cannot be propagated: {message}")]
+    Tle {
+        /// The orbit crate's message, clipped.
+        message: String,
+    },
+    /// The epoch of a `Seconds` time form is not ISO 8601 UTC.
+    #[error("{} is not an ISO 8601 UTC time like \"2011-11-04T18:29:45Z\": {reason}", quote(.value))]
+    BadEpoch {
+        /// The text.
+        value: String,
+        /// Why.
+        reason: String,
+    },
+    /// A row with a different number of cells than the header.
+    #[error("row has {found} cells, the header has {expected}")]
+    WrongCellCount {
+        /// Cells in the header.
+        expected: usize,
+        /// Cells in this row.
+        found: usize,
+    },
+    /// A cell that does not parse as a number.
+    #[error("{} is not a number{}", quote(.value), .context)]
+    NotANumber {
+        /// The cell text.
+        value: String,
+        /// Empty or ` (...)`: what the map reads this column as.
+        context: String,
+    },
+    /// `NaN` or an infinity in a cell.
+    #[error("{} is not a finite number{}", quote(.value), .context)]
+    NotFinite {
+        /// The cell text.
+        value: String,
+        /// Empty or ` (...)`.
+        context: String,
+    },
+    /// A time cell that does not read in the map's time form.
+    #[error("{} is not {form}: {reason}", quote(.value))]
+    BadTime {
+        /// The cell text.
+        value: String,
+        /// The form the map gives (`Unix seconds`).
+        form: &'static str,
+        /// Why.
+        reason: String,
+    },
+    /// Times not strictly increasing.
+    #[error(
+        "time {} is not after the previous kept row's {} (line {previous_line}); rows must be in \
+         time order: sort the export first",
+        .value,
+        .previous
+    )]
+    TimeNotIncreasing {
+        /// This row's time as UTC.
+        value: String,
+        /// The previous kept row's time as UTC.
+        previous: String,
+        /// The previous kept row's line in the export.
+        previous_line: usize,
+    },
+    /// No row has a usable time.
+    #[error("no row with a time is left ({dropped} dropped: blank or sentinel time)")]
+    NoRows {
+        /// Rows dropped.
+        dropped: usize,
+    },
+    /// A CSV reader failure that is none of the above.
+    #[error("{message}")]
+    Csv {
+        /// The csv crate's description.
+        message: String,
+    },
+    /// The dataset built from the export is refused by the dataset writer (or cannot be
+    /// written); the message is the dataset crate's, naming its own file.
+    #[error("{0}")]
+    Output(DatasetError),
+}
+
+impl ImportError {
+    /// An error about a whole file.
+    pub(crate) fn whole_file(file: &Path, kind: ErrorKind) -> Self {
+        Self(Box::new(Inner {
+            file: file.to_path_buf(),
+            line: None,
+            column: None,
+            field: None,
+            kind,
+        }))
+    }
+
+    /// An error at a line and (optionally) column.
+    pub(crate) fn at(file: &Path, line: usize, column: Option<usize>, kind: ErrorKind) -> Self {
+        let mut e = Self::whole_file(file, kind);
+        e.0.line = Some(line);
+        e.0.column = column;
+        e
+    }
+
+    /// An error at `place` when known, else about the whole file.
+    pub(crate) fn maybe_at(file: &Path, place: Option<(usize, usize)>, kind: ErrorKind) -> Self {
+        match place {
+            Some((line, column)) => Self::at(file, line, Some(column), kind),
+            None => Self::whole_file(file, kind),
+        }
+    }
+
+    /// The same error naming a map field path or an export column header.
+    pub(crate) fn named(mut self, field: impl Into<String>) -> Self {
+        self.0.field = Some(field.into());
+        self
+    }
+
+    /// The file the fault is in (the map or the export), as the caller named it; for
+    /// [`ErrorKind::Output`] the dataset file the writer refused.
+    pub fn file(&self) -> &Path {
+        &self.0.file
+    }
+
+    /// 1-based line, as a text editor shows it.
+    pub fn line(&self) -> Option<usize> {
+        self.0.line
+    }
+
+    /// 1-based column: the character column in the map, the cell number in the export.
+    pub fn column(&self) -> Option<usize> {
+        self.0.column
+    }
+
+    /// The map's field path (`photodiodes[3].column`) or the export's column header.
+    pub fn field(&self) -> Option<&str> {
+        self.0.field.as_deref()
+    }
+
+    /// What is wrong.
+    pub fn kind(&self) -> &ErrorKind {
+        &self.0.kind
+    }
+}
+
+impl From<DatasetError> for ImportError {
+    fn from(e: DatasetError) -> Self {
+        let file = e.file().to_path_buf();
+        Self::whole_file(&file, ErrorKind::Output(e))
+    }
+}
+
+impl fmt::Display for ImportError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let e = &self.0;
+        if let ErrorKind::Output(inner) = &e.kind {
+            // The dataset error names its own file and place.
+            return write!(f, "{inner}");
+        }
+        write!(f, "{}", e.file.display())?;
+        if let Some(line) = e.line {
+            write!(f, ":{line}")?;
+            if let Some(column) = e.column {
+                write!(f, ":{column}")?;
+            }
+        }
+        if let Some(field) = &e.field {
+            write!(f, " ({})", clip(field))?;
+        }
+        write!(f, ": {}", e.kind)
+    }
+}
+
+// The kind's text is part of Display, so it is not also returned as `source` (that would
+// print it twice in an `anyhow` chain).
+impl std::error::Error for ImportError {}
+
+/// `text` for a message, unquoted: at most [`QUOTE_MAX_CHARS`] characters of it, and the
+/// full length when cut.
+pub(crate) fn clip(text: &str) -> String {
+    match text.char_indices().nth(QUOTE_MAX_CHARS) {
+        None => text.to_owned(),
+        Some((cut, _)) => format!("{}... ({} bytes)", &text[..cut], text.len()),
+    }
+}
+
+/// 1-based line and character column of byte offset `offset` in `text`.
+pub(crate) fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let before = text.get(..offset).unwrap_or(text);
+    let line = 1 + before.matches('\n').count();
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    let column = 1 + before[line_start..].chars().count();
+    (line, column)
+}
+
+/// Checks the bytes are UTF-8 and not blank; strips a leading byte-order mark.
+pub(crate) fn text_of(file: &Path, bytes: Vec<u8>) -> Result<String, ImportError> {
+    let text = String::from_utf8(bytes).map_err(|e| {
+        let valid = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+        let before = String::from_utf8_lossy(valid);
+        let (line, column) = line_col(&before, before.len());
+        ImportError::at(file, line, Some(column), ErrorKind::NotUtf8)
+    })?;
+    let text = match text.strip_prefix('\u{feff}') {
+        Some(rest) => rest.to_owned(),
+        None => text,
+    };
+    if text.trim().is_empty() {
+        return Err(ImportError::whole_file(file, ErrorKind::Empty));
+    }
+    Ok(text)
+}

@@ -1,0 +1,551 @@
+//! The column map (`map.ron`): its types, the RON reader, and the checks that need no export.
+
+use std::path::{Path, PathBuf};
+
+use pdcal_dataset::{DatasetMeta, EpochUtc, NoiseHints, NominalMount, OrbitSpec};
+use ron::extensions::Extensions;
+use serde::Deserialize;
+
+use crate::error::{ErrorKind, ImportError, clip, line_col, text_of};
+use crate::timeform::{TimeForm, TimeReader};
+use crate::units::Quantity;
+
+/// The only map `format_version` this crate reads.
+pub const MAP_FORMAT_VERSION: u32 = 1;
+
+/// The map as written (`docs/import.md`); see [`ImportMap`] for the checked form.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapSpec {
+    /// Always [`MAP_FORMAT_VERSION`].
+    pub format_version: u32,
+    /// The dataset's name; default: the export's file name without extension.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// The time column and its form.
+    pub time: TimeColumn,
+    /// Sentinel values of every column: a cell holding one is treated as empty.
+    #[serde(default)]
+    pub sentinels: Vec<f64>,
+    /// The gyro's three columns, body frame.
+    pub gyro: VectorColumns,
+    /// The magnetometer's three columns, body frame; absent for photodiode-only data.
+    #[serde(default)]
+    pub mag: Option<VectorColumns>,
+    /// One entry per photodiode, in the order they become `pd01_V`, `pd02_V`, ...
+    pub photodiodes: Vec<PhotodiodeColumn>,
+    /// Where the orbit comes from.
+    pub orbit: OrbitMap,
+    /// Noise hints copied into dataset.ron (same fields and units).
+    #[serde(default)]
+    pub noise: Option<NoiseHints>,
+}
+
+/// The time column.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimeColumn {
+    /// Header of the column.
+    pub column: String,
+    /// How its cells are written.
+    pub form: TimeForm,
+    /// Values that mean "no time" (the row is dropped), beside the global sentinels.
+    #[serde(default)]
+    pub sentinels: Vec<f64>,
+}
+
+/// One numeric column and how its cells become the dataset's unit.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Column {
+    /// Header of the column.
+    pub column: String,
+    /// The unit the cells are in; or give `counts`.
+    #[serde(default)]
+    pub unit: Option<String>,
+    /// Raw counts with a linear conversion; or give `unit`.
+    #[serde(default)]
+    pub counts: Option<Counts>,
+    /// Values of this column that mean "not sampled", beside the global sentinels.
+    #[serde(default)]
+    pub sentinels: Vec<f64>,
+}
+
+/// A linear conversion of raw counts: `value = gain * count + offset`, in `unit`.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Counts {
+    /// Units per count (nonzero).
+    pub gain: f64,
+    /// Value at count 0, in `unit`.
+    #[serde(default)]
+    pub offset: f64,
+    /// The unit of `gain * count + offset`.
+    pub unit: String,
+}
+
+/// Three columns of a vector sensor.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VectorColumns {
+    /// x component.
+    pub x: Column,
+    /// y component.
+    pub y: Column,
+    /// z component.
+    pub z: Column,
+}
+
+/// One photodiode: its column, conversion and nominal mounting.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhotodiodeColumn {
+    /// Header of the column.
+    pub column: String,
+    /// As [`Column::unit`] (`V`, `mV`).
+    #[serde(default)]
+    pub unit: Option<String>,
+    /// As [`Column::counts`].
+    #[serde(default)]
+    pub counts: Option<Counts>,
+    /// As [`Column::sentinels`].
+    #[serde(default)]
+    pub sentinels: Vec<f64>,
+    /// Nominal azimuth, body frame, degrees (dataset.ron's).
+    pub azimuth_deg: f64,
+    /// Nominal elevation, body frame, degrees.
+    pub elevation_deg: f64,
+    /// The panel, as in dataset.ron (optional).
+    #[serde(default)]
+    pub panel: Option<String>,
+}
+
+impl PhotodiodeColumn {
+    fn as_column(&self) -> Column {
+        Column {
+            column: self.column.clone(),
+            unit: self.unit.clone(),
+            counts: self.counts.clone(),
+            sentinels: self.sentinels.clone(),
+        }
+    }
+}
+
+/// Where the orbit comes from.
+// One per map, read once: boxing the columns would only make the RON types harder to read.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum OrbitMap {
+    /// A two-line element set, copied to dataset.ron.
+    Tle {
+        /// Line 1.
+        line1: String,
+        /// Line 2.
+        line2: String,
+    },
+    /// Position columns, converted to GCRF km (`r_*_km`).
+    Positions {
+        /// x component.
+        x: Column,
+        /// y component.
+        y: Column,
+        /// z component.
+        z: Column,
+        /// The frame the columns are in.
+        frame: PositionFrame,
+    },
+}
+
+/// The inertial frame of position columns.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+pub enum PositionFrame {
+    /// GCRF, written as is.
+    Gcrf,
+    /// J2000 (EME2000), written as is: it differs from GCRF by the frame bias, 23 mas, under
+    /// 1 m at LEO radius (dataset-format.md: "J2000 is close enough").
+    J2000,
+    /// TEME (SGP4's output frame), rotated to GCRF per row with
+    /// `pdcal_ephem::frames::teme_to_gcrf`.
+    Teme,
+}
+
+/// A map read and checked on its own (units, conversions, mounting, TLE); the columns are
+/// checked against an export by [`crate::convert`].
+#[derive(Clone, Debug)]
+pub struct ImportMap {
+    /// The map's content.
+    pub spec: MapSpec,
+    pub(crate) file: PathBuf,
+    pub(crate) text: String,
+    pub(crate) time: TimeReader,
+}
+
+/// Parses and checks the bytes of a map file; `file` names it in errors.
+pub fn parse_map(file: &Path, bytes: &[u8]) -> Result<ImportMap, ImportError> {
+    let text = text_of(file, bytes.to_vec())?;
+    let spec: MapSpec = from_ron(file, &text)?;
+    let map = Locator { file, text: &text };
+    if spec.format_version != MAP_FORMAT_VERSION {
+        return Err(map
+            .key_error(
+                "format_version",
+                0,
+                ErrorKind::UnsupportedVersion {
+                    found: spec.format_version,
+                    known: MAP_FORMAT_VERSION,
+                },
+            )
+            .named("format_version"));
+    }
+    let time = TimeReader::new(&spec.time.form).map_err(|reason| {
+        let value = match &spec.time.form {
+            TimeForm::Seconds { epoch_utc } => epoch_utc.clone(),
+            _ => String::new(),
+        };
+        map.key_error("epoch_utc", 0, ErrorKind::BadEpoch { value, reason })
+            .named("time.form.epoch_utc")
+    })?;
+    if spec.time.column.trim().is_empty() {
+        return Err(map
+            .key_error("time", 0, ErrorKind::EmptyColumnName)
+            .named("time.column"));
+    }
+    check_sentinels(&map, &spec.sentinels, "sentinels", None)?;
+    check_sentinels(&map, &spec.time.sentinels, "time.sentinels", None)?;
+    for (path, column, quantity) in columns(&spec) {
+        check_column(&map, &path, &column, quantity)?;
+    }
+    check_as_dataset(&map, &spec)?;
+    if let OrbitMap::Tle { line1, line2 } = &spec.orbit
+        && let Err(e) = pdcal_ephem::TleOrbit::from_lines(line1, line2)
+    {
+        let kind = ErrorKind::Tle {
+            message: clip(&e.to_string()),
+        };
+        return Err(map.key_error("line1", 0, kind).named("orbit"));
+    }
+    Ok(ImportMap {
+        spec,
+        file: file.to_path_buf(),
+        text,
+        time,
+    })
+}
+
+impl ImportMap {
+    /// The map's file as given.
+    pub fn file(&self) -> &Path {
+        &self.file
+    }
+
+    pub(crate) fn locator(&self) -> Locator<'_> {
+        Locator {
+            file: &self.file,
+            text: &self.text,
+        }
+    }
+}
+
+/// Every numeric column of the map: its field path, spec and quantity, in map order.
+pub(crate) fn columns(spec: &MapSpec) -> Vec<(String, Column, Quantity)> {
+    let mut out = Vec::new();
+    let mut vector = |name: &str, v: &VectorColumns, q: Quantity| {
+        for (axis, c) in [("x", &v.x), ("y", &v.y), ("z", &v.z)] {
+            out.push((format!("{name}.{axis}"), c.clone(), q));
+        }
+    };
+    vector("gyro", &spec.gyro, Quantity::AngularRate);
+    if let Some(mag) = &spec.mag {
+        vector("mag", mag, Quantity::MagneticField);
+    }
+    if let OrbitMap::Positions { x, y, z, .. } = &spec.orbit {
+        vector(
+            "orbit",
+            &VectorColumns {
+                x: x.clone(),
+                y: y.clone(),
+                z: z.clone(),
+            },
+            Quantity::Length,
+        );
+    }
+    for (i, pd) in spec.photodiodes.iter().enumerate() {
+        out.push((
+            format!("photodiodes[{i}]"),
+            pd.as_column(),
+            Quantity::Voltage,
+        ));
+    }
+    out
+}
+
+/// The factor and offset taking a cell of `column` to the dataset unit:
+/// `value = cell * scale + offset`. `None` when the unit is unknown (checked by
+/// [`parse_map`]).
+pub(crate) fn linear(column: &Column, quantity: Quantity) -> Option<(f64, f64)> {
+    match (&column.unit, &column.counts) {
+        (Some(unit), None) => quantity.factor(unit).map(|f| (f, 0.0)),
+        (None, Some(c)) => quantity.factor(&c.unit).map(|f| (c.gain * f, c.offset * f)),
+        _ => None,
+    }
+}
+
+fn check_column(
+    map: &Locator<'_>,
+    path: &str,
+    column: &Column,
+    quantity: Quantity,
+) -> Result<(), ImportError> {
+    let at = map.column(&column.column);
+    if column.column.trim().is_empty() {
+        let place = at.map(|o| line_col(map.text, o));
+        return Err(
+            ImportError::maybe_at(map.file, place, ErrorKind::EmptyColumnName)
+                .named(format!("{path}.column")),
+        );
+    }
+    // Where this spec's parts are: after its column name in the text.
+    let near = |needle: &str| {
+        at.and_then(|o| map.literal_after(o, needle))
+            .or(at)
+            .map(|o| line_col(map.text, o))
+    };
+    let unit_error = |unit: &str, field: &str| {
+        let kind = ErrorKind::UnknownUnit {
+            unit: unit.to_owned(),
+            quantity: quantity.name(),
+            allowed: quantity.allowed(),
+        };
+        Err(ImportError::maybe_at(map.file, near(unit), kind).named(format!("{path}.{field}")))
+    };
+    match (&column.unit, &column.counts) {
+        (Some(unit), None) => {
+            if quantity.factor(unit).is_none() {
+                return unit_error(unit, "unit");
+            }
+        }
+        (None, Some(counts)) => {
+            if quantity.factor(&counts.unit).is_none() {
+                return unit_error(&counts.unit, "counts.unit");
+            }
+            let bad = |value: f64, field: &str, rule| {
+                let kind = ErrorKind::BadMapNumber {
+                    value: format!("{value:?}"),
+                    rule,
+                };
+                Err(ImportError::maybe_at(map.file, near(field), kind)
+                    .named(format!("{path}.counts.{field}")))
+            };
+            if !counts.gain.is_finite() || counts.gain == 0.0 {
+                return bad(counts.gain, "gain", "a gain must be finite and nonzero");
+            }
+            if !counts.offset.is_finite() {
+                return bad(counts.offset, "offset", "an offset must be finite");
+            }
+        }
+        _ => {
+            let place = at.map(|o| line_col(map.text, o));
+            return Err(
+                ImportError::maybe_at(map.file, place, ErrorKind::UnitOrCounts).named(path),
+            );
+        }
+    }
+    check_sentinels(map, &column.sentinels, &format!("{path}.sentinels"), at)
+}
+
+fn check_sentinels(
+    map: &Locator<'_>,
+    values: &[f64],
+    path: &str,
+    near: Option<usize>,
+) -> Result<(), ImportError> {
+    let Some(v) = values.iter().find(|v| !v.is_finite()) else {
+        return Ok(());
+    };
+    let kind = ErrorKind::BadMapNumber {
+        value: format!("{v:?}"),
+        rule: "a sentinel must be a finite number (an empty cell needs none)",
+    };
+    let place = near
+        .or_else(|| map.key(path.rsplit('.').next().unwrap_or(path), 0))
+        .map(|o| line_col(map.text, o));
+    Err(ImportError::maybe_at(map.file, place, kind).named(path))
+}
+
+/// The map's mounting, TLE and noise hints through the dataset reader's own rules (a
+/// dataset.ron made of them, parsed), so the import refuses exactly what the dataset format
+/// refuses, placed in the map: the field paths are the same in both files.
+fn check_as_dataset(map: &Locator<'_>, spec: &MapSpec) -> Result<(), ImportError> {
+    let epoch = EpochUtc::parse("2000-01-01T00:00:00Z").map_err(|e| {
+        ImportError::whole_file(
+            map.file,
+            ErrorKind::Dataset {
+                message: e.to_string(),
+            },
+        )
+    })?;
+    let meta = DatasetMeta {
+        format_version: pdcal_dataset::FORMAT_VERSION,
+        name: "map check".into(),
+        epoch_utc: epoch,
+        orbit: orbit_spec(&spec.orbit),
+        photodiodes: mounts(spec),
+        noise: spec.noise,
+    };
+    let text = ron::to_string(&meta).map_err(|e| {
+        ImportError::whole_file(
+            map.file,
+            ErrorKind::Dataset {
+                message: clip(&e.to_string()),
+            },
+        )
+    })?;
+    let Err(e) = pdcal_dataset::meta_from_str(&text) else {
+        return Ok(());
+    };
+    let field = e.field().unwrap_or("").to_owned();
+    let message = e.kind().to_string();
+    // `photodiodes[3].elevation_deg` -> the 4th `elevation_deg:`; `orbit.line2 inclination,
+    // columns 9-16` -> `line2:`; `noise.mag_nT` -> `mag_nT:`.
+    let head = field.split(' ').next().unwrap_or("");
+    let key = head.rsplit('.').next().unwrap_or(head);
+    let nth = head
+        .strip_prefix("photodiodes[")
+        .and_then(|rest| rest.split(']').next())
+        .and_then(|i| i.parse::<usize>().ok())
+        .filter(|_| key != "panel")
+        .unwrap_or(0);
+    let err = map.key_error(key, nth, ErrorKind::Dataset { message });
+    Err(if field.is_empty() {
+        err
+    } else {
+        err.named(field)
+    })
+}
+
+/// dataset.ron's orbit for a map's.
+pub(crate) fn orbit_spec(orbit: &OrbitMap) -> OrbitSpec {
+    match orbit {
+        OrbitMap::Tle { line1, line2 } => OrbitSpec::Tle {
+            line1: line1.clone(),
+            line2: line2.clone(),
+        },
+        OrbitMap::Positions { .. } => OrbitSpec::PositionColumns,
+    }
+}
+
+/// dataset.ron's photodiodes for a map's.
+pub(crate) fn mounts(spec: &MapSpec) -> Vec<NominalMount> {
+    (spec.photodiodes.iter())
+        .map(|p| NominalMount {
+            azimuth_deg: p.azimuth_deg,
+            elevation_deg: p.elevation_deg,
+            panel: p.panel.clone(),
+        })
+        .collect()
+}
+
+/// Positions in the map text, for errors found after parsing (serde keeps none).
+#[derive(Clone, Copy)]
+pub(crate) struct Locator<'a> {
+    pub(crate) file: &'a Path,
+    pub(crate) text: &'a str,
+}
+
+impl Locator<'_> {
+    /// Byte offset of the `nth` (0-based) `key:` that is not part of a longer identifier.
+    pub(crate) fn key(&self, key: &str, nth: usize) -> Option<usize> {
+        if key.is_empty() {
+            return None;
+        }
+        let text = self.text;
+        let is_ident = |c: char| c.is_alphanumeric() || c == '_';
+        text.match_indices(key)
+            .filter(|&(i, _)| {
+                let before_ok = !text[..i].chars().next_back().is_some_and(is_ident);
+                let after = text[i + key.len()..].trim_start();
+                before_ok && after.starts_with(':')
+            })
+            .nth(nth)
+            .map(|(i, _)| i)
+    }
+
+    /// An error at the `nth` `key:`, or about the whole map when it is not found.
+    pub(crate) fn key_error(&self, key: &str, nth: usize, kind: ErrorKind) -> ImportError {
+        let place = self.key(key, nth).map(|o| line_col(self.text, o));
+        ImportError::maybe_at(self.file, place, kind)
+    }
+
+    /// Byte offset of the string literal `"name"` that follows a `column:` key. A name
+    /// written with escapes is not found, and the error then names its field path only.
+    pub(crate) fn column(&self, name: &str) -> Option<usize> {
+        let literal = format!("\"{name}\"");
+        let mut n = 0;
+        while let Some(at) = self.key("column", n) {
+            let rest = &self.text[at + "column".len()..];
+            let value = rest.trim_start().strip_prefix(':')?.trim_start();
+            if value.starts_with(&literal) {
+                return Some(self.text.len() - value.len());
+            }
+            n += 1;
+        }
+        None
+    }
+
+    /// Byte offset of the first `"needle"` literal (or bare token, for numbers' keys) at or
+    /// after `from`.
+    fn literal_after(&self, from: usize, needle: &str) -> Option<usize> {
+        let rest = self.text.get(from..)?;
+        let quoted = format!("\"{needle}\"");
+        rest.find(&quoted)
+            .or_else(|| rest.find(needle))
+            .map(|i| from + i)
+    }
+}
+
+/// Deserialises the map, mapping ron's span start to line:column.
+fn from_ron<T: serde::de::DeserializeOwned>(file: &Path, text: &str) -> Result<T, ImportError> {
+    let options = ron::Options::default().with_default_extension(Extensions::IMPLICIT_SOME);
+    options.from_str(text).map_err(|e| {
+        let kind = match e.code {
+            ron::Error::NoSuchStructField {
+                expected, found, ..
+            } => ErrorKind::UnknownField {
+                name: clip(&found),
+                expected: expected.join(", "),
+            },
+            ron::Error::MissingStructField { field, .. } => ErrorKind::MissingField {
+                name: field.to_owned(),
+            },
+            other => ErrorKind::Ron {
+                message: clip(&other.to_string()),
+            },
+        };
+        let (line, col) = skip_blanks(text, e.span.start.line, e.span.start.col);
+        ImportError::at(file, line, Some(col), kind)
+    })
+}
+
+/// ron's span for a wrong value can start at the blank before it; point at the token itself.
+/// Positions outside the text are returned unchanged.
+fn skip_blanks(text: &str, line: usize, col: usize) -> (usize, usize) {
+    let line_start = if line <= 1 {
+        Some(0)
+    } else {
+        text.match_indices('\n').nth(line - 2).map(|(i, _)| i + 1)
+    };
+    let offset = line_start.and_then(|start| {
+        let rest = text.get(start..)?;
+        let within = rest.char_indices().nth(col.checked_sub(1)?)?.0;
+        Some(start + within)
+    });
+    let Some(offset) = offset else {
+        return (line, col);
+    };
+    let blanks = text[offset..].len() - text[offset..].trim_start().len();
+    if offset + blanks >= text.len() {
+        return (line, col);
+    }
+    line_col(text, offset + blanks)
+}
