@@ -565,6 +565,7 @@ impl Filter {
         albedo: Option<&dyn AlbedoIrradiance>,
     ) -> Result<(), FilterError> {
         let sun_body = attitude * reference.sun_gcrf_unit;
+        let sun_distance_factor = reference.sun_distance_factor();
         self.select_photodiodes(pd_v, reference, &sun_body);
         let albedo_used = albedo.filter(|_| !self.scratch.selected.is_empty());
         if let Some(albedo) = albedo_used {
@@ -580,6 +581,7 @@ impl Filter {
                 attitude: *attitude,
                 sun_body,
                 sun_fraction: reference.sun_fraction,
+                sun_distance_factor,
                 rate_body_rad_s: self.rate_est,
                 t_s,
                 albedo: albedo_used

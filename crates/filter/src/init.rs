@@ -1,6 +1,6 @@
-//! Initialisation as the paper (IV.B): `C` = maximum measured output, nominal normals,
-//! attitude by the q-method from the magnetometer and the photodiode Sun vector at the first
-//! usable sample, zero gyro bias.
+//! Initialisation as the paper (IV.B): `C` = maximum measured output (referred to 1 AU),
+//! nominal normals, attitude by the q-method from the magnetometer and the photodiode Sun
+//! vector at the first usable sample, zero gyro bias.
 
 use nalgebra::{Matrix3, Vector3};
 use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView};
@@ -30,19 +30,28 @@ pub struct InitialScales {
     pub from_median: Vec<bool>,
 }
 
-/// Maximum output of each photodiode over the data set (the paper's initial `C`); a
-/// never-lit or dim photodiode gets the median of the lit photodiodes' maxima.
+/// Maximum output of each photodiode over the data set, each sample divided by the Sun's
+/// distance factor `(1 AU / r_sun)^2` of its row (`references`, one per row), so that the
+/// initial `C` is, like the state, the output at 1 AU (the paper's initial `C`, which
+/// ignored the 3 % annual swing); a never-lit or dim photodiode gets the median of the lit
+/// photodiodes' maxima.
 pub fn initial_scales(
     telemetry: &Telemetry,
+    references: &[StepReference],
     threshold_v: f64,
 ) -> Result<InitialScales, FilterError> {
+    crate::error::check_len("references", telemetry.len(), references.len())?;
+    let factors: Vec<f64> = references
+        .iter()
+        .map(StepReference::sun_distance_factor)
+        .collect();
     let maxima: Vec<f64> = telemetry
         .pd_v
         .iter()
         .map(|col| {
             col.iter()
-                .flatten()
-                .copied()
+                .zip(&factors)
+                .filter_map(|(y, f)| y.map(|y| y / f))
                 .fold(f64::NEG_INFINITY, f64::max)
         })
         .collect();
@@ -118,7 +127,6 @@ pub fn find_start(inputs: &StartInputs<'_>, config: &FilterConfig) -> Result<Sta
     let mut outputs = vec![0.0; m];
     let mut known = vec![0.0; m];
     let mut view = AlbedoView::new();
-    let options = SunVectorOptions::default();
     let sin_min_angle = config.initial_min_sun_field_angle_deg.to_radians().sin();
     let mut reason = "no sample in full Sun";
     for k in 0..tel.len() {
@@ -153,6 +161,10 @@ pub fn find_start(inputs: &StartInputs<'_>, config: &FilterConfig) -> Result<Sta
             };
         }
         known.iter_mut().for_each(|x| *x = 0.0);
+        let options = SunVectorOptions {
+            sun_distance_factor: reference.sun_distance_factor(),
+            ..SunVectorOptions::default()
+        };
         let Some(mut sun_body) = sun_direction(inputs.photodiodes, &outputs, &known, &options)?
         else {
             reason = "photodiode Sun vector not observable";

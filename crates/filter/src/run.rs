@@ -285,7 +285,11 @@ impl<'a> ForwardPass<'a> {
             }
             _ => None,
         };
-        let initial = initial_scales(tel, config.min_lit_output_sigmas * sigmas.photodiode_v)?;
+        let initial = initial_scales(
+            tel,
+            inputs.references,
+            config.min_lit_output_sigmas * sigmas.photodiode_v,
+        )?;
         let used = initial.used.clone();
         let max_scales = initial.scale_v.clone();
         let (scale_v, scale_sigma_v, n_body): (Vec<f64>, Vec<f64>, Vec<Vector3<f64>>) = match prior

@@ -717,6 +717,10 @@ fn scene_for<'a>(
     let a: Matrix3<f64> = state.q.attitude_matrix();
     let scene = Scene::new(a, &env.sun_gcrf)?
         .with_sun_fraction(env.nu)
+        .with_sun_distance_factor(pdcal_ephem::sun_distance_factor(
+            &env.r_gcrf_km,
+            &env.r_sun_gcrf_km,
+        ))
         .with_rate(state.w_body_rad_s)
         .with_time(t_s);
     Ok(match albedo {

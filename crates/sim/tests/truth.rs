@@ -79,6 +79,12 @@ fn model_from_truth(constants: &TruthConstants) -> MeasurementModel {
     model
 }
 
+/// `(1 AU / r_sun)^2` at truth row `k`, from the truth position and the reference Sun.
+fn sun_distance_factor(truth: &TruthSeries, epoch: hifitime::Epoch, k: usize) -> f64 {
+    let t = pdcal_ephem::time::offset(epoch, truth.t_s[k]).unwrap();
+    pdcal_ephem::sun_distance_factor(&truth.r_gcrf_km[k], &LowPrecisionSun.sun_gcrf_km(t))
+}
+
 /// Model outputs at truth row `k` (albedo map `map`, if any).
 fn model_at_truth(
     model: &MeasurementModel,
@@ -93,6 +99,7 @@ fn model_at_truth(
     let mut scene = Scene::new(a, &(a.transpose() * truth.sun_body[k]))
         .unwrap()
         .with_sun_fraction(truth.eclipse[k])
+        .with_sun_distance_factor(sun_distance_factor(truth, epoch, k))
         .with_rate(truth.w_body_rad_s[k])
         .with_time(truth.t_s[k]);
     if let Some(albedo) = albedo {
@@ -209,14 +216,15 @@ fn noise_has_the_configured_statistics() {
 
 /// Magnitudes of the least-squares Sun vector from the true photodiodes at sunlit rows.
 fn sun_vector_magnitudes(out: &SimOutput) -> Vec<f64> {
-    let options = SunVectorOptions {
-        threshold: LitThreshold::Volts(1e-6),
-        min_singular_value: 0.3,
-        reject_backfacing: true,
-    };
     (0..out.truth.len())
         .filter(|&k| out.truth.eclipse[k] == 1.0)
         .filter_map(|k| {
+            let options = SunVectorOptions {
+                threshold: LitThreshold::Volts(1e-6),
+                min_singular_value: 0.3,
+                reject_backfacing: true,
+                sun_distance_factor: sun_distance_factor(&out.truth, out.meta.epoch_utc.epoch(), k),
+            };
             let y: Vec<f64> = out.telemetry.pd_v.iter().map(|c| c[k].unwrap()).collect();
             match estimate_sun_vector(&out.true_photodiodes, &y, None, &options).unwrap() {
                 SunEstimate::Observable(v) => Some(v.vector_body.norm()),
