@@ -165,17 +165,23 @@ fn attitude_track(run: &CalibrationRun, tel: &Telemetry) -> Vec<StepEstimate> {
     back
 }
 
-/// The photodiodes of a calibration, no field-of-view gate (the cosine law to 90 deg).
-fn calibrated_photodiodes(run: &CalibrationRun) -> Vec<Photodiode> {
+/// The photodiodes of a calibration with the field of view dataset.ron declares (`fov_deg`),
+/// else none: the cosine law to 90 deg, so that samples the filter's own gate left out are
+/// still predicted.
+fn calibrated_photodiodes(run: &CalibrationRun, meta: &DatasetMeta) -> Vec<Photodiode> {
     let noise_v = run.sensor_sigmas.photodiode_v;
     run.calibration
         .photodiodes
         .iter()
-        .map(|p| Photodiode {
+        .enumerate()
+        .map(|(i, p)| Photodiode {
             scale_v: p.scale_v,
             n_body: p.n_body(),
             noise_v,
-            fov_half_angle_rad: None,
+            fov_half_angle_rad: meta
+                .photodiodes
+                .get(i)
+                .and_then(|m| m.fov_half_angle_rad()),
         })
         .collect()
 }
@@ -202,7 +208,7 @@ pub fn residuals(
             found: inputs.references.len(),
         });
     }
-    let photodiodes = calibrated_photodiodes(run);
+    let photodiodes = calibrated_photodiodes(run, inputs.meta);
     let uncertainty = calibration_sigmas(run);
     let model = spec.measurement_model(photodiodes.clone(), inputs.config)?;
     let offset_s = spec
@@ -415,7 +421,7 @@ fn row_samples(
         let pre = model.pre_stage_output(i, &scene)?;
         let predicted = partials.value_v;
         let cos = pd.n_body.dot(&sun_body);
-        let lit = if cos > 0.0 { hard } else { 0.0 };
+        let lit = if pd.accepts(cos) { hard } else { 0.0 };
         let direct = lit * pd.scale_v * cos;
         known[i] = pre - model_direct(model, i, &scene)?;
         outputs[i] = y;

@@ -49,7 +49,9 @@ pub struct FilterNoise {
     pub albedo_sigma_ratio: f64,
     /// Magnetometer sigma per axis, nT.
     pub mag_sigma_nt: f64,
-    /// Gate in sigmas.
+    /// Gate in sigmas: each photodiode row `nu^2 <= g^2 s`; the magnetometer's 3-vector by
+    /// its Mahalanobis distance at the chi-square (3 dof) threshold of the same tail
+    /// probability ([`crate::gate`]).
     pub gate_sigmas: f64,
     /// Cosine of the largest incidence angle used.
     pub cos_fov: f64,
@@ -300,7 +302,6 @@ impl Filter {
         {
             pd.scale_v = *c;
             pd.n_body = *nb;
-            pd.fov_half_angle_rad = None;
         }
         let partials = Partials {
             d_parameters: vec![0.0; model.parameter_count()],
@@ -603,8 +604,9 @@ impl Filter {
     }
 
     /// The photodiodes this step updates, into `scratch.selected`: sampled, lit (full Sun),
-    /// in use and inside the field of view at the prior (`sun_body`); the others counted by
-    /// why they were left out.
+    /// in use and inside the field of view at the prior (`sun_body`): the configured gate and
+    /// the photodiode's own (the model's `fov_half_angle_rad`, from dataset.ron), whichever
+    /// is narrower; the others counted by why they were left out.
     fn select_photodiodes(
         &mut self,
         pd_v: &[Option<f64>],
@@ -629,7 +631,9 @@ impl Filter {
                 continue;
             }
             let cos_incidence = self.normal[i].dot(sun_body);
-            if cos_incidence < self.noise.cos_fov {
+            // The narrower of the filter's gate and the photodiode's own field of view.
+            let cos_fov = self.noise.cos_fov.max(self.model.photodiodes()[i].cos_fov());
+            if cos_incidence < cos_fov {
                 counts.outside_fov += 1;
                 continue;
             }

@@ -64,12 +64,15 @@ pub fn calibrate(
     )
 }
 
-/// The dataset's nominal photodiodes (unit scale, `dataset.ron` normals), for
-/// [`paper_model`].
+/// The dataset's nominal photodiodes (unit scale, `dataset.ron` normals and fields of view),
+/// for [`paper_model`].
 pub fn nominal_photodiodes(meta: &DatasetMeta) -> Vec<Photodiode> {
     meta.photodiodes
         .iter()
-        .map(|m| Photodiode::from_az_el_deg(1.0, m.azimuth_deg, m.elevation_deg, 0.0))
+        .map(|m| {
+            Photodiode::from_az_el_deg(1.0, m.azimuth_deg, m.elevation_deg, 0.0)
+                .with_fov_half_angle_rad(m.fov_half_angle_rad())
+        })
         .collect()
 }
 

@@ -16,10 +16,22 @@ use pdcal_photodiode::{DarkOffset, ParameterRole, Photodiode};
 
 /// A filter on `case`'s nominal layout, initialised near the truth at row 0.
 fn filter_for(case: &Case, q0: Quat, algebra: Algebra, with_dark_offset: bool) -> Filter {
+    filter_with(case, q0, algebra, with_dark_offset, None, |_| {})
+}
+
+/// [`filter_for`] with every photodiode's field of view `fov_rad` and the noise edited.
+fn filter_with(
+    case: &Case,
+    q0: Quat,
+    algebra: Algebra,
+    with_dark_offset: bool,
+    fov_rad: Option<f64>,
+    edit: impl FnOnce(&mut FilterNoise),
+) -> Filter {
     let pds: Vec<Photodiode> = case
         .nominal
         .iter()
-        .map(|&(az, el)| Photodiode::from_az_el_deg(3.7, az, el, 0.015))
+        .map(|&(az, el)| Photodiode::from_az_el_deg(3.7, az, el, 0.015).with_fov_half_angle_rad(fov_rad))
         .collect();
     let m = pds.len();
     let mut model = paper_model(pds, &FilterConfig::default());
@@ -47,7 +59,7 @@ fn filter_for(case: &Case, q0: Quat, algebra: Algebra, with_dark_offset: bool) -
         extra_sigma: vec![0.1; extras],
         used: vec![true; m],
     };
-    let noise = FilterNoise {
+    let mut noise = FilterNoise {
         gyro: pdcal_attitude::GyroNoise {
             sigma_v_rad_sqrt_s: 1.3e-3,
             sigma_u_rad_s_sqrt_s: 2e-6,
@@ -64,6 +76,7 @@ fn filter_for(case: &Case, q0: Quat, algebra: Algebra, with_dark_offset: bool) -
         min_sun_fraction: 0.999,
         second_order: true,
     };
+    edit(&mut noise);
     Filter::new(model, layout, init, noise, algebra).unwrap()
 }
 
