@@ -133,7 +133,8 @@ pub struct SensorCounts {
 pub struct UpdateCounts {
     /// Photodiode scalar updates.
     pub photodiode: SensorCounts,
-    /// Magnetometer scalar updates (one per axis).
+    /// Magnetometer scalar updates (one per axis; the three axes of a sample are gated
+    /// together, so `gated` grows by 3 per rejected sample).
     pub magnetometer: SensorCounts,
 }
 
@@ -166,6 +167,8 @@ pub struct Filter {
     layout: StateLayout,
     model: MeasurementModel,
     noise: FilterNoise,
+    /// Squared Mahalanobis threshold of the magnetometer vector (from `noise.gate_sigmas`).
+    mag_gate2: f64,
     algebra: Algebra,
     q: Quat,
     bias: Vector3<f64>,
@@ -246,8 +249,8 @@ struct AlbedoScratch {
 }
 
 impl Filter {
-    /// A filter over `model` (its photodiodes get the initial scales and normals) with the
-    /// state `layout` built from the same model.
+    /// A filter over `model` (its photodiodes get the initial scales and normals and keep
+    /// their fields of view) with the state `layout` built from the same model.
     pub fn new(
         mut model: MeasurementModel,
         mut layout: StateLayout,
@@ -332,6 +335,7 @@ impl Filter {
             },
             layout,
             model,
+            mag_gate2: crate::gate::chi_square_3_threshold(noise.gate_sigmas),
             noise,
             algebra,
             q: init.q,
@@ -500,14 +504,24 @@ impl Filter {
         self.counts.magnetometer.not_sampled += 3;
     }
 
-    /// The three magnetometer rows `[(A b) x]` at the prior attitude `attitude`.
+    /// The three magnetometer rows `[(A b) x]` at the prior attitude `attitude`, accepted or
+    /// rejected together: the innovation `nu = b_meas - A b` against
+    /// `S = H P_aa H^T + R` by its squared Mahalanobis distance `nu^T S^-1 nu <= mag_gate2`
+    /// (a test that does not depend on the body axes; [`crate::gate`]). An `S` that is not
+    /// positive definite rejects the sample.
     fn mag_rows(&mut self, attitude: &Matrix3<f64>, mag: &Vector3<f64>, b_gcrf: &Vector3<f64>) {
         let b_body = attitude * b_gcrf;
         let h = skew(&b_body);
         let r = self.noise.mag_sigma_nt.powi(2) + self.mag_second_order_var(&b_body);
+        let nu = mag - b_body;
+        let p_aa: Matrix3<f64> = self.p.fixed_view::<3, 3>(ATTITUDE, ATTITUDE).into_owned();
+        let s = h * p_aa * h.transpose() + Matrix3::identity() * r;
+        let accepted = s
+            .cholesky()
+            .is_some_and(|c| nu.dot(&c.solve(&nu)) <= self.mag_gate2);
         let rows = &mut self.scratch.rows;
         for axis in 0..3 {
-            rows.begin(mag[axis] - b_body[axis], r);
+            rows.begin_decided(nu[axis], r, accepted);
             for k in 0..3 {
                 rows.entry(ATTITUDE + k, h[(axis, k)]);
             }

@@ -91,6 +91,7 @@ pub mod config;
 pub mod dense;
 mod error;
 pub mod filter;
+pub mod gate;
 pub mod guard;
 pub mod init;
 pub mod layout;

@@ -244,3 +244,97 @@ fn tangent_log_inverts_rotate_normal() {
         );
     }
 }
+
+/// The magnetometer's three axes are accepted or rejected together, by the Mahalanobis
+/// distance of the 3-vector innovation against the chi-square (3 dof) threshold of the
+/// scalar gate's tail probability: the decision depends on that distance only, not on the
+/// direction of the innovation in body axes (an axis-by-axis gate's does).
+#[test]
+fn magnetometer_is_gated_as_a_vector_by_its_mahalanobis_distance() {
+    let case = Case::rax2(5, 10);
+    let q0 = case.true_attitudes()[0];
+    let (_, tel, refs, _) = case.build();
+    let threshold = pdcal_filter::gate::chi_square_3_threshold(5.0);
+    let mut rng_state = 0x9e37_79b9_u64;
+    let mut uniform = || {
+        rng_state ^= rng_state << 13;
+        rng_state ^= rng_state >> 7;
+        rng_state ^= rng_state << 17;
+        (rng_state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    let no_pd = vec![None; tel.pd_v.len()];
+    let mut decided = 0;
+    for trial in 0..200 {
+        let mut filter = filter_with(&case, q0, Algebra::Structured, false, None, |n| {
+            n.second_order = false;
+        });
+        let a = q0.attitude_matrix();
+        let b_body = a * refs[0].b_gcrf_nt;
+        let p = filter.covariance();
+        let p_aa = nalgebra::Matrix3::from_fn(|r, c| p[(r, c)]);
+        let h = pdcal_attitude::skew(&b_body);
+        let s = h * p_aa * h.transpose() + nalgebra::Matrix3::identity() * 320f64.powi(2);
+        let u = Vector3::new(uniform(), uniform(), uniform()).normalize();
+        // Distances on both sides of the threshold, never within 1e-6 of it.
+        let d2 = threshold * if trial % 2 == 0 { 0.8 } else { 1.25 };
+        let nu = u * (d2 / u.dot(&(s.try_inverse().unwrap() * u))).sqrt();
+        filter
+            .update(
+                0.0,
+                &Measurements {
+                    mag_nt: Some(b_body + nu),
+                    pd_v: &no_pd,
+                    temperature_c: &[],
+                },
+                &refs[0],
+                None,
+            )
+            .unwrap();
+        let records = filter.records();
+        assert_eq!(records.len(), 3);
+        let expect = d2 <= threshold;
+        for r in records {
+            assert_eq!(r.accepted, expect, "trial {trial}: d2 {d2}, threshold {threshold}");
+        }
+        let counts = filter.counts().magnetometer;
+        assert_eq!((counts.accepted, counts.gated), if expect { (3, 0) } else { (0, 3) });
+        decided += 1;
+    }
+    assert_eq!(decided, 200);
+}
+
+/// A photodiode's own field of view narrows the filter's gate: with 25 deg, no photodiode
+/// sample is used while the Sun is more than 25 deg (plus the attitude error) off its
+/// normal, and fewer samples are used than with the 60 deg gate alone.
+#[test]
+fn a_photodiode_field_of_view_narrower_than_the_gate_limits_the_samples_used() {
+    let case = Case::rax2(23, 600);
+    let q0 = case.true_attitudes()[0];
+    let truth = case.true_attitudes();
+    let (_, _, refs, _) = case.build();
+    let fov = 25f64.to_radians();
+    let mut narrow = filter_with(&case, q0, Algebra::Structured, false, Some(fov), |_| {});
+    let mut used_narrow = 0;
+    drive(&case, &mut narrow, 600, |k, f| {
+        let s_body = truth[k].attitude_matrix() * refs[k].sun_gcrf_unit;
+        for r in f.records() {
+            if let pdcal_filter::Sensor::Photodiode(i) = r.sensor {
+                let angle = case.true_normals[i].dot(&s_body).clamp(-1.0, 1.0).acos();
+                // Nominal normals within ~9 deg of the truth plus a few deg of attitude.
+                assert!(angle < fov + 15f64.to_radians(), "row {k} pd {i}: {angle}");
+                used_narrow += 1;
+            }
+        }
+    });
+    let mut wide = filter_for(&case, q0, Algebra::Structured, false);
+    let mut used_wide = 0;
+    drive(&case, &mut wide, 600, |_, f| {
+        used_wide += f
+            .records()
+            .iter()
+            .filter(|r| matches!(r.sensor, pdcal_filter::Sensor::Photodiode(_)))
+            .count();
+    });
+    assert!(used_narrow > 0 && used_narrow < used_wide / 2, "{used_narrow} vs {used_wide}");
+    assert!(narrow.counts().photodiode.outside_fov > wide.counts().photodiode.outside_fov);
+}
