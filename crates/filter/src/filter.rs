@@ -645,8 +645,11 @@ impl Filter {
                 continue;
             }
             let cos_incidence = self.normal[i].dot(sun_body);
-            // The narrower of the filter's gate and the photodiode's own field of view.
-            let cos_fov = self.noise.cos_fov.max(self.model.photodiodes()[i].cos_fov());
+            // The narrower of the filter's gate and the photodiode's own field of view, if it
+            // has one (without one the gate alone decides, even beyond 90 deg).
+            let cos_fov = self.model.photodiodes()[i]
+                .fov_half_angle_rad
+                .map_or(self.noise.cos_fov, |fov| self.noise.cos_fov.max(fov.cos()));
             if cos_incidence < cos_fov {
                 counts.outside_fov += 1;
                 continue;
