@@ -493,3 +493,40 @@ fn written_files_parse_back_to_the_same_numbers() {
         pdcal_dataset::truth_constants_from_str(&text(pdcal_dataset::TRUTH_RON), &meta).unwrap();
     assert_eq!(Some((truth, constants)), ds.truth);
 }
+
+/// A photodiode's declared field of view (`fov_deg`) is the simulator's too: its output is
+/// zero whenever the Sun is farther than that from its true normal (no albedo here, which
+/// its field of view would also gate), the cosine law inside, and dataset.ron carries it.
+#[test]
+fn a_declared_field_of_view_zeroes_the_output_beyond_it() {
+    let mut s = rax2_short(1800.0);
+    s.effects.clear();
+    s.photodiodes.noise_v = 0.0;
+    let fov_deg = 60.0;
+    s.photodiodes.nominal[1].fov_deg = Some(fov_deg);
+    let out = simulate(&s, 4).unwrap();
+    assert_eq!(out.meta.photodiodes[1].fov_deg, Some(fov_deg));
+    assert_eq!(out.meta.photodiodes[0].fov_deg, None);
+    let pd = out.true_photodiodes[1];
+    assert_eq!(pd.fov_half_angle_rad, Some(fov_deg.to_radians()));
+    let epoch = out.meta.epoch_utc.epoch();
+    let (mut inside, mut outside) = (0, 0);
+    for k in (0..out.truth.len()).filter(|&k| out.truth.eclipse[k] == 1.0) {
+        let Some(y) = out.pd_noise_free_v[1][k] else {
+            continue;
+        };
+        let cos = pd.n_body.dot(&out.truth.sun_body[k]);
+        if cos < fov_deg.to_radians().cos() {
+            assert_eq!(y, 0.0, "row {k}: cos {cos}");
+            outside += 1;
+        } else {
+            let expect = sun_distance_factor(&out.truth, epoch, k) * pd.scale_v * cos;
+            assert!((y - expect).abs() < 1e-9, "row {k}: {y} vs {expect}");
+            inside += 1;
+        }
+    }
+    assert!(
+        inside > 10 && outside > 10,
+        "{inside} inside, {outside} outside"
+    );
+}
