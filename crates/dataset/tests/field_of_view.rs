@@ -33,7 +33,10 @@ fn fields_of_view_are_read_in_degrees() {
     let meta = meta_from_str(&dataset_ron("70.0", "90.0")).unwrap();
     let fov: Vec<Option<f64>> = meta.photodiodes.iter().map(|m| m.fov_deg).collect();
     assert_eq!(fov, [None, Some(70.0), Some(90.0)]);
-    assert_eq!(meta.photodiodes[1].fov_half_angle_rad(), Some(70f64.to_radians()));
+    assert_eq!(
+        meta.photodiodes[1].fov_half_angle_rad(),
+        Some(70f64.to_radians())
+    );
     assert_eq!(meta.photodiodes[0].fov_half_angle_rad(), None);
 }
 

@@ -178,10 +178,7 @@ fn calibrated_photodiodes(run: &CalibrationRun, meta: &DatasetMeta) -> Vec<Photo
             scale_v: p.scale_v,
             n_body: p.n_body(),
             noise_v,
-            fov_half_angle_rad: meta
-                .photodiodes
-                .get(i)
-                .and_then(|m| m.fov_half_angle_rad()),
+            fov_half_angle_rad: meta.photodiodes.get(i).and_then(|m| m.fov_half_angle_rad()),
         })
         .collect()
 }

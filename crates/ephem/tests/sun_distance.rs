@@ -17,7 +17,10 @@ fn perihelion_and_aphelion_bracket_the_year() {
     let perihelion = factor_at("2012-01-05T00:00:00Z", &geocentre);
     let aphelion = factor_at("2012-07-05T00:00:00Z", &geocentre);
     // (1/(1-e))^2 and (1/(1+e))^2, to the Almanac series' 1e-4 in distance.
-    assert!((perihelion - (1.0 - e).powi(-2)).abs() < 5e-4, "{perihelion}");
+    assert!(
+        (perihelion - (1.0 - e).powi(-2)).abs() < 5e-4,
+        "{perihelion}"
+    );
     assert!((aphelion - (1.0 + e).powi(-2)).abs() < 5e-4, "{aphelion}");
     assert!(((perihelion / aphelion) - 1.0 - 0.069).abs() < 2e-3);
 }

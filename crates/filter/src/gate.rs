@@ -84,7 +84,10 @@ mod tests {
             (-1.0, 1.842_700_792_949_715),
         ] {
             let got = erfc(x);
-            assert!((got / expect - 1.0).abs() < 1.5e-7, "erfc({x}) = {got}, {expect}");
+            assert!(
+                (got / expect - 1.0).abs() < 1.5e-7,
+                "erfc({x}) = {got}, {expect}"
+            );
         }
     }
 

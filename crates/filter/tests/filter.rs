@@ -31,7 +31,9 @@ fn filter_with(
     let pds: Vec<Photodiode> = case
         .nominal
         .iter()
-        .map(|&(az, el)| Photodiode::from_az_el_deg(3.7, az, el, 0.015).with_fov_half_angle_rad(fov_rad))
+        .map(|&(az, el)| {
+            Photodiode::from_az_el_deg(3.7, az, el, 0.015).with_fov_half_angle_rad(fov_rad)
+        })
         .collect();
     let m = pds.len();
     let mut model = paper_model(pds, &FilterConfig::default());
@@ -294,10 +296,16 @@ fn magnetometer_is_gated_as_a_vector_by_its_mahalanobis_distance() {
         assert_eq!(records.len(), 3);
         let expect = d2 <= threshold;
         for r in records {
-            assert_eq!(r.accepted, expect, "trial {trial}: d2 {d2}, threshold {threshold}");
+            assert_eq!(
+                r.accepted, expect,
+                "trial {trial}: d2 {d2}, threshold {threshold}"
+            );
         }
         let counts = filter.counts().magnetometer;
-        assert_eq!((counts.accepted, counts.gated), if expect { (3, 0) } else { (0, 3) });
+        assert_eq!(
+            (counts.accepted, counts.gated),
+            if expect { (3, 0) } else { (0, 3) }
+        );
         decided += 1;
     }
     assert_eq!(decided, 200);
@@ -335,7 +343,10 @@ fn a_photodiode_field_of_view_narrower_than_the_gate_limits_the_samples_used() {
             .filter(|r| matches!(r.sensor, pdcal_filter::Sensor::Photodiode(_)))
             .count();
     });
-    assert!(used_narrow > 0 && used_narrow < used_wide / 2, "{used_narrow} vs {used_wide}");
+    assert!(
+        used_narrow > 0 && used_narrow < used_wide / 2,
+        "{used_narrow} vs {used_wide}"
+    );
     assert!(narrow.counts().photodiode.outside_fov > wide.counts().photodiode.outside_fov);
 }
 

@@ -13,7 +13,10 @@ fn calibrate_on(epoch_utc: &str, albedo: &AlbedoModel) -> (Vec<(f64, f64, f64)>,
     scenario.epoch_utc = epoch_utc.to_owned();
     let sim = pdcal_sim::simulate(&scenario, 1).unwrap();
     let references = step_references(&sim.meta, &sim.telemetry).unwrap();
-    let factor = references.iter().map(|r| r.sun_distance_factor()).sum::<f64>()
+    let factor = references
+        .iter()
+        .map(|r| r.sun_distance_factor())
+        .sum::<f64>()
         / references.len() as f64;
     let inputs = RunInputs {
         meta: &sim.meta,
@@ -45,20 +48,30 @@ fn scale_factors_are_the_same_at_perihelion_aphelion_and_the_papers_dates() {
     let mut runs = Vec::new();
     for (name, epoch) in dates {
         let (scales, factor) = calibrate_on(epoch, &albedo);
-        assert!(scales.len() >= 12, "{name}: {} calibrated photodiodes", scales.len());
+        assert!(
+            scales.len() >= 12,
+            "{name}: {} calibrated photodiodes",
+            scales.len()
+        );
         let worst_sigmas = scales
             .iter()
             .map(|(c, est, sigma)| (est - c).abs() / sigma)
             .fold(0.0, f64::max);
         let mean_error_percent = 100.0
-            * scales.iter().map(|(c, est, _)| (est / c - 1.0).abs()).sum::<f64>()
+            * scales
+                .iter()
+                .map(|(c, est, _)| (est / c - 1.0).abs())
+                .sum::<f64>()
             / scales.len() as f64;
         eprintln!(
             "{name} ({epoch}): (1 AU/r)^2 = {factor:.4}, {} photodiodes, mean |C error| \
              {mean_error_percent:.3} %, worst {worst_sigmas:.2} sigma",
             scales.len()
         );
-        assert!(worst_sigmas <= 3.0, "{name}: worst C error {worst_sigmas} sigma");
+        assert!(
+            worst_sigmas <= 3.0,
+            "{name}: worst C error {worst_sigmas} sigma"
+        );
         runs.push((name, factor, scales));
     }
     // The dates span the year's range of the factor: without it C would absorb the 7 %.

@@ -224,14 +224,10 @@ fn the_sun_distance_factor_rescales_the_outputs() {
                 sun_distance_factor: factor,
                 ..SunVectorOptions::default()
             };
-            let (
-                SunEstimate::Observable(with),
-                SunEstimate::Observable(without),
-            ) = (
+            let (SunEstimate::Observable(with), SunEstimate::Observable(without)) = (
                 estimate_sun_vector(&pds, &out, None, &told).unwrap(),
                 estimate_sun_vector(&pds, &out, None, &SunVectorOptions::default()).unwrap(),
-            )
-            else {
+            ) else {
                 continue;
             };
             assert!((with.vector_body - sun).norm() < 1e-12);
