@@ -74,6 +74,19 @@ pub struct NominalMount {
     /// when it has no `temp_pdNN_C` of its own ([`crate::is_panel_name`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub panel: Option<String>,
+    /// Field of view: the half-angle from the normal, degrees, `0 < fov_deg <= 90`, beyond
+    /// which the photodiode sees nothing (neither the direct Sun nor albedo). Absent: the
+    /// cosine law holds to 90 deg.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fov_deg: Option<f64>,
+}
+
+impl NominalMount {
+    /// The field-of-view half-angle in radians, if the entry gives one (the model's
+    /// `fov_half_angle_rad`).
+    pub fn fov_half_angle_rad(&self) -> Option<f64> {
+        self.fov_deg.map(f64::to_radians)
+    }
 }
 
 /// Optional 1-sigma noise hints for filter tuning; each may be absent.
@@ -334,7 +347,23 @@ fn check_tle_elements(file: &Path, text: &str, line2: &str) -> Result<(), Datase
 }
 
 fn check_mounts(file: &Path, text: &str, mounts: &[NominalMount]) -> Result<(), DatasetError> {
+    let mut fov_seen = 0;
     for (i, m) in mounts.iter().enumerate() {
+        if let Some(fov) = m.fov_deg {
+            if !(fov > 0.0 && fov <= 90.0) {
+                let kind = ErrorKind::OutOfRange {
+                    value: fov,
+                    rule: "a field-of-view half-angle must be in (0, 90] deg".into(),
+                };
+                // The entries before this one that give the field hold the earlier keys.
+                let err = match crate::ron_text::locate_nth_key(text, "fov_deg", fov_seen) {
+                    Some((line, col)) => DatasetError::at(file, line, Some(col), kind),
+                    None => DatasetError::whole_file(file, kind),
+                };
+                return Err(err.named(format!("photodiodes[{i}].fov_deg")));
+            }
+            fov_seen += 1;
+        }
         for (name, v) in [
             ("azimuth_deg", m.azimuth_deg),
             ("elevation_deg", m.elevation_deg),

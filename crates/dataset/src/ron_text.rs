@@ -91,6 +91,21 @@ pub(crate) fn locate_key(text: &str, key: &str) -> Option<(usize, usize)> {
         .map(|(i, _)| line_col(text, i))
 }
 
+/// Line and column of the `n`-th (zero-based) `key:` outside `//` comments: the key of the
+/// `n`-th list entry that gives an optional field.
+pub(crate) fn locate_nth_key(text: &str, key: &str, n: usize) -> Option<(usize, usize)> {
+    let is_ident = |c: char| c.is_alphanumeric() || c == '_';
+    text.match_indices(key)
+        .filter(|&(i, _)| {
+            let line_start = text[..i].rfind('\n').map_or(0, |j| j + 1);
+            let before_ok = !text[..i].chars().next_back().is_some_and(is_ident);
+            let after = text[i + key.len()..].trim_start();
+            before_ok && after.starts_with(':') && !text[line_start..i].contains("//")
+        })
+        .nth(n)
+        .map(|(i, _)| line_col(text, i))
+}
+
 /// Line and column of the opening quote of the string literal holding `needle`.
 pub(crate) fn locate_str(text: &str, needle: &str) -> Option<(usize, usize)> {
     if needle.is_empty() {

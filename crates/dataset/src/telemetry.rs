@@ -76,7 +76,7 @@ impl Telemetry {
             t_s: rows.iter().map(|&k| self.t_s[k]).collect(),
             gyro_rad_s: pick3(&self.gyro_rad_s),
             mag_nt: self.mag_nt.as_deref().map(pick3),
-            pd_v: self.pd_v.iter().map(|c| pick(c)).collect(),
+            pd_v: self.pd_v.iter().map(pick).collect(),
             r_gcrf_km: self.r_gcrf_km.as_deref().map(pick3),
             temperature_c: self
                 .temperature_c

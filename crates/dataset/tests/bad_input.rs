@@ -135,7 +135,7 @@ fn unknown_field() {
     assert_eq!(place(&e), ("dataset.ron".into(), Some(11), Some(49), None));
     assert_eq!(
         shown(&e),
-        "dataset.ron:11:49: unknown field `roll_deg`, expected one of azimuth_deg, elevation_deg, panel"
+        "dataset.ron:11:49: unknown field `roll_deg`, expected one of azimuth_deg, elevation_deg, panel, fov_deg"
     );
 
     // And in truth.ron, inside an effect.

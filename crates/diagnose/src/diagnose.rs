@@ -861,12 +861,7 @@ fn filter_run(
     filter: &FilterConfig,
     telemetry: &Telemetry,
 ) -> Result<CalibrationRun, DiagnoseError> {
-    let nominal: Vec<Photodiode> = inputs
-        .meta
-        .photodiodes
-        .iter()
-        .map(|m| Photodiode::from_az_el_deg(1.0, m.azimuth_deg, m.elevation_deg, 0.0))
-        .collect();
+    let nominal: Vec<Photodiode> = pdcal_filter::nominal_photodiodes(inputs.meta);
     let model = spec.measurement_model(nominal, filter)?;
     // Without albedo in the model, the filter's start (photodiode Sun vector) must not
     // remove it either.

@@ -35,9 +35,9 @@
 //! |---|---|---|
 //! | `epsilon` (Eq. 25), photodiode | [`residuals::PdSample::residual_v`] | V |
 //! | `C E_a/E_AM0` (Eq. 15) | [`residuals::PdSample::albedo_v`] | V |
-//! | `C n^T A s` (Eq. 15) | [`residuals::PdSample::direct_v`] | V |
+//! | `(1 AU/r_sun)^2 C n^T A s` (Eq. 15, `C` at 1 AU) | [`residuals::PdSample::direct_v`] | V |
 //! | `nu` (illuminated fraction) | [`residuals::PdSample::sun_fraction`] | - |
-//! | `C n^T (w x s)` | [`residuals::PdSample::time_offset_v_s`] | V/s |
+//! | `(1 AU/r_sun)^2 C n^T (w x s)` | [`residuals::PdSample::time_offset_v_s`] | V/s |
 //! | magnetometer residual | [`residuals::MagSample::residual_nt`] | nT |
 //! | attitude step beyond gyro | [`residuals::GyroSample::residual_rad`] | rad |
 //!

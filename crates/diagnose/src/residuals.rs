@@ -47,11 +47,12 @@ pub struct PdSample {
     pub sun_fraction: f64,
     /// `C E_a/E_AM0` at the estimated normal and attitude, V (the albedo regressor).
     pub albedo_v: f64,
-    /// `C n^T A s` where lit in the hard-shadow sense (else 0), V.
+    /// `F C n^T A s` where lit in the hard-shadow sense (else 0), V; `F = (1 AU / r_sun)^2`
+    /// as in the model's direct-Sun term (`C` is the output at 1 AU).
     pub direct_v: f64,
-    /// `C max(n^T A s, 0)` whatever the shadow, V.
+    /// `F C max(n^T A s, 0)` whatever the shadow, V.
     pub unshadowed_v: f64,
-    /// `C n^T (w x s)` where lit (else 0), V/s: the time-offset signature.
+    /// `F C n^T (w x s)` where lit (else 0), V/s: the time-offset signature.
     pub time_offset_v_s: f64,
     /// `C dI/dC`: the model output's sensitivity to a relative scale change, V.
     pub scale_v: f64,
@@ -164,17 +165,20 @@ fn attitude_track(run: &CalibrationRun, tel: &Telemetry) -> Vec<StepEstimate> {
     back
 }
 
-/// The photodiodes of a calibration, no field-of-view gate (the cosine law to 90 deg).
-fn calibrated_photodiodes(run: &CalibrationRun) -> Vec<Photodiode> {
+/// The photodiodes of a calibration with the field of view dataset.ron declares (`fov_deg`),
+/// else none: the cosine law to 90 deg, so that samples the filter's own gate left out are
+/// still predicted.
+fn calibrated_photodiodes(run: &CalibrationRun, meta: &DatasetMeta) -> Vec<Photodiode> {
     let noise_v = run.sensor_sigmas.photodiode_v;
     run.calibration
         .photodiodes
         .iter()
-        .map(|p| Photodiode {
+        .enumerate()
+        .map(|(i, p)| Photodiode {
             scale_v: p.scale_v,
             n_body: p.n_body(),
             noise_v,
-            fov_half_angle_rad: None,
+            fov_half_angle_rad: meta.photodiodes.get(i).and_then(|m| m.fov_half_angle_rad()),
         })
         .collect()
 }
@@ -201,7 +205,7 @@ pub fn residuals(
             found: inputs.references.len(),
         });
     }
-    let photodiodes = calibrated_photodiodes(run);
+    let photodiodes = calibrated_photodiodes(run, inputs.meta);
     let uncertainty = calibration_sigmas(run);
     let model = spec.measurement_model(photodiodes.clone(), inputs.config)?;
     let offset_s = spec
@@ -387,16 +391,19 @@ fn row_samples(
         })?;
     let sun_body = attitude * reference.sun_gcrf_unit;
     let sun_fraction = sun_fraction_at(inputs, k, offset_s);
+    let sun_distance_factor = reference.sun_distance_factor();
     let scene = Scene {
         attitude,
         sun_body,
         sun_fraction,
+        sun_distance_factor,
         rate_body_rad_s: rate,
         t_s,
         albedo: Some(&*view as &dyn AlbedoIrradiance),
         temperature_c: temperatures,
     };
-    let hard = ShadowMode::Hard.factor(sun_fraction);
+    // The candidates' direct-Sun signatures carry the distance factor as the model does.
+    let hard = ShadowMode::Hard.factor(sun_fraction) * sun_distance_factor;
     let a_t = attitude.transpose();
     let w_cross_s = rate.cross(&sun_body);
     let mut known = vec![0.0; photodiodes.len()];
@@ -411,7 +418,7 @@ fn row_samples(
         let pre = model.pre_stage_output(i, &scene)?;
         let predicted = partials.value_v;
         let cos = pd.n_body.dot(&sun_body);
-        let lit = if cos > 0.0 { hard } else { 0.0 };
+        let lit = if pd.accepts(cos) { hard } else { 0.0 };
         let direct = lit * pd.scale_v * cos;
         known[i] = pre - model_direct(model, i, &scene)?;
         outputs[i] = y;
@@ -425,9 +432,13 @@ fn row_samples(
             residual_v: y - predicted,
             cos_incidence: cos,
             sun_fraction,
-            albedo_v: pd.scale_v * view.ratio(&(a_t * pd.n_body), 0.0),
+            albedo_v: pd.scale_v * view.ratio(&(a_t * pd.n_body), pd.cos_fov()),
             direct_v: direct,
-            unshadowed_v: pd.scale_v * cos.max(0.0),
+            unshadowed_v: if pd.accepts(cos) {
+                sun_distance_factor * pd.scale_v * cos
+            } else {
+                0.0
+            },
             time_offset_v_s: lit * pd.scale_v * pd.n_body.dot(&w_cross_s),
             scale_v: partials.d_scale * pd.scale_v,
             temperature_c: temperatures.get(i).copied().unwrap_or(f64::NAN),
@@ -438,7 +449,10 @@ fn row_samples(
         });
     }
     if complete && sun_fraction >= FULL_SUN {
-        let options = SunVectorOptions::default();
+        let options = SunVectorOptions {
+            sun_distance_factor,
+            ..SunVectorOptions::default()
+        };
         if let SunEstimate::Observable(s) =
             estimate_sun_vector(photodiodes, &outputs, Some(&known), &options)?
         {

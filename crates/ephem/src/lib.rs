@@ -93,5 +93,5 @@ pub mod tle;
 pub use columns::PositionColumns;
 pub use orbit::{OrbitError, OrbitSource, OrbitState, TemeState, TleLine, TleOrbit};
 pub use reference::{Reference, ReferenceError, ReferenceModel};
-pub use sun::{LowPrecisionSun, SunEphemeris};
+pub use sun::{LowPrecisionSun, SunEphemeris, sun_distance_factor};
 pub use time::TimeError;

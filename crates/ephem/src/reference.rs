@@ -71,6 +71,14 @@ pub struct Reference {
     pub gcrf_to_itrf: Matrix3<f64>,
 }
 
+impl Reference {
+    /// `(1 AU / r_sun)^2`, `r_sun` the spacecraft-to-Sun distance
+    /// ([`crate::sun_distance_factor`]).
+    pub fn sun_distance_factor(&self) -> f64 {
+        crate::sun_distance_factor(&self.r_gcrf_km, &self.sun_gcrf_km)
+    }
+}
+
 /// Orbit, Sun, field and eclipse models bundled for per-sample evaluation.
 pub struct ReferenceModel {
     epoch: Epoch,

@@ -8,6 +8,14 @@ use crate::frames;
 /// Astronomical unit, km (IAU 2012).
 pub const AU_KM: f64 = 149_597_870.7;
 
+/// `(1 AU / r)^2` with `r` the distance from the spacecraft at `r_sat_gcrf_km` to the Sun at
+/// `sun_gcrf_km` (geocentric): the direct solar irradiance at the spacecraft relative to its
+/// value at 1 AU. A non-finite or zero distance gives a non-finite factor, which callers
+/// that check their inputs reject.
+pub fn sun_distance_factor(r_sat_gcrf_km: &Vector3<f64>, sun_gcrf_km: &Vector3<f64>) -> f64 {
+    (AU_KM / (sun_gcrf_km - r_sat_gcrf_km).norm()).powi(2)
+}
+
 /// Where the Sun is, seen from the Earth's centre.
 pub trait SunEphemeris {
     /// Geocentric Sun position in GCRF at the UTC epoch `t`, km.

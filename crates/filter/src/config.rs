@@ -58,8 +58,11 @@ pub struct FilterConfig {
     pub gyro_noise_inflation: f64,
     /// Extra attitude process noise per step, as a fraction of the measured rate change
     /// between consecutive gyro samples times the step: `(f |w_k - w_k-1| dt)^2` per axis.
-    /// Default 0.3: covers rate curvature within a step on fast tumbles, vanishes when the
-    /// rate is steady.
+    /// Default 0.3: covers rate curvature within a step on fast tumbles. It does not vanish
+    /// for a steady rate: gyro noise alone (`E|dw|^2 = 6 sigma^2`) adds 24 % to the attitude
+    /// process noise (`(1.5 sigma)^2 dt^2`). That part is kept as tuning: every variant that
+    /// removed it (subtracting `sqrt(2)` or `sqrt(6) sigma` from `|dw|`, with or without a
+    /// larger `gyro_noise_inflation`) made the rax2-like attitude worse (docs/validation.md).
     pub rate_change_fraction: f64,
     /// Gyro bias random walk, rad/s per sqrt(s). Default 2e-6 (0.01 deg/s over 2 h).
     pub gyro_bias_walk_rad_s_sqrt_s: f64,

@@ -33,7 +33,8 @@ fn full_row(n: usize, idx: &[usize], val: &[f64]) -> DVector<f64> {
 }
 
 /// The step's rows one after the other (the textbook sequential filter): innovation with
-/// the corrections so far, gate `nu^2 <= gate2 s`, [`joseph_update`].
+/// the corrections so far, gate `nu^2 <= gate2 s` for rows not decided beforehand,
+/// [`joseph_update`].
 pub(crate) fn sequential_update(
     p: &mut DMatrix<f64>,
     rows: &Rows,
@@ -48,7 +49,7 @@ pub(crate) fn sequential_update(
         let h_dx: f64 = idx.iter().zip(val).map(|(&k, v)| v * dx[k]).sum();
         let nu = innovation - h_dx;
         let spread = innovation_variance(p, idx, val, r);
-        let accepted = nu * nu <= gate2 * spread;
+        let accepted = rows.accepts(l, nu, spread, gate2);
         if accepted {
             joseph_update(p, dx, idx, val, nu, r);
         }

@@ -49,7 +49,9 @@ pub struct FilterNoise {
     pub albedo_sigma_ratio: f64,
     /// Magnetometer sigma per axis, nT.
     pub mag_sigma_nt: f64,
-    /// Gate in sigmas.
+    /// Gate in sigmas: each photodiode row `nu^2 <= g^2 s`; the magnetometer's 3-vector by
+    /// its Mahalanobis distance at the chi-square (3 dof) threshold of the same tail
+    /// probability ([`crate::gate`]).
     pub gate_sigmas: f64,
     /// Cosine of the largest incidence angle used.
     pub cos_fov: f64,
@@ -131,7 +133,8 @@ pub struct SensorCounts {
 pub struct UpdateCounts {
     /// Photodiode scalar updates.
     pub photodiode: SensorCounts,
-    /// Magnetometer scalar updates (one per axis).
+    /// Magnetometer scalar updates (one per axis; the three axes of a sample are gated
+    /// together, so `gated` grows by 3 per rejected sample).
     pub magnetometer: SensorCounts,
 }
 
@@ -164,6 +167,8 @@ pub struct Filter {
     layout: StateLayout,
     model: MeasurementModel,
     noise: FilterNoise,
+    /// Squared Mahalanobis threshold of the magnetometer vector (from `noise.gate_sigmas`).
+    mag_gate2: f64,
     algebra: Algebra,
     q: Quat,
     bias: Vector3<f64>,
@@ -244,8 +249,8 @@ struct AlbedoScratch {
 }
 
 impl Filter {
-    /// A filter over `model` (its photodiodes get the initial scales and normals) with the
-    /// state `layout` built from the same model.
+    /// A filter over `model` (its photodiodes get the initial scales and normals and keep
+    /// their fields of view) with the state `layout` built from the same model.
     pub fn new(
         mut model: MeasurementModel,
         mut layout: StateLayout,
@@ -300,7 +305,6 @@ impl Filter {
         {
             pd.scale_v = *c;
             pd.n_body = *nb;
-            pd.fov_half_angle_rad = None;
         }
         let partials = Partials {
             d_parameters: vec![0.0; model.parameter_count()],
@@ -331,6 +335,7 @@ impl Filter {
             },
             layout,
             model,
+            mag_gate2: crate::gate::chi_square_3_threshold(noise.gate_sigmas),
             noise,
             algebra,
             q: init.q,
@@ -527,14 +532,24 @@ impl Filter {
         self.counts.magnetometer.not_sampled += 3;
     }
 
-    /// The three magnetometer rows `[(A b) x]` at the prior attitude `attitude`.
+    /// The three magnetometer rows `[(A b) x]` at the prior attitude `attitude`, accepted or
+    /// rejected together: the innovation `nu = b_meas - A b` against
+    /// `S = H P_aa H^T + R` by its squared Mahalanobis distance `nu^T S^-1 nu <= mag_gate2`
+    /// (a test that does not depend on the body axes; [`crate::gate`]). An `S` that is not
+    /// positive definite rejects the sample.
     fn mag_rows(&mut self, attitude: &Matrix3<f64>, mag: &Vector3<f64>, b_gcrf: &Vector3<f64>) {
         let b_body = attitude * b_gcrf;
         let h = skew(&b_body);
         let r = self.noise.mag_sigma_nt.powi(2) + self.mag_second_order_var(&b_body);
+        let nu = mag - b_body;
+        let p_aa: Matrix3<f64> = self.p.fixed_view::<3, 3>(ATTITUDE, ATTITUDE).into_owned();
+        let s = h * p_aa * h.transpose() + Matrix3::identity() * r;
+        let accepted = s
+            .cholesky()
+            .is_some_and(|c| nu.dot(&c.solve(&nu)) <= self.mag_gate2);
         let rows = &mut self.scratch.rows;
         for axis in 0..3 {
-            rows.begin(mag[axis] - b_body[axis], r);
+            rows.begin_decided(nu[axis], r, accepted);
             for k in 0..3 {
                 rows.entry(ATTITUDE + k, h[(axis, k)]);
             }
@@ -593,6 +608,7 @@ impl Filter {
         albedo: Option<&dyn AlbedoIrradiance>,
     ) -> Result<(), FilterError> {
         let sun_body = attitude * reference.sun_gcrf_unit;
+        let sun_distance_factor = reference.sun_distance_factor();
         self.select_photodiodes(pd_v, reference, &sun_body);
         let albedo_used = albedo.filter(|_| !self.scratch.selected.is_empty());
         if let Some(albedo) = albedo_used {
@@ -608,6 +624,7 @@ impl Filter {
                 attitude: *attitude,
                 sun_body,
                 sun_fraction: reference.sun_fraction,
+                sun_distance_factor,
                 rate_body_rad_s: self.rate_est,
                 t_s,
                 albedo: albedo_used
@@ -629,8 +646,9 @@ impl Filter {
     }
 
     /// The photodiodes this step updates, into `scratch.selected`: sampled, lit (full Sun),
-    /// in use and inside the field of view at the prior (`sun_body`); the others counted by
-    /// why they were left out.
+    /// in use and inside the field of view at the prior (`sun_body`): the configured gate and
+    /// the photodiode's own (the model's `fov_half_angle_rad`, from dataset.ron), whichever
+    /// is narrower; the others counted by why they were left out.
     fn select_photodiodes(
         &mut self,
         pd_v: &[Option<f64>],
@@ -655,7 +673,12 @@ impl Filter {
                 continue;
             }
             let cos_incidence = self.normal[i].dot(sun_body);
-            if cos_incidence < self.noise.cos_fov {
+            // The narrower of the filter's gate and the photodiode's own field of view, if it
+            // has one (without one the gate alone decides, even beyond 90 deg).
+            let cos_fov = self.model.photodiodes()[i]
+                .fov_half_angle_rad
+                .map_or(self.noise.cos_fov, |fov| self.noise.cos_fov.max(fov.cos()));
+            if cos_incidence < cos_fov {
                 counts.outside_fov += 1;
                 continue;
             }

@@ -1,6 +1,6 @@
-//! Initialisation as the paper (IV.B): `C` = maximum measured output, nominal normals,
-//! attitude by the q-method from the magnetometer and the photodiode Sun vector at the first
-//! usable sample, zero gyro bias.
+//! Initialisation as the paper (IV.B): `C` = maximum measured output (referred to 1 AU),
+//! nominal normals, attitude by the q-method from the magnetometer and the photodiode Sun
+//! vector at the first usable sample, zero gyro bias.
 
 use std::ops::Range;
 
@@ -33,16 +33,29 @@ pub struct InitialScales {
     pub from_median: Vec<bool>,
 }
 
-/// Maximum output of each photodiode over the data set (the paper's initial `C`); a
-/// never-lit or dim photodiode gets the median of the lit photodiodes' maxima.
+/// Maximum output of each photodiode over the data set, each sample divided by the Sun's
+/// distance factor `(1 AU / r_sun)^2` of its row (`references`, one per row), so that the
+/// initial `C` is, like the state, the output at 1 AU (the paper's initial `C`, which
+/// ignored the 3 % annual swing); a never-lit or dim photodiode gets the median of the lit
+/// photodiodes' maxima.
 pub fn initial_scales(
     telemetry: &Telemetry,
+    references: &References<'_>,
     threshold_v: f64,
 ) -> Result<InitialScales, FilterError> {
+    crate::error::check_len("references", telemetry.len(), references.len())?;
+    let factors: Vec<f64> = (0..references.len())
+        .map(|k| references.at(k).map(|r| r.sun_distance_factor()))
+        .collect::<Result<_, _>>()?;
     let maxima: Vec<f64> = telemetry
         .pd_v
         .iter()
-        .map(|col| col.iter().flatten().fold(f64::NEG_INFINITY, f64::max))
+        .map(|col| {
+            col.iter()
+                .zip(&factors)
+                .filter_map(|(y, f)| y.map(|y| y / f))
+                .fold(f64::NEG_INFINITY, f64::max)
+        })
         .collect();
     let used: Vec<bool> = maxima.iter().map(|&m| m > threshold_v).collect();
     let mut lit: Vec<f64> = maxima
@@ -137,7 +150,6 @@ pub fn find_start(
 ) -> Result<Result<Start, String>, FilterError> {
     let tel = inputs.telemetry;
     let mut view = AlbedoView::new();
-    let options = SunVectorOptions::default();
     let sin_min_angle = config.initial_min_sun_field_angle_deg.to_radians().sin();
     // The reason of the row that came furthest through the checks: a row failing an
     // earlier check must not hide why a better row failed.
@@ -193,6 +205,10 @@ pub fn find_start(
             .map(|&i| tel.pd_v[i].get(k).unwrap_or(0.0))
             .collect();
         let mut known = vec![0.0; pds.len()];
+        let options = SunVectorOptions {
+            sun_distance_factor: reference.sun_distance_factor(),
+            ..SunVectorOptions::default()
+        };
         let Some(mut sun_body) = sun_direction(&pds, &outputs, &known, &options)? else {
             reached(5);
             continue;

@@ -92,6 +92,7 @@ pub mod config;
 pub mod dense;
 mod error;
 pub mod filter;
+pub mod gate;
 pub mod guard;
 pub mod init;
 pub mod layout;
@@ -144,6 +145,12 @@ pub struct StepReference {
 }
 
 impl StepReference {
+    /// `(1 AU / r_sun)^2`, `r_sun` the spacecraft-to-Sun distance: the direct irradiance
+    /// relative to 1 AU, where the scale factors are defined.
+    pub fn sun_distance_factor(&self) -> f64 {
+        pdcal_ephem::sun_distance_factor(&self.r_gcrf_km, &self.sun_gcrf_km)
+    }
+
     /// The albedo `model`'s view from this reference's position and Sun into `view`; errors
     /// name the telemetry row `index`.
     pub(crate) fn albedo_into(

@@ -67,12 +67,15 @@ pub fn calibrate(
     )
 }
 
-/// The dataset's nominal photodiodes (unit scale, `dataset.ron` normals), for
-/// [`paper_model`].
+/// The dataset's nominal photodiodes (unit scale, `dataset.ron` normals and fields of view),
+/// for [`paper_model`].
 pub fn nominal_photodiodes(meta: &DatasetMeta) -> Vec<Photodiode> {
     meta.photodiodes
         .iter()
-        .map(|m| Photodiode::from_az_el_deg(1.0, m.azimuth_deg, m.elevation_deg, 0.0))
+        .map(|m| {
+            Photodiode::from_az_el_deg(1.0, m.azimuth_deg, m.elevation_deg, 0.0)
+                .with_fov_half_angle_rad(m.fov_half_angle_rad())
+        })
         .collect()
 }
 
@@ -353,7 +356,11 @@ impl<'a> ForwardPass<'a> {
             }
             _ => None,
         };
-        let initial = initial_scales(tel, config.min_lit_output_sigmas * sigmas.photodiode_v)?;
+        let initial = initial_scales(
+            tel,
+            &inputs.references,
+            config.min_lit_output_sigmas * sigmas.photodiode_v,
+        )?;
         let used = initial.used.clone();
         let max_scales = initial.scale_v.clone();
         let (scale_v, scale_sigma_v, n_body): (Vec<f64>, Vec<f64>, Vec<Vector3<f64>>) = match prior

@@ -32,6 +32,9 @@ pub(crate) struct Rows {
     innovation: Vec<f64>,
     /// Measurement variance.
     r: Vec<f64>,
+    /// A fate settled before the sequence (a row of a vector gated as a whole), else `None`:
+    /// the scalar gate decides.
+    decided: Vec<Option<bool>>,
 }
 
 impl Rows {
@@ -45,6 +48,7 @@ impl Rows {
             val: Vec::with_capacity(entries),
             innovation: Vec::with_capacity(rows),
             r: Vec::with_capacity(rows),
+            decided: Vec::with_capacity(rows),
         }
     }
 
@@ -56,6 +60,7 @@ impl Rows {
         self.val.clear();
         self.innovation.clear();
         self.r.clear();
+        self.decided.clear();
     }
 
     /// Number of rows.
@@ -68,7 +73,22 @@ impl Rows {
     pub(crate) fn begin(&mut self, innovation: f64, r: f64) {
         self.innovation.push(innovation);
         self.r.push(r);
+        self.decided.push(None);
         self.start.push(self.idx.len());
+    }
+
+    /// As [`Rows::begin`] for a row whose acceptance was decided with the other components
+    /// of its vector (the magnetometer's Mahalanobis gate): the scalar gate is not applied.
+    pub(crate) fn begin_decided(&mut self, innovation: f64, r: f64, accepted: bool) {
+        self.begin(innovation, r);
+        if let Some(d) = self.decided.last_mut() {
+            *d = Some(accepted);
+        }
+    }
+
+    /// Whether row `l` passes: its settled fate, else `nu^2 <= gate2 s`.
+    pub(crate) fn accepts(&self, l: usize, nu: f64, spread: f64, gate2: f64) -> bool {
+        self.decided[l].unwrap_or(nu * nu <= gate2 * spread)
     }
 
     /// Appends a non-zero `(state, value)` to the last row.
@@ -115,7 +135,7 @@ pub(crate) struct Workspace {
 /// Applies `rows` to the prior `p` (`n x n`, column-major, `n` that of `pending`): outcomes
 /// per row in `outcome`, the state correction added to `dx` (length `n`, zero on entry for
 /// a step), and the accepted rows' `w_l` as the columns of `pending`. Gate:
-/// `nu^2 <= gate2 s`.
+/// `nu^2 <= gate2 s` for rows not decided beforehand ([`Rows::accepts`]).
 pub(crate) fn update(
     p: &[f64],
     rows: &Rows,
@@ -152,7 +172,7 @@ pub(crate) fn update(
         let h_dx: f64 = idx.iter().zip(val).map(|(&k, v)| v * dx[k]).sum();
         let spread = hph + r;
         let nu = innovation - h_dx;
-        let accepted = nu * nu <= gate2 * spread;
+        let accepted = rows.accepts(l, nu, spread, gate2);
         outcome.push(Outcome {
             residual: nu,
             spread,

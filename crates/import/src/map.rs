@@ -442,6 +442,7 @@ pub(crate) fn mounts(spec: &MapSpec) -> Vec<NominalMount> {
             azimuth_deg: p.azimuth_deg,
             elevation_deg: p.elevation_deg,
             panel: p.panel.clone(),
+            fov_deg: None,
         })
         .collect()
 }

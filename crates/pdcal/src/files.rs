@@ -15,6 +15,10 @@ use crate::output::{OutputDir, write_file};
 /// Version of the output files' layout (cli-contract.md).
 pub const OUTPUT_FORMAT_VERSION: u32 = 1;
 
+/// The Sun's distance, AU, at which `C` (`scale_V`) is defined: the model's direct-Sun term
+/// carries `(1 AU / r_sun)^2` (`pdcal_photodiode::DirectSun`).
+pub const SCALE_REFERENCE_DISTANCE_AU: f64 = 1.0;
+
 /// `summary.json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct Summary {
@@ -26,6 +30,10 @@ pub struct Summary {
     pub mode: &'static str,
     /// Whether magnetometer updates were made.
     pub magnetometer_used: bool,
+    /// The Sun's distance, AU, at which the scale factors are defined (always
+    /// [`SCALE_REFERENCE_DISTANCE_AU`]): `scale_V` is the output at that distance and
+    /// normal incidence, whatever the Sun's distance on the data set's dates.
+    pub scale_reference_distance_au: f64,
     /// Per photodiode, in pdNN order.
     pub photodiodes: Vec<PdSummary>,
     /// Final gyro bias, rad/s, body.
@@ -124,7 +132,7 @@ fn photodiode_flag(
 #[derive(Debug, Clone, Serialize)]
 #[allow(non_snake_case)]
 pub struct PdInitial {
-    /// Maximum measured output, V.
+    /// Maximum measured output referred to 1 AU (each sample divided by `(1 AU / r_sun)^2`), V.
     pub scale_V: f64,
     /// Nominal azimuth, deg.
     pub azimuth_deg: f64,
@@ -364,6 +372,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
                     with_magnetometer: true
                 }
         ),
+        scale_reference_distance_au: SCALE_REFERENCE_DISTANCE_AU,
         photodiodes,
         gyro_bias_rad_s: run.calibration.gyro_bias_rad_s,
         sun_vector_magnitude: MagnitudeSummary {

@@ -88,7 +88,6 @@ pub fn metrics_along(
         .collect();
     let initial = photodiodes(&run.initial, noise_v, hemisphere);
     let calibrated = photodiodes(&run.calibration, noise_v, hemisphere);
-    let options = SunVectorOptions::default();
     let m = meta.photodiodes.len();
     let mut out = SunVectorMetrics::default();
     let mut view = AlbedoView::new();
@@ -107,6 +106,11 @@ pub fn metrics_along(
             &reference.sun_gcrf_km,
             &reference.gcrf_to_itrf,
         )?;
+        // The scales are the outputs at 1 AU: |s| = 1 needs the sample's distance factor.
+        let options = SunVectorOptions {
+            sun_distance_factor: reference.sun_distance_factor(),
+            ..SunVectorOptions::default()
+        };
         let a_t = q.attitude_matrix().transpose();
         albedo_volts(&view, &initial, &a_t, &mut known_initial);
         albedo_volts(&view, &calibrated, &a_t, &mut known_cal);

@@ -1,8 +1,8 @@
 //! A dataset written by hand in the dataset format, without the simulator, calibrates: the
 //! filter reads only through the dataset reader and assumes nothing about who wrote the data.
 //!
-//! The data are built here from first principles (a precessing tumble, the cosine law
-//! plus TOMS albedo, Gaussian noise) and written as plain text: `orbit: PositionColumns`
+//! The data are built here from first principles (a precessing tumble, the cosine law at
+//! the Sun's distance plus TOMS albedo, Gaussian noise) and written as plain text: `orbit: PositionColumns`
 //! with `r_*_km` columns instead of a TLE, the set starts in eclipse (the RAX-2-like orbit is
 //! in Earth's shadow for its first ~24 minutes), outputs in the dark are noisy and negative,
 //! and the magnetometer runs at half the rate of the other sensors (empty cells).
@@ -105,7 +105,12 @@ fn write_dataset(dir: &std::path::Path) {
             .compute_into(&mut view, &r.r_gcrf_km, &r.sun_gcrf_km, &r.gcrf_to_itrf)
             .unwrap();
         let s_body = a * r.sun_gcrf_unit;
-        let lit = if r.sun_fraction > 0.5 { 1.0 } else { 0.0 };
+        // SCALE_V are the outputs at 1 AU: the direct Sun scales with (1 AU / r_sun)^2.
+        let lit = if r.sun_fraction > 0.5 {
+            r.sun_distance_factor()
+        } else {
+            0.0
+        };
         for (i, c) in SCALE_V.iter().enumerate() {
             let n = true_normal(i);
             let direct = lit * c * n.dot(&s_body).max(0.0);

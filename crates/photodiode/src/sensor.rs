@@ -126,6 +126,10 @@ pub struct Scene<'a> {
     pub sun_body: Vector3<f64>,
     /// Illuminated fraction of the solar disc, 0 (umbra) .. 1 (full Sun), from an eclipse model.
     pub sun_fraction: f64,
+    /// `(1 AU / r_sun)^2`, `r_sun` the spacecraft-to-Sun distance: the direct solar
+    /// irradiance relative to its value at 1 AU, at which the scale factors `C` are defined.
+    /// 1 in [`Scene::new`]; between about 0.967 (aphelion) and 1.034 (perihelion).
+    pub sun_distance_factor: f64,
     /// Body angular rate relative to GCRF, body frame, rad/s (for `time-offset`).
     pub rate_body_rad_s: Vector3<f64>,
     /// Time since the data set epoch, s (for `scale-drift`).
@@ -144,6 +148,7 @@ impl std::fmt::Debug for Scene<'_> {
             .field("attitude", &self.attitude)
             .field("sun_body", &self.sun_body)
             .field("sun_fraction", &self.sun_fraction)
+            .field("sun_distance_factor", &self.sun_distance_factor)
             .field("rate_body_rad_s", &self.rate_body_rad_s)
             .field("t_s", &self.t_s)
             .field("albedo", &self.albedo.is_some())
@@ -161,6 +166,7 @@ impl<'a> Scene<'a> {
             attitude,
             sun_body: attitude * sun_gcrf,
             sun_fraction: 1.0,
+            sun_distance_factor: 1.0,
             rate_body_rad_s: Vector3::zeros(),
             t_s: 0.0,
             albedo: None,
@@ -171,6 +177,12 @@ impl<'a> Scene<'a> {
     /// The same scene with an illuminated Sun fraction (0..1).
     pub fn with_sun_fraction(mut self, sun_fraction: f64) -> Self {
         self.sun_fraction = sun_fraction;
+        self
+    }
+
+    /// The same scene with the Sun's distance factor `(1 AU / r_sun)^2`.
+    pub fn with_sun_distance_factor(mut self, sun_distance_factor: f64) -> Self {
+        self.sun_distance_factor = sun_distance_factor;
         self
     }
 
@@ -199,12 +211,15 @@ impl<'a> Scene<'a> {
     }
 }
 
-/// Incidence cosine and shadow factor of the direct Sun on one photodiode, or `None` when the
-/// cosine law gives zero (Sun behind the sensor, or outside its field of view).
+/// Incidence cosine and irradiance factor of the direct Sun on one photodiode, or `None` when
+/// the cosine law gives zero (Sun behind the sensor, or outside its field of view).
 pub(crate) struct SunView {
     /// `n^T A s|_R` (the normal is not re-normalised, so partials w.r.t. `n` stay exact).
     pub cos: f64,
-    /// [`ShadowMode::factor`] of the scene's Sun fraction.
+    /// [`ShadowMode::factor`] of the scene's Sun fraction times
+    /// [`Scene::sun_distance_factor`]: what multiplies `C n^T A s|_R`, so every term built on
+    /// the direct Sun (and its partials, where it enters only as a scale) sees the same
+    /// irradiance.
     pub shadow: f64,
 }
 
@@ -212,7 +227,7 @@ pub(crate) fn sun_view(pd: &Photodiode, scene: &Scene, shadow: ShadowMode) -> Op
     let cos = pd.n_body.dot(&scene.sun_body);
     pd.accepts(cos).then(|| SunView {
         cos,
-        shadow: shadow.factor(scene.sun_fraction),
+        shadow: shadow.factor(scene.sun_fraction) * scene.sun_distance_factor,
     })
 }
 

@@ -1,7 +1,10 @@
 //! The Sun vector measured by the photodiodes: least squares over the illuminated ones.
 //!
-//! Each illuminated photodiode gives one equation `(I_i - b_i)/C_i = n_i^T s`, with `b_i` a
-//! known additive part (albedo, dark offset) or 0. Stacking the `m` equations as `H s = y`
+//! Each illuminated photodiode gives one equation `(I_i - b_i)/(F C_i) = n_i^T s`, with `b_i`
+//! a known additive part (albedo, dark offset) or 0 and `F = (1 AU / r_sun)^2` the Sun's
+//! distance factor ([`SunVectorOptions::sun_distance_factor`]): `C_i` is the output at 1 AU
+//! (paper Eq. 15 with the distance made explicit), so without `F` `|s|` would swing by 3 %
+//! over the year. Stacking the `m` equations as `H s = y`
 //! (`H` has the unit normals as rows) the estimate is `s = (H^T H)^-1 H^T y`, solved by
 //! Cholesky on the 3x3 normal matrix. `s` is not normalised: with a perfect model and
 //! calibration `|s| = 1`, so `|s|` is the quality metric of the paper's Figs. 8-10.
@@ -41,6 +44,9 @@ pub struct SunVectorOptions {
     pub min_singular_value: f64,
     /// Drop photodiodes facing away from the solution and solve again; default true.
     pub reject_backfacing: bool,
+    /// `(1 AU / r_sun)^2` at the sample (the direct irradiance relative to 1 AU, where the
+    /// scale factors are defined); default 1.
+    pub sun_distance_factor: f64,
 }
 
 /// Most re-solutions after dropping back-facing photodiodes.
@@ -52,6 +58,7 @@ impl Default for SunVectorOptions {
             threshold: LitThreshold::NoiseSigmas(3.0),
             min_singular_value: 0.1,
             reject_backfacing: true,
+            sun_distance_factor: 1.0,
         }
     }
 }
@@ -109,6 +116,14 @@ pub fn estimate_sun_vector(
     if let Some(known) = known_v {
         check_len("known_v", photodiodes.len(), known.len())?;
     }
+    let factor = options.sun_distance_factor;
+    if !(factor > 0.0 && factor.is_finite()) {
+        return Err(PhotodiodeError::BadValue {
+            what: "sun_distance_factor".into(),
+            value: factor,
+            rule: "the Sun's distance factor must be positive and finite",
+        });
+    }
     let mut lit = Vec::with_capacity(photodiodes.len());
     for (i, (pd, &output)) in photodiodes.iter().zip(outputs_v).enumerate() {
         if !(pd.scale_v > 0.0 && pd.scale_v.is_finite()) {
@@ -123,7 +138,7 @@ pub fn estimate_sun_vector(
             LitThreshold::NoiseSigmas(k) => k * pd.noise_v,
             LitThreshold::Volts(v) => v,
         };
-        lit.push((direct > threshold).then_some(direct / pd.scale_v));
+        lit.push((direct > threshold).then_some(direct / (factor * pd.scale_v)));
     }
     let mut estimate = solve(photodiodes, &lit, options);
     for _ in 0..MAX_BACKFACING_PASSES {

@@ -27,8 +27,12 @@ fn cosine_law(pd: &Photodiode, scene: &Scene, view: &SunView, g: f64, dg_dc: f64
     }
 }
 
-/// Direct sunlight, paper Eq. (15) first term: `f C n^T A s|_R`, zero when `n^T s <= 0` or
-/// outside the photodiode's field of view; `f` from the [`ShadowMode`]. Id `sun`.
+/// Direct sunlight, paper Eq. (15) first term with the Sun's distance made explicit:
+/// `f (1 AU / r_sun)^2 C n^T A s|_R`, zero when `n^T s <= 0` or outside the photodiode's field
+/// of view; `f` from the [`ShadowMode`], `(1 AU / r_sun)^2` the scene's
+/// [`Scene::sun_distance_factor`]. `C` is the output at 1 AU and normal incidence, as the
+/// albedo term's `E_a / E_AM0` is relative to the 1-AU flux (Eq. 13): without the factor `C`
+/// would absorb the distance, about 7 % apart between January and July. Id `sun`.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct DirectSun {
     /// How the eclipse fraction enters.
@@ -127,7 +131,8 @@ pub struct Penumbra;
 impl Penumbra {
     fn view(pd: &Photodiode, scene: &Scene) -> Option<SunView> {
         sun_view(pd, scene, ShadowMode::Penumbra).map(|v| SunView {
-            shadow: v.shadow - ShadowMode::Hard.factor(scene.sun_fraction),
+            shadow: v.shadow
+                - ShadowMode::Hard.factor(scene.sun_fraction) * scene.sun_distance_factor,
             ..v
         })
     }

@@ -55,6 +55,41 @@ fn direct_sun_hard_partials_match_finite_differences() {
     assert!(stats.checked >= 7 * STATES / 2);
 }
 
+/// `C` is the output at 1 AU: every term built on the direct Sun, and each of its partials,
+/// is the 1-AU one times `(1 AU / r_sun)^2` (the factor enters only as a scale).
+#[test]
+fn direct_sun_terms_scale_with_the_inverse_square_of_the_sun_distance() {
+    let mut checked = 0;
+    for_states(2, STATES, lit, |s| {
+        let at_1au = State {
+            sun_distance_factor: 1.0,
+            ..s.clone()
+        };
+        let f = s.sun_distance_factor;
+        let terms: [Box<dyn Term>; 4] = [
+            Box::new(DirectSun::default()),
+            Box::new(DirectSun {
+                shadow: ShadowMode::Penumbra,
+            }),
+            Box::new(Penumbra),
+            Box::new(TimeOffset::new(0.2)),
+        ];
+        for term in &terms {
+            let a = term.partials(&s.pd, 0, &s.scene(), &mut [0.0; 1]);
+            let b = term.partials(&at_1au.pd, 0, &at_1au.scene(), &mut [0.0; 1]);
+            let close = |x: f64, y: f64| (x - f * y).abs() <= 1e-14 * (1.0 + y.abs());
+            assert!(close(a.value_v, b.value_v), "{:?}", term.id());
+            assert!(close(a.d_scale, b.d_scale), "{:?}", term.id());
+            for k in 0..3 {
+                assert!(close(a.d_attitude[k], b.d_attitude[k]), "{:?}", term.id());
+                assert!(close(a.d_normal[k], b.d_normal[k]), "{:?}", term.id());
+            }
+            checked += 1;
+        }
+    });
+    assert!(checked >= STATES);
+}
+
 #[test]
 fn direct_sun_penumbra_partials_match_finite_differences() {
     let mut stats = Stats::default();
@@ -198,6 +233,7 @@ fn time_offset_is_first_order_of_the_delayed_sun() {
     for_states(11, STATES, lit, |s| {
         let s = State {
             sun_fraction: 1.0,
+            sun_distance_factor: 1.0,
             ..s.clone()
         };
         let delta = 0.05;
@@ -470,6 +506,7 @@ fn paper_equations_20_to_24_match_finite_differences() {
             // The general model's direct-Sun term agrees with the paper's functions.
             let s1 = State {
                 sun_fraction: 1.0,
+                sun_distance_factor: 1.0,
                 pd: s.pd.with_fov_half_angle_rad(None),
                 ..s.clone()
             };

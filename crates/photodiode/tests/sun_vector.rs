@@ -203,3 +203,42 @@ fn back_facing_photodiodes_lit_by_albedo_are_dropped() {
         "albedo must bias the plain fit"
     );
 }
+
+/// Outputs at another distance from the Sun than 1 AU give the unit Sun vector back when the
+/// estimate is told the distance factor, and a vector of length `F` when it is not.
+#[test]
+fn the_sun_distance_factor_rescales_the_outputs() {
+    let mut rng = rng(37);
+    let pds = rax2(&mut rng);
+    let model = MeasurementModel::cosine(pds.clone());
+    let mut checked = 0;
+    for factor in [0.967, 1.0, 1.034] {
+        for _ in 0..200 {
+            let sun = random_unit(&mut rng);
+            let scene = Scene::new(nalgebra::Matrix3::identity(), &sun)
+                .unwrap()
+                .with_sun_distance_factor(factor);
+            let mut out = vec![0.0; pds.len()];
+            model.evaluate_all(&scene, &mut out).unwrap();
+            let told = SunVectorOptions {
+                sun_distance_factor: factor,
+                ..SunVectorOptions::default()
+            };
+            let (SunEstimate::Observable(with), SunEstimate::Observable(without)) = (
+                estimate_sun_vector(&pds, &out, None, &told).unwrap(),
+                estimate_sun_vector(&pds, &out, None, &SunVectorOptions::default()).unwrap(),
+            ) else {
+                continue;
+            };
+            assert!((with.vector_body - sun).norm() < 1e-12);
+            assert!((without.vector_body.norm() - factor).abs() < 1e-12);
+            checked += 1;
+        }
+    }
+    assert!(checked > 100, "{checked} observable samples");
+    let bad = SunVectorOptions {
+        sun_distance_factor: 0.0,
+        ..SunVectorOptions::default()
+    };
+    assert!(estimate_sun_vector(&pds, &[1.0; 17], None, &bad).is_err());
+}

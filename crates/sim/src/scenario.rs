@@ -522,6 +522,14 @@ impl Scenario {
                     ),
                 ));
             }
+            if let Some(fov) = m.fov_deg
+                && !(fov > 0.0 && fov <= 90.0)
+            {
+                return Err(invalid(
+                    &format!("photodiodes.nominal[{i}].fov_deg"),
+                    format!("{fov} is not in (0, 90]"),
+                ));
+            }
         }
         if let Some(fov) = pd.fov_half_angle_deg
             && !(fov > 0.0 && fov <= 90.0)

@@ -504,12 +504,19 @@ fn dataset_meta(scenario: &Scenario, epoch_utc: EpochUtc) -> DatasetMeta {
     }
 }
 
-/// The true photodiodes in the measurement model's form, with the scenario's hard FOV.
+/// The true photodiodes in the measurement model's form, with the hard field of view: the
+/// narrower of the scenario's (`fov_half_angle_deg`, the true sensor's, not in dataset.ron)
+/// and the photodiode's own `fov_deg` (declared in dataset.ron).
 fn model_photodiodes(scenario: &Scenario, true_pds: &[TruePd]) -> Vec<Photodiode> {
-    let fov_rad = scenario.photodiodes.fov_half_angle_deg.map(f64::to_radians);
+    let scenario_fov_rad = scenario.photodiodes.fov_half_angle_deg.map(f64::to_radians);
     true_pds
         .iter()
-        .map(|p| {
+        .zip(&scenario.photodiodes.nominal)
+        .map(|(p, nominal)| {
+            let fov_rad = match (scenario_fov_rad, nominal.fov_half_angle_rad()) {
+                (Some(a), Some(b)) => Some(a.min(b)),
+                (a, b) => a.or(b),
+            };
             Photodiode::from_az_el_deg(
                 p.scale_v,
                 p.azimuth_deg,
@@ -718,6 +725,10 @@ fn scene_for<'a>(
     let a: Matrix3<f64> = state.q.attitude_matrix();
     let scene = Scene::new(a, &env.sun_gcrf)?
         .with_sun_fraction(env.nu)
+        .with_sun_distance_factor(pdcal_ephem::sun_distance_factor(
+            &env.r_gcrf_km,
+            &env.r_sun_gcrf_km,
+        ))
         .with_rate(state.w_body_rad_s)
         .with_time(t_s);
     Ok(match albedo {

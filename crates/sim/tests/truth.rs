@@ -79,6 +79,12 @@ fn model_from_truth(constants: &TruthConstants) -> MeasurementModel {
     model
 }
 
+/// `(1 AU / r_sun)^2` at truth row `k`, from the truth position and the reference Sun.
+fn sun_distance_factor(truth: &TruthSeries, epoch: hifitime::Epoch, k: usize) -> f64 {
+    let t = pdcal_ephem::time::offset(epoch, truth.t_s[k]).unwrap();
+    pdcal_ephem::sun_distance_factor(&truth.r_gcrf_km[k], &LowPrecisionSun.sun_gcrf_km(t))
+}
+
 /// Model outputs at truth row `k` (albedo map `map`, if any).
 fn model_at_truth(
     model: &MeasurementModel,
@@ -93,6 +99,7 @@ fn model_at_truth(
     let mut scene = Scene::new(a, &(a.transpose() * truth.sun_body[k]))
         .unwrap()
         .with_sun_fraction(truth.eclipse[k])
+        .with_sun_distance_factor(sun_distance_factor(truth, epoch, k))
         .with_rate(truth.w_body_rad_s[k])
         .with_time(truth.t_s[k]);
     if let Some(albedo) = albedo {
@@ -209,14 +216,15 @@ fn noise_has_the_configured_statistics() {
 
 /// Magnitudes of the least-squares Sun vector from the true photodiodes at sunlit rows.
 fn sun_vector_magnitudes(out: &SimOutput) -> Vec<f64> {
-    let options = SunVectorOptions {
-        threshold: LitThreshold::Volts(1e-6),
-        min_singular_value: 0.3,
-        reject_backfacing: true,
-    };
     (0..out.truth.len())
         .filter(|&k| out.truth.eclipse[k] == 1.0)
         .filter_map(|k| {
+            let options = SunVectorOptions {
+                threshold: LitThreshold::Volts(1e-6),
+                min_singular_value: 0.3,
+                reject_backfacing: true,
+                sun_distance_factor: sun_distance_factor(&out.truth, out.meta.epoch_utc.epoch(), k),
+            };
             let y: Vec<f64> = out
                 .telemetry
                 .pd_v
@@ -491,4 +499,41 @@ fn written_files_parse_back_to_the_same_numbers() {
     let constants =
         pdcal_dataset::truth_constants_from_str(&text(pdcal_dataset::TRUTH_RON), &meta).unwrap();
     assert_eq!(Some((truth, constants)), ds.truth);
+}
+
+/// A photodiode's declared field of view (`fov_deg`) is the simulator's too: its output is
+/// zero whenever the Sun is farther than that from its true normal (no albedo here, which
+/// its field of view would also gate), the cosine law inside, and dataset.ron carries it.
+#[test]
+fn a_declared_field_of_view_zeroes_the_output_beyond_it() {
+    let mut s = rax2_short(1800.0);
+    s.effects.clear();
+    s.photodiodes.noise_v = 0.0;
+    let fov_deg = 60.0;
+    s.photodiodes.nominal[1].fov_deg = Some(fov_deg);
+    let out = simulate(&s, 4).unwrap();
+    assert_eq!(out.meta.photodiodes[1].fov_deg, Some(fov_deg));
+    assert_eq!(out.meta.photodiodes[0].fov_deg, None);
+    let pd = out.true_photodiodes[1];
+    assert_eq!(pd.fov_half_angle_rad, Some(fov_deg.to_radians()));
+    let epoch = out.meta.epoch_utc.epoch();
+    let (mut inside, mut outside) = (0, 0);
+    for k in (0..out.truth.len()).filter(|&k| out.truth.eclipse[k] == 1.0) {
+        let Some(y) = out.pd_noise_free_v[1][k] else {
+            continue;
+        };
+        let cos = pd.n_body.dot(&out.truth.sun_body[k]);
+        if cos < fov_deg.to_radians().cos() {
+            assert_eq!(y, 0.0, "row {k}: cos {cos}");
+            outside += 1;
+        } else {
+            let expect = sun_distance_factor(&out.truth, epoch, k) * pd.scale_v * cos;
+            assert!((y - expect).abs() < 1e-9, "row {k}: {y} vs {expect}");
+            inside += 1;
+        }
+    }
+    assert!(
+        inside > 10 && outside > 10,
+        "{inside} inside, {outside} outside"
+    );
 }

@@ -28,6 +28,7 @@ pub fn rax2_mounts() -> Vec<NominalMount> {
             azimuth_deg,
             elevation_deg,
             panel: None,
+            fov_deg: None,
         })
         .collect()
 }

@@ -156,25 +156,28 @@ impl Case {
             if let Some(mag) = tel.mag_nt.as_mut() {
                 mag.push(Some(a * b + noise3() * self.mag_sigma_nt));
             }
-            let s_body = a * sun;
-            for i in 0..m {
-                let cos = self.true_normals[i].dot(&s_body);
-                let direct = if lit && cos > 0.0 {
-                    self.true_scales[i] * cos
-                } else {
-                    0.0
-                };
-                let y = direct + self.dark_offsets[i] + self.pd_sigma_v * std.sample(&mut rng);
-                tel.pd_v[i].push(Some(y));
-            }
-            refs.push(StepReference {
+            let reference = StepReference {
                 r_gcrf_km: Vector3::new(7000.0, 0.0, 0.0),
                 sun_gcrf_km: sun * 1.496e8,
                 sun_gcrf_unit: sun,
                 b_gcrf_nt: b,
                 sun_fraction: if lit { 1.0 } else { 0.0 },
                 gcrf_to_itrf: nalgebra::Matrix3::identity(),
-            });
+            };
+            // The true scales are at 1 AU, as the filter's.
+            let flux = reference.sun_distance_factor();
+            refs.push(reference);
+            let s_body = a * sun;
+            for i in 0..m {
+                let cos = self.true_normals[i].dot(&s_body);
+                let direct = if lit && cos > 0.0 {
+                    flux * self.true_scales[i] * cos
+                } else {
+                    0.0
+                };
+                let y = direct + self.dark_offsets[i] + self.pd_sigma_v * std.sample(&mut rng);
+                tel.pd_v[i].push(Some(y));
+            }
             truth.push(q);
         }
         (self.meta(), tel, refs, truth)

@@ -107,6 +107,8 @@ pub struct State {
     pub attitude: Matrix3<f64>,
     pub sun_gcrf: Vector3<f64>,
     pub sun_fraction: f64,
+    /// `(1 AU / r_sun)^2`, drawn over the year's range.
+    pub sun_distance_factor: f64,
     pub rate_body_rad_s: Vector3<f64>,
     pub t_s: f64,
     pub albedo: Directions,
@@ -129,6 +131,7 @@ impl State {
             attitude: random_attitude(rng),
             sun_gcrf: random_unit(rng),
             sun_fraction: rng.random_range(0.0..1.0),
+            sun_distance_factor: rng.random_range(0.96..1.04),
             rate_body_rad_s: random_unit(rng) * rng.random_range(0.01..0.1),
             t_s: rng.random_range(0.0..7200.0),
             albedo: Directions::random(rng, 8),
@@ -139,6 +142,7 @@ impl State {
         Scene::new(self.attitude, &self.sun_gcrf)
             .expect("unit sun")
             .with_sun_fraction(self.sun_fraction)
+            .with_sun_distance_factor(self.sun_distance_factor)
             .with_rate(self.rate_body_rad_s)
             .with_time(self.t_s)
             .with_albedo(&self.albedo)
