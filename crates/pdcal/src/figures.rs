@@ -159,16 +159,56 @@ fn sun_directions(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> 
 /// every few rows of a long streamed run; NaN where not updated).
 fn residuals(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Result<()> {
     let run = &outcome.run;
-    let broken = Broken::segments(&run.forward);
+    let figure = Figure::new("fig04_residuals", "Photodiode residuals and 3-sigma bounds");
+    residuals_figure(dir, &figure, run, (0..usize::MAX, 0.0))?;
+    push(
+        out,
+        "Fig. 4: residuals with 3-sigma bounds",
+        "fig04_residuals",
+    );
+    // A joint calibration: each set's own, on its own time from its epoch.
+    for (n, set) in outcome.datasets.iter().enumerate() {
+        let span = &set.span;
+        let stem = format!("fig04_residuals_set{}", n + 1);
+        let title = format!("Photodiode residuals and 3-sigma bounds: {}", span.name);
+        let rows = span.first_row..span.first_row + span.rows;
+        residuals_figure(dir, &Figure::new(&stem, &title), run, (rows, span.offset_s))?;
+        push(
+            out,
+            &format!("Fig. 4, data set {} ({}): residuals", n + 1, span.name),
+            &stem,
+        );
+    }
+    Ok(())
+}
+
+/// Residuals of photodiodes 1-3 with their bounds, of the estimate rows `rows`, time from
+/// `offset_s` (a joint calibration's set epoch).
+fn residuals_figure(
+    dir: &Path,
+    figure: &Figure,
+    run: &pdcal_filter::CalibrationRun,
+    (rows, offset_s): (std::ops::Range<usize>, f64),
+) -> Result<()> {
+    let forward: Vec<StepEstimate> = run
+        .forward
+        .iter()
+        .filter(|e| rows.contains(&e.index))
+        .map(|e| StepEstimate {
+            t_s: e.t_s - offset_s,
+            ..e.clone()
+        })
+        .collect();
+    let broken = Broken::segments(&forward);
     let t = &broken.t_min;
     // The plotted point of each estimate (breaks between segments stay NaN).
-    let mut point = vec![0; run.forward.len()];
+    let mut point = vec![0; forward.len()];
     for (p, at) in broken.at.iter().enumerate() {
         if let Some(k) = at {
             point[*k] = p;
         }
     }
-    let rows: Vec<usize> = run.forward.iter().map(|e| e.index).collect();
+    let index: Vec<usize> = forward.iter().map(|e| e.index).collect();
     let n = t.len();
     let shown = SHOWN.min(run.calibration.photodiodes.len());
     let mut value = vec![vec![f64::NAN; n]; shown];
@@ -176,7 +216,7 @@ fn residuals(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Resul
     for r in &run.residuals {
         if let Sensor::Photodiode(i) = r.sensor
             && i < shown
-            && let Ok(k) = rows.binary_search(&r.index)
+            && let Ok(k) = index.binary_search(&r.index)
         {
             value[i][point[k]] = r.residual;
             sigma[i][point[k]] = r.bound_3sigma / 3.0;
@@ -186,13 +226,7 @@ fn residuals(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Resul
     let panels: Vec<BoundsPanel> = (0..shown)
         .map(|i| BoundsPanel::new(&labels[i], "residual (V)", t, &value[i], &sigma[i]))
         .collect();
-    let figure = Figure::new("fig04_residuals", "Photodiode residuals and 3-sigma bounds");
-    series_with_bounds(dir, &figure, "time (min)", "residual", &panels)?;
-    push(
-        out,
-        "Fig. 4: residuals with 3-sigma bounds",
-        "fig04_residuals",
-    );
+    series_with_bounds(dir, figure, "time (min)", "residual", &panels)?;
     Ok(())
 }
 

@@ -76,6 +76,13 @@ fn two_downlinks_a_month_apart_are_one_calibration() {
         serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(json["datasets"].as_array().unwrap().len(), 2);
     assert!(json["datasets"][1]["residuals"]["photodiode_rms_V"].is_f64());
+    // Each set's residuals on its own figure, linked from index.html.
+    let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+    for n in [1, 2] {
+        let stem = format!("fig04_residuals_set{n}");
+        assert!(out.join(format!("{stem}.png")).is_file(), "{stem} missing");
+        assert!(html.contains(&format!("{stem}.svg")));
+    }
 }
 
 #[test]
