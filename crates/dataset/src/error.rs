@@ -345,14 +345,7 @@ impl std::error::Error for DatasetError {}
 
 pub use pdcal_ephem::text::{QUOTE_MAX_CHARS, clip, quote};
 
-/// 1-based line and character column of byte offset `offset` in `text`.
-pub(crate) fn line_col(text: &str, offset: usize) -> (usize, usize) {
-    let before = text.get(..offset).unwrap_or(text);
-    let line = 1 + before.matches('\n').count();
-    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
-    let column = 1 + before[line_start..].chars().count();
-    (line, column)
-}
+pub(crate) use pdcal_ephem::text::line_col;
 
 /// Checks the bytes are UTF-8 and not blank; strips a leading byte-order mark.
 pub(crate) fn text_of(file: &Path, bytes: Vec<u8>) -> Result<String, DatasetError> {

@@ -32,32 +32,9 @@ pub(crate) fn from_ron<T: DeserializeOwned>(file: &Path, text: &str) -> Result<T
                 message: crate::error::clip(&other.to_string()),
             },
         };
-        let (line, col) = skip_blanks(text, e.span.start.line, e.span.start.col);
+        let (line, col) = pdcal_ephem::text::skip_blanks(text, e.span.start.line, e.span.start.col);
         DatasetError::at(file, line, Some(col), kind)
     })
-}
-
-/// ron's span for a wrong value can start at the blank before it; point at the token itself,
-/// as an editor user expects. Positions outside the text are returned unchanged.
-fn skip_blanks(text: &str, line: usize, col: usize) -> (usize, usize) {
-    let line_start = if line <= 1 {
-        Some(0)
-    } else {
-        text.match_indices('\n').nth(line - 2).map(|(i, _)| i + 1)
-    };
-    let offset = line_start.and_then(|start| {
-        let rest = text.get(start..)?;
-        let within = rest.char_indices().nth(col.checked_sub(1)?)?.0;
-        Some(start + within)
-    });
-    let Some(offset) = offset else {
-        return (line, col);
-    };
-    let blanks = text[offset..].len() - text[offset..].trim_start().len();
-    if offset + blanks >= text.len() {
-        return (line, col);
-    }
-    line_col(text, offset + blanks)
 }
 
 /// Pretty RON: four-space indent, one list entry per line with the entry itself on one line

@@ -32,6 +32,39 @@ pub fn number(value: f64) -> String {
     clip(&value.to_string())
 }
 
+/// 1-based line and character column of byte offset `offset` in `text`.
+pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let before = text.get(..offset).unwrap_or(text);
+    let line = 1 + before.matches('\n').count();
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    let column = 1 + before[line_start..].chars().count();
+    (line, column)
+}
+
+/// ron's span for a wrong value can start at the blank before it; the 1-based `line` and
+/// `col` moved to the token itself, as an editor user expects. Positions outside the text
+/// are returned unchanged.
+pub fn skip_blanks(text: &str, line: usize, col: usize) -> (usize, usize) {
+    let line_start = if line <= 1 {
+        Some(0)
+    } else {
+        text.match_indices('\n').nth(line - 2).map(|(i, _)| i + 1)
+    };
+    let offset = line_start.and_then(|start| {
+        let rest = text.get(start..)?;
+        let within = rest.char_indices().nth(col.checked_sub(1)?)?.0;
+        Some(start + within)
+    });
+    let Some(offset) = offset else {
+        return (line, col);
+    };
+    let blanks = text[offset..].len() - text[offset..].trim_start().len();
+    if offset + blanks >= text.len() {
+        return (line, col);
+    }
+    line_col(text, offset + blanks)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -3,7 +3,7 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-use pdcal_dataset::{DatasetError, QUOTE_MAX_CHARS, quote};
+use pdcal_dataset::{DatasetError, quote};
 
 /// An import that cannot be done, with the place of the fault.
 ///
@@ -297,23 +297,7 @@ impl fmt::Display for ImportError {
 // print it twice in an `anyhow` chain).
 impl std::error::Error for ImportError {}
 
-/// `text` for a message, unquoted: at most [`QUOTE_MAX_CHARS`] characters of it, and the
-/// full length when cut.
-pub(crate) fn clip(text: &str) -> String {
-    match text.char_indices().nth(QUOTE_MAX_CHARS) {
-        None => text.to_owned(),
-        Some((cut, _)) => format!("{}... ({} bytes)", &text[..cut], text.len()),
-    }
-}
-
-/// 1-based line and character column of byte offset `offset` in `text`.
-pub(crate) fn line_col(text: &str, offset: usize) -> (usize, usize) {
-    let before = text.get(..offset).unwrap_or(text);
-    let line = 1 + before.matches('\n').count();
-    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
-    let column = 1 + before[line_start..].chars().count();
-    (line, column)
-}
+pub(crate) use pdcal_ephem::text::{clip, line_col};
 
 /// Checks the bytes are UTF-8 and not blank; strips a leading byte-order mark.
 pub(crate) fn text_of(file: &Path, bytes: Vec<u8>) -> Result<String, ImportError> {
