@@ -399,3 +399,66 @@ fn sparse_flight_frames_calibrate_honestly() {
         pd.len()
     );
 }
+
+#[test]
+fn irregular_random_cuts_and_blank_cells_stay_honest() {
+    // Passes of random length (1 s to 10 min) after random gaps (0 to 25 min), and blank
+    // cells scattered over every sensor: nothing may depend on the cut being regular.
+    let f = fixture();
+    let mut x: u64 = 0x5eed_0001;
+    let mut uniform = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let t = &f.telemetry.t_s;
+    let mut kept = vec![false; t.len()];
+    let mut at = 0.0;
+    while at < 7200.0 {
+        let on = 1.0 + uniform() * 600.0;
+        for (k, keep) in kept.iter_mut().enumerate() {
+            *keep |= t[k] >= at && t[k] < at + on;
+        }
+        at += on + uniform() * 1500.0;
+    }
+    let mut blanked = f.telemetry.clone();
+    for k in 0..blanked.len() {
+        if uniform() < 0.1 {
+            blanked.gyro_rad_s[k] = None;
+        }
+        if uniform() < 0.3 {
+            blanked.mag_nt.as_mut().unwrap()[k] = None;
+        }
+        if uniform() < 0.05 {
+            blanked.pd_v.iter_mut().for_each(|c| c.set(k, None));
+        }
+    }
+    let run = run_checked(&blanked, &|k| kept[k], &forward_only(), |_, _| {});
+    assert!(
+        run.segments
+            .iter()
+            .filter(|s| s.acquired_row.is_some())
+            .count()
+            >= 2
+    );
+    for (t, e) in f
+        .constants
+        .photodiodes
+        .iter()
+        .zip(&run.calibration.photodiodes)
+    {
+        let n = normal_from_az_el(t.azimuth_deg.to_radians(), t.elevation_deg.to_radians());
+        let sigma_deg = e
+            .elevation_sigma_deg
+            .max(e.azimuth_sigma_deg.unwrap_or(0.0));
+        assert!(
+            n.angle(&e.n_body()).to_degrees() < 3.0 * sigma_deg,
+            "{e:?} {t:?}"
+        );
+        assert!(
+            (e.scale_v - t.scale_v).abs() < 3.0 * e.scale_sigma_v,
+            "{e:?} {t:?}"
+        );
+    }
+}
