@@ -135,10 +135,11 @@ pub struct ResidualInputs<'a> {
     pub config: &'a FilterConfig,
 }
 
-/// The smoothed estimates (forward when the smoother is off), extended back to row 0 by
-/// propagating the first estimate's attitude backwards with the gyro (the filter starts at
+/// The smoothed estimates (forward when the smoother is off), extended back towards row 0
+/// by propagating the first estimate's attitude backwards with the gyro (the filter starts at
 /// its first usable sample, often after an eclipse whose dark and penumbra samples the
-/// diagnosis needs; their residuals depend little on attitude).
+/// diagnosis needs; their residuals depend little on attitude), never across a gap of the
+/// run's segment rules (no gyro spans it).
 fn attitude_track(run: &CalibrationRun, tel: &Telemetry) -> Vec<StepEstimate> {
     let track = run.smoothed.as_deref().unwrap_or(&run.forward);
     let Some(first) = track.first() else {
@@ -151,6 +152,9 @@ fn attitude_track(run: &CalibrationRun, tel: &Telemetry) -> Vec<StepEstimate> {
         let (Some(a), Some(b)) = (gyro_at(tel, k), gyro_at(tel, k + 1)) else {
             break;
         };
+        if tel.t_s[k + 1] - tel.t_s[k] > run.segment_rules.gap_threshold_s {
+            break;
+        }
         let rate = 0.5 * (a + b) - bias;
         q = pdcal_attitude::mekf::propagate(&q, &(-rate), tel.t_s[k + 1] - tel.t_s[k]);
         back.push(StepEstimate {

@@ -270,3 +270,38 @@ fn a_dead_channel_never_ends_the_diagnosis() {
         assert_eq!(d.misfit.photodiodes[0].photodiode, 1, "{}", describe(&d));
     }
 }
+
+/// Passes with gaps (10 minutes on, 10 off): the attitude behind the residuals is never
+/// carried across a gap, so the magnetometer residuals stay near their noise and the
+/// verdict names only what the simulation holds (the default scenario's penumbra).
+#[test]
+fn passes_with_gaps_keep_the_residuals_honest() {
+    let mut s = pdcal_sim::Scenario::rax2_like().expect("scenario");
+    s.duration_s = 5400.0;
+    let mut sim = pdcal_sim::simulate(&s, 3).expect("simulation");
+    let t = sim.telemetry.t_s.clone();
+    sim.telemetry = sim
+        .telemetry
+        .select_rows(|k| (t[k] + 240.0).rem_euclid(1200.0) < 600.0);
+    let refs = common::references(&sim);
+    let albedo = common::albedo_model();
+    let inputs = common::inputs(&sim, &refs, &albedo);
+    let d = pdcal_diagnose::diagnose(
+        &inputs,
+        pdcal_diagnose::BaseModel::Paper,
+        &pdcal_diagnose::DiagnoseConfig::default(),
+    )
+    .expect("diagnosis");
+    assert!(
+        d.final_run.segments.len() >= 4,
+        "{:#?}",
+        d.final_run.segments
+    );
+    let mag_rms = d.final_gap.magnetometer_rms_nt;
+    assert!(mag_rms < 2.0 * 320.0, "magnetometer RMS {mag_rms} nT");
+    assert!(
+        d.verdict().split('+').all(|id| id == "penumbra"),
+        "{}",
+        d.verdict()
+    );
+}
