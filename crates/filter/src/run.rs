@@ -186,7 +186,7 @@ pub fn calibrate_streaming(
             // Through the next block's first row, whose transition ends this block, unless
             // the next block starts a segment: then this block ends its segment.
             let next = kept.get(i + 1);
-            let through = next.and_then(|(c, starts)| (!starts).then_some(c.next));
+            let through = next.and_then(|(c, starts)| (!starts).then_some(c.at.next));
             if next.is_none_or(|(_, starts)| *starts) {
                 boundary = None;
             }
@@ -214,20 +214,36 @@ pub fn calibrate_streaming(
 /// A [`ForwardPass`] at one row, to replay from.
 struct PassCheckpoint {
     filter: FilterState,
-    next: usize,
-    prior_q: Quat,
-    propagated: bool,
-    fresh: bool,
-    last_gyro: Option<Vector3<f64>>,
-    last_gyro_t_s: f64,
-    last_t_s: f64,
-    acquiring: bool,
-    window: InnovationWindow,
-    acquired_sigma_deg: f64,
-    steps: usize,
-    step_segment: usize,
+    at: Cursor,
     closed_segments: usize,
     current: SegmentReport,
+}
+
+/// Where a [`ForwardPass`] stands between two steps, besides the filter and the segment
+/// records: what a replay from a checkpoint restores.
+#[derive(Clone)]
+struct Cursor {
+    /// The next row to process.
+    next: usize,
+    /// The attitude after the last propagation (before the updates).
+    prior_q: Quat,
+    propagated: bool,
+    /// The next step is the first of a segment (no propagation leads to it).
+    fresh: bool,
+    last_gyro: Option<Vector3<f64>>,
+    /// Time of `last_gyro`, s.
+    last_gyro_t_s: f64,
+    /// Time of the last processed row, s.
+    last_t_s: f64,
+    /// The next step must first acquire the attitude (a segment ended).
+    acquiring: bool,
+    window: InnovationWindow,
+    /// The attitude sigma the segment's acquisition gave, deg ([`ForwardPass::lost_reason`]).
+    acquired_sigma_deg: f64,
+    /// Steps taken (the guard's full factorisation every [`FULL_GUARD_ROWS`]).
+    steps: usize,
+    /// The segment of the last step's row.
+    step_segment: usize,
 }
 
 /// Rows between two full factorisations of the covariance by the guard
@@ -257,27 +273,7 @@ pub struct ForwardPass<'a> {
     used: Vec<bool>,
     sigmas: SensorSigmas,
     filter: Filter,
-    /// The next row to process.
-    next: usize,
-    /// The attitude after the last propagation (before the updates).
-    prior_q: Quat,
-    propagated: bool,
-    /// The next step is the first of a segment (no propagation leads to it).
-    fresh: bool,
-    last_gyro: Option<Vector3<f64>>,
-    /// Time of `last_gyro`, s.
-    last_gyro_t_s: f64,
-    /// Time of the last processed row, s.
-    last_t_s: f64,
-    /// The next step must first acquire the attitude (a segment ended).
-    acquiring: bool,
-    window: InnovationWindow,
-    /// The attitude sigma the segment's acquisition gave, deg ([`ForwardPass::lost_reason`]).
-    acquired_sigma_deg: f64,
-    /// Steps taken (the guard's full factorisation every [`FULL_GUARD_ROWS`]).
-    steps: usize,
-    /// The segment of the last step's row.
-    step_segment: usize,
+    at: Cursor,
     /// Per photodiode, the time its accepted updates stand for, s: the step's length for
     /// each row it updated the filter at.
     photodiode_time_s: Vec<f64>,
@@ -461,19 +457,21 @@ impl<'a> ForwardPass<'a> {
             initial,
             used,
             sigmas,
-            next: 0,
-            prior_q: filter.q(),
-            propagated: false,
-            fresh: true,
+            at: Cursor {
+                next: 0,
+                prior_q: filter.q(),
+                propagated: false,
+                fresh: true,
+                last_gyro: None,
+                last_gyro_t_s: f64::NEG_INFINITY,
+                last_t_s: tel.t_s[0],
+                acquiring: true,
+                window: InnovationWindow::new(&config.segments),
+                acquired_sigma_deg: 0.0,
+                steps: 0,
+                step_segment: 0,
+            },
             filter,
-            last_gyro: None,
-            last_gyro_t_s: f64::NEG_INFINITY,
-            last_t_s: tel.t_s[0],
-            acquiring: true,
-            window: InnovationWindow::new(&config.segments),
-            acquired_sigma_deg: 0.0,
-            steps: 0,
-            step_segment: 0,
             photodiode_time_s: vec![0.0; m],
             segments: Vec::new(),
             current: SegmentReport::open(0, tel.t_s[0]),
@@ -488,7 +486,7 @@ impl<'a> ForwardPass<'a> {
         if let Err(reason) = pass.acquire()? {
             return Err(FilterError::NoInitialSample { reason });
         }
-        pass.start = pass.next;
+        pass.start = pass.at.next;
         pass.temperatures_c = pass
             .telemetry
             .held_temperatures(inputs.meta)
@@ -506,8 +504,8 @@ impl<'a> ForwardPass<'a> {
     fn acquire(&mut self) -> Result<Result<(), String>, FilterError> {
         // Why each segment tried was skipped, with how many times.
         let mut reasons: Vec<(String, usize)> = Vec::new();
-        while self.next < self.telemetry.len() {
-            let first = self.next;
+        while self.at.next < self.telemetry.len() {
+            let first = self.at.next;
             let end = self.segment_end(first);
             let photodiodes = self.current_photodiodes();
             let p = self.filter.covariance();
@@ -532,7 +530,7 @@ impl<'a> ForwardPass<'a> {
                 Ok(start) => {
                     let t_s = self.telemetry.t_s[start.index];
                     self.filter
-                        .reacquire(start.q, &start.attitude_cov, t_s - self.last_t_s);
+                        .reacquire(start.q, &start.attitude_cov, t_s - self.at.last_t_s);
                     self.current.acquired_row = Some(start.index);
                     self.current.acquisition = if self.use_mag {
                         Acquisition::SunAndField
@@ -540,14 +538,14 @@ impl<'a> ForwardPass<'a> {
                         Acquisition::SunOnly
                     };
                     self.current.paired_field_row = start.paired_field_row;
-                    self.next = start.index;
-                    self.prior_q = start.q;
-                    self.fresh = true;
-                    self.last_gyro = Some(start.gyro_rad_s);
-                    self.last_gyro_t_s = start.gyro_t_s;
-                    self.acquiring = false;
-                    self.window.clear();
-                    self.acquired_sigma_deg = self.attitude_sigma_deg(start.index);
+                    self.at.next = start.index;
+                    self.at.prior_q = start.q;
+                    self.at.fresh = true;
+                    self.at.last_gyro = Some(start.gyro_rad_s);
+                    self.at.last_gyro_t_s = start.gyro_t_s;
+                    self.at.acquiring = false;
+                    self.at.window.clear();
+                    self.at.acquired_sigma_deg = self.attitude_sigma_deg(start.index);
                     return Ok(Ok(()));
                 }
                 Err(why) => {
@@ -563,7 +561,7 @@ impl<'a> ForwardPass<'a> {
                         Some((_, n)) => *n += 1,
                         None => reasons.push((why, 1)),
                     }
-                    self.next = end;
+                    self.at.next = end;
                 }
             }
         }
@@ -616,7 +614,7 @@ impl<'a> ForwardPass<'a> {
 
     /// Rows left to process.
     pub fn remaining(&self) -> usize {
-        self.telemetry.len() - self.next
+        self.telemetry.len() - self.at.next
     }
 
     /// The row the filter starts at (rows before it are skipped).
@@ -637,7 +635,7 @@ impl<'a> ForwardPass<'a> {
     /// Whether the next step starts a segment: the attitude is acquired first, and no
     /// propagation leads to it (the smoother's segments end before it).
     pub fn at_segment_start(&self) -> bool {
-        self.acquiring || self.fresh
+        self.at.acquiring || self.at.fresh
     }
 
     /// The segments so far: the closed ones and, after the last step, the open one.
@@ -645,7 +643,7 @@ impl<'a> ForwardPass<'a> {
         let mut all = self.segments.clone();
         if self.current.rows_used > 0 || self.current.skipped.is_some() {
             let mut open = self.current.clone();
-            let last = self.next.saturating_sub(1).min(self.telemetry.len() - 1);
+            let last = self.at.next.saturating_sub(1).min(self.telemetry.len() - 1);
             open.close(
                 last.max(open.first_row),
                 self.telemetry.t_s[last],
@@ -663,17 +661,17 @@ impl<'a> ForwardPass<'a> {
     /// covariance guard, and the test whether the attitude is lost or the next row starts
     /// a segment. The row processed, `None` after the last.
     pub fn step(&mut self) -> Result<Option<usize>, FilterError> {
-        if self.acquiring {
-            let from = self.next;
+        if self.at.acquiring {
+            let from = self.at.next;
             if self.acquire()?.is_err() {
                 return Ok(None);
             }
-            for k in from..self.next {
+            for k in from..self.at.next {
                 self.hold_temperatures(k);
             }
         }
         let tel: &Telemetry = &self.telemetry;
-        let k = self.next;
+        let k = self.at.next;
         if k >= tel.len() {
             return Ok(None);
         }
@@ -681,13 +679,13 @@ impl<'a> ForwardPass<'a> {
         let reference = &self.references.at(k)?;
         check_reference(k, t_s, reference)?;
         let gyro = tel.gyro_rad_s[k];
-        self.propagated = !self.fresh;
-        self.fresh = false;
-        if self.propagated {
+        self.at.propagated = !self.at.fresh;
+        self.at.fresh = false;
+        if self.at.propagated {
             let t0 = tel.t_s[k - 1];
             let before = match tel.gyro_rad_s[k - 1] {
                 Some(g) => Some((t0, g)),
-                None => self.last_gyro.map(|g| (self.last_gyro_t_s, g)),
+                None => self.at.last_gyro.map(|g| (self.at.last_gyro_t_s, g)),
             };
             let after = match gyro {
                 Some(g) => Some((t_s, g)),
@@ -695,11 +693,11 @@ impl<'a> ForwardPass<'a> {
             };
             let (rate, change) = step_rate(before, after, (t0, t_s), self.average_gyro);
             self.filter.propagate(&rate, change, t_s - t0);
-            self.prior_q = self.filter.q();
+            self.at.prior_q = self.filter.q();
         }
         if gyro.is_some() {
-            self.last_gyro = gyro;
-            self.last_gyro_t_s = t_s;
+            self.at.last_gyro = gyro;
+            self.at.last_gyro_t_s = t_s;
         }
         for (slot, column) in self.row.iter_mut().zip(&tel.pd_v) {
             *slot = column.get(k);
@@ -734,21 +732,21 @@ impl<'a> ForwardPass<'a> {
             reference,
             provider,
         )?;
-        let step_s = if self.propagated {
+        let step_s = if self.at.propagated {
             t_s - tel.t_s[k - 1]
         } else {
             0.0
         };
         self.record_rejections(k, step_s);
-        let full = self.steps.is_multiple_of(FULL_GUARD_ROWS);
+        let full = self.at.steps.is_multiple_of(FULL_GUARD_ROWS);
         if let Some(repair) = self.filter.guard_covariance(k, t_s, full)? {
             self.repairs.push(repair);
         }
-        self.steps += 1;
-        self.step_segment = self.segments.len();
+        self.at.steps += 1;
+        self.at.step_segment = self.segments.len();
         self.current.rows_used += 1;
-        self.next = k + 1;
-        self.last_t_s = t_s;
+        self.at.next = k + 1;
+        self.at.last_t_s = t_s;
         self.end_segment_if_due(k);
         Ok(Some(k))
     }
@@ -758,7 +756,7 @@ impl<'a> ForwardPass<'a> {
     fn record_rejections(&mut self, k: usize, step_s: f64) {
         let mut mag_gated = false;
         for r in self.filter.records() {
-            self.window.push(r.accepted);
+            self.at.window.push(r.accepted);
             if r.accepted {
                 if let Sensor::Photodiode(i) = r.sensor {
                     self.photodiode_time_s[i] += step_s;
@@ -784,11 +782,11 @@ impl<'a> ForwardPass<'a> {
         } else {
             let t = &self.telemetry.t_s;
             t.get(k + 1)
-                .and_then(|&t_next| self.rules.breaks(t[k], t_next, self.last_gyro_t_s))
+                .and_then(|&t_next| self.rules.breaks(t[k], t_next, self.at.last_gyro_t_s))
         };
         if let Some(ended_by) = ended_by {
             self.close_segment(k, ended_by);
-            self.acquiring = true;
+            self.at.acquiring = true;
         }
     }
 
@@ -811,18 +809,18 @@ impl<'a> ForwardPass<'a> {
     /// starts near 30 degrees about one axis, and is not lost for that), or most of a full
     /// window of innovations gated.
     fn lost_reason(&self) -> Option<String> {
-        let sigma_deg = self.attitude_sigma_deg(self.next - 1);
+        let sigma_deg = self.attitude_sigma_deg(self.at.next - 1);
         let bound_deg = self
             .config
             .segments
             .lost_attitude_sigma_deg
-            .max(self.acquired_sigma_deg);
+            .max(self.at.acquired_sigma_deg);
         if sigma_deg > bound_deg {
             return Some(format!(
                 "attitude sigma {sigma_deg:.1} deg above {bound_deg} deg"
             ));
         }
-        self.window.lost().map(|fraction| {
+        self.at.window.lost().map(|fraction| {
             format!(
                 "{:.0} % of the latest {} updates gated",
                 100.0 * fraction,
@@ -834,7 +832,7 @@ impl<'a> ForwardPass<'a> {
     /// The first gyro sample after row `k` within the gyro hold of the last one.
     fn gyro_after(&self, k: usize) -> Option<GyroSample> {
         let tel: &Telemetry = &self.telemetry;
-        let limit = self.last_gyro_t_s + self.rules.gyro_hold_s;
+        let limit = self.at.last_gyro_t_s + self.rules.gyro_hold_s;
         (k + 1..tel.len())
             .take_while(|&j| tel.t_s[j] <= limit)
             .find_map(|j| tel.gyro_rad_s[j].map(|g| (tel.t_s[j], g)))
@@ -856,7 +854,7 @@ impl<'a> ForwardPass<'a> {
 
     /// The row [`ForwardPass::step`] processed last and its time.
     fn last_row(&self) -> (usize, f64) {
-        let k = self.next.saturating_sub(1);
+        let k = self.at.next.saturating_sub(1);
         (k, self.telemetry.t_s.get(k).copied().unwrap_or(f64::NAN))
     }
 
@@ -877,18 +875,18 @@ impl<'a> ForwardPass<'a> {
     /// The estimate after the last step.
     pub fn estimate(&self) -> StepEstimate {
         let (index, t_s) = self.last_row();
-        filter_estimate(&self.filter, (index, t_s, self.step_segment), self.prior)
+        filter_estimate(&self.filter, (index, t_s, self.at.step_segment), self.prior)
     }
 
     /// Records the last step (its propagation and posterior) for the smoother.
     pub(crate) fn record_for_smoother(&self, store: &mut SmootherStore) {
         let (index, t_s) = self.last_row();
-        if self.propagated
+        if self.at.propagated
             && let Some(prop) = self.filter.last_propagation()
         {
-            store.push_transition(prop, self.prior_q, self.filter.calibration_noise());
+            store.push_transition(prop, self.at.prior_q, self.filter.calibration_noise());
         }
-        store.push_posterior(index, t_s, self.step_segment, &self.filter);
+        store.push_posterior(index, t_s, self.at.step_segment, &self.filter);
     }
 
     /// The samples rejected so far (screened, and gated up to the last step).
@@ -905,18 +903,7 @@ impl<'a> ForwardPass<'a> {
     fn checkpoint(&self) -> PassCheckpoint {
         PassCheckpoint {
             filter: self.filter.state(),
-            next: self.next,
-            prior_q: self.prior_q,
-            propagated: self.propagated,
-            fresh: self.fresh,
-            last_gyro: self.last_gyro,
-            last_gyro_t_s: self.last_gyro_t_s,
-            last_t_s: self.last_t_s,
-            acquiring: self.acquiring,
-            window: self.window.clone(),
-            acquired_sigma_deg: self.acquired_sigma_deg,
-            steps: self.steps,
-            step_segment: self.step_segment,
+            at: self.at.clone(),
             closed_segments: self.segments.len(),
             current: self.current.clone(),
         }
@@ -926,18 +913,7 @@ impl<'a> ForwardPass<'a> {
     /// have: a replay is not a new run).
     fn restore(&mut self, checkpoint: &PassCheckpoint) -> Result<(), FilterError> {
         self.filter.restore(&checkpoint.filter)?;
-        self.next = checkpoint.next;
-        self.prior_q = checkpoint.prior_q;
-        self.propagated = checkpoint.propagated;
-        self.fresh = checkpoint.fresh;
-        self.last_gyro = checkpoint.last_gyro;
-        self.last_gyro_t_s = checkpoint.last_gyro_t_s;
-        self.last_t_s = checkpoint.last_t_s;
-        self.acquiring = checkpoint.acquiring;
-        self.window.clone_from(&checkpoint.window);
-        self.acquired_sigma_deg = checkpoint.acquired_sigma_deg;
-        self.steps = checkpoint.steps;
-        self.step_segment = checkpoint.step_segment;
+        self.at.clone_from(&checkpoint.at);
         self.segments.truncate(checkpoint.closed_segments);
         self.current.clone_from(&checkpoint.current);
         Ok(())
