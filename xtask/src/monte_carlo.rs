@@ -94,8 +94,9 @@ impl Cut {
 /// Days between the data sets of a joint run (`--sets N`).
 pub const SET_SPACING_DAYS: f64 = 30.0;
 
-/// The seed's data set `j` of `sets`: the scenario with its epoch `j` months later (the
-/// same seed, so the same hardware), cut into passes when asked.
+/// The seed's data set `j` of `sets`: the scenario with its epoch `j` months later, as
+/// downlink `j` of the seed (the same hardware, its own noise, start attitude and gyro
+/// bias), cut into passes when asked.
 fn simulate_set(
     scenario: &pdcal_sim::Scenario,
     seed: u64,
@@ -112,7 +113,7 @@ fn simulate_set(
         scenario.epoch_utc = format!("{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}Z");
         scenario.name = format!("{}-set{}", scenario.name, j + 1);
     }
-    let mut sim = pdcal::simulate::run(&scenario, seed)?;
+    let mut sim = pdcal::simulate::run_downlink(&scenario, seed, j as u64)?;
     if let Some(cut) = cut {
         let t = sim.telemetry.t_s.clone();
         sim.telemetry = sim.telemetry.select_rows(|k| cut.keeps(seed, t[k]));

@@ -26,6 +26,11 @@ pub enum Command {
         /// Random seed; the same seed gives byte-identical files.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Which downlink of the seed's spacecraft: the same hardware (scale factors and
+        /// mountings) as every downlink of the seed, its own noise, start attitude and gyro
+        /// bias. Several downlinks of one seed are data sets for a joint calibration.
+        #[arg(long, default_value_t = 0)]
+        downlink: u64,
         /// Output dataset directory.
         #[arg(long)]
         out: PathBuf,
@@ -91,6 +96,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Some(Command::Simulate {
             scenario,
             seed,
+            downlink,
             out,
             plots,
         }) => {
@@ -98,7 +104,7 @@ pub fn run(cli: Cli) -> Result<()> {
             let plots = plots
                 .map(|dir| crate::output::OutputDir::create(&dir, "simulate --plots"))
                 .transpose()?;
-            let output = crate::simulate::run_to_dir(&scenario, seed, &out)?;
+            let output = crate::simulate::run_downlink_to_dir(&scenario, seed, downlink, &out)?;
             if let Some(dir) = plots {
                 crate::simulate::write_plots(&output, dir)?;
             }

@@ -19,14 +19,31 @@ pub fn load_scenario(name_or_file: &str) -> Result<Scenario> {
 
 /// Simulates `scenario` with `seed` in memory.
 pub fn run(scenario: &Scenario, seed: u64) -> Result<SimOutput> {
-    pdcal_sim::simulate(scenario, seed).with_context(|| format!("simulating {}", scenario.name))
+    run_downlink(scenario, seed, 0)
+}
+
+/// Simulates downlink `downlink` of the spacecraft of `seed` in memory: the seed's hardware,
+/// the downlink's own noise, start attitude and gyro bias.
+pub fn run_downlink(scenario: &Scenario, seed: u64, downlink: u64) -> Result<SimOutput> {
+    pdcal_sim::simulate_downlink(scenario, seed, downlink)
+        .with_context(|| format!("simulating {}", scenario.name))
 }
 
 /// Simulates and writes the dataset directory (whole or not at all); `out` is checked and
 /// locked before the simulation.
 pub fn run_to_dir(scenario: &Scenario, seed: u64, out: &Path) -> Result<SimOutput> {
+    run_downlink_to_dir(scenario, seed, 0, out)
+}
+
+/// [`run_to_dir`] for downlink `downlink` of the seed ([`run_downlink`]).
+pub fn run_downlink_to_dir(
+    scenario: &Scenario,
+    seed: u64,
+    downlink: u64,
+    out: &Path,
+) -> Result<SimOutput> {
     let writer = pdcal_dataset::begin_dataset(out)?;
-    let output = run(scenario, seed)?;
+    let output = run_downlink(scenario, seed, downlink)?;
     writer.write(&output.to_dataset())?;
     Ok(output)
 }

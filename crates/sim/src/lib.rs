@@ -71,4 +71,4 @@ pub mod scenario;
 mod simulate;
 
 pub use scenario::{BUILTIN_NAMES, Scenario, ScenarioError, Thermal};
-pub use simulate::{SimError, SimOutput, simulate, truth_model};
+pub use simulate::{SimError, SimOutput, simulate, simulate_downlink, truth_model};

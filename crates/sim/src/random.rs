@@ -34,11 +34,38 @@ pub(crate) enum Stream {
     TemperatureNoise = 8,
 }
 
-/// The generator of one stream.
+/// Streams per downlink: room for every [`Stream`] with spares.
+const STREAMS_PER_DOWNLINK: u64 = 16;
+
+/// A run's randomness: the user's seed, and which downlink of that spacecraft it is.
+///
+/// The hardware (true scale factors and mountings) comes from the seed alone, so every
+/// downlink of a seed flies the same photodiodes; everything else (initial attitude and
+/// rate, turn-on gyro bias, every sensor's noise) is drawn afresh per downlink, as for real
+/// passes recorded weeks apart. Downlink 0 is the plain seeded run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Seed {
+    pub(crate) seed: u64,
+    pub(crate) downlink: u64,
+}
+
+impl Seed {
+    /// The generator of one stream.
+    pub(crate) fn stream(self, which: Stream) -> ChaCha8Rng {
+        let number = match which {
+            Stream::TruePhotodiodes => which as u64,
+            _ => which as u64 + STREAMS_PER_DOWNLINK * self.downlink,
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
+        rng.set_stream(number);
+        rng
+    }
+}
+
+/// The generator of one stream of downlink 0.
+#[cfg(test)]
 pub(crate) fn stream(seed: u64, which: Stream) -> ChaCha8Rng {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    rng.set_stream(which as u64);
-    rng
+    Seed { seed, downlink: 0 }.stream(which)
 }
 
 /// One standard normal draw.

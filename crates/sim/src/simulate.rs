@@ -20,7 +20,7 @@ use rayon::prelude::*;
 use crate::dynamics::{
     AttitudeState, Disturbances, DynamicsError, RigidBody, TorqueEnvironment, propagate,
 };
-use crate::random::{self, Stream};
+use crate::random::{self, Seed, Stream};
 use crate::scenario::{
     InitialAttitude, InitialRate, Scenario, ScenarioError, ScenarioOrbit, Thermal,
 };
@@ -97,6 +97,8 @@ pub struct SimOutput {
     pub temperature_true_c: Vec<Vec<f64>>,
     /// The seed of the run.
     pub seed: u64,
+    /// Which downlink of the seed's spacecraft ([`simulate_downlink`]); 0 for [`simulate`].
+    pub downlink: u64,
 }
 
 impl SimOutput {
@@ -269,8 +271,8 @@ pub fn truth_model(
 
 /// Initial attitude and rate from the scenario and the `InitialState` stream. Both draws
 /// are always made, so fixing one does not change the other.
-fn initial_state(scenario: &Scenario, seed: u64) -> AttitudeState {
-    let mut rng = random::stream(seed, Stream::InitialState);
+fn initial_state(scenario: &Scenario, seed: Seed) -> AttitudeState {
+    let mut rng = seed.stream(Stream::InitialState);
     let q_random = random::uniform_quaternion(&mut rng);
     let direction = random::unit_vector(&mut rng);
     let q = match scenario.spacecraft.initial_attitude {
@@ -420,16 +422,16 @@ struct Sensors {
 }
 
 impl Sensors {
-    fn new(scenario: &Scenario, seed: u64) -> Self {
-        let mut bias_rng = random::stream(seed, Stream::GyroBias);
+    fn new(scenario: &Scenario, seed: Seed) -> Self {
+        let mut bias_rng = seed.stream(Stream::GyroBias);
         let mut bias = || random::draw(&scenario.gyro.bias_rad_s, &mut bias_rng);
         let gyro_bias_rad_s = Vector3::new(bias(), bias(), bias());
         Sensors {
-            gyro_noise: random::stream(seed, Stream::GyroNoise),
-            gyro_walk: random::stream(seed, Stream::GyroWalk),
-            mag_noise: random::stream(seed, Stream::MagNoise),
-            pd_noise: random::stream(seed, Stream::PhotodiodeNoise),
-            temperature_noise: random::stream(seed, Stream::TemperatureNoise),
+            gyro_noise: seed.stream(Stream::GyroNoise),
+            gyro_walk: seed.stream(Stream::GyroWalk),
+            mag_noise: seed.stream(Stream::MagNoise),
+            pd_noise: seed.stream(Stream::PhotodiodeNoise),
+            temperature_noise: seed.stream(Stream::TemperatureNoise),
             gyro_bias_rad_s,
             last_gyro_us: None,
             effects: scenario.effects.clone(),
@@ -534,6 +536,18 @@ fn model_photodiodes(scenario: &Scenario, true_pds: &[TruePd]) -> Vec<Photodiode
 /// to `duration_s`); a sensor's cells are `None` at rows it does not sample. The
 /// scenario's initial attitude and rate hold at `t_s = 0`.
 pub fn simulate(scenario: &Scenario, seed: u64) -> Result<SimOutput, SimError> {
+    simulate_downlink(scenario, seed, 0)
+}
+
+/// Simulates downlink `downlink` of the spacecraft of `seed`: the same hardware as every
+/// other downlink of the seed, with its own initial attitude and rate, turn-on gyro bias and
+/// sensor noise (independent data sets of one spacecraft). Downlink 0 is [`simulate`].
+pub fn simulate_downlink(
+    scenario: &Scenario,
+    seed: u64,
+    downlink: u64,
+) -> Result<SimOutput, SimError> {
+    let streams = Seed { seed, downlink };
     scenario.validate()?;
     let epoch_utc =
         EpochUtc::parse(&scenario.epoch_utc).map_err(|e| SimError::Epoch(e.to_string()))?;
@@ -548,12 +562,11 @@ pub fn simulate(scenario: &Scenario, seed: u64) -> Result<SimOutput, SimError> {
         scenario,
         &ephemeris,
         &events_us,
-        initial_state(scenario, seed),
+        initial_state(scenario, streams),
     )?;
     let event = |t_us: i64| events_us.binary_search(&t_us).unwrap_or(0);
 
-    let true_pds =
-        draw_true_photodiodes(scenario, &mut random::stream(seed, Stream::TruePhotodiodes));
+    let true_pds = draw_true_photodiodes(scenario, &mut streams.stream(Stream::TruePhotodiodes));
     let photodiodes = model_photodiodes(scenario, &true_pds);
     let model = truth_model(scenario, photodiodes.clone())?;
     let albedo = match scenario.effect(EffectId::Albedo) {
@@ -605,7 +618,7 @@ pub fn simulate(scenario: &Scenario, seed: u64) -> Result<SimOutput, SimError> {
             .collect();
         temperature_true_c = vec![Vec::with_capacity(grid.rows_us.len()); n_pd];
     }
-    let mut sensors = Sensors::new(scenario, seed);
+    let mut sensors = Sensors::new(scenario, streams);
     for &t_us in &grid.rows_us {
         let k = event(t_us);
         let (state, env) = (&states[k], &envs[k]);
@@ -673,6 +686,7 @@ pub fn simulate(scenario: &Scenario, seed: u64) -> Result<SimOutput, SimError> {
         true_photodiodes: photodiodes,
         temperature_true_c,
         seed,
+        downlink,
     })
 }
 

@@ -537,3 +537,26 @@ fn a_declared_field_of_view_zeroes_the_output_beyond_it() {
         "{inside} inside, {outside} outside"
     );
 }
+
+#[test]
+fn downlinks_of_a_seed_fly_the_same_hardware_with_their_own_noise_and_start() {
+    let scenario = rax2_short(300.0);
+    let plain = simulate(&scenario, 5).unwrap();
+    let first = pdcal_sim::simulate_downlink(&scenario, 5, 0).unwrap();
+    assert_eq!(
+        first.telemetry, plain.telemetry,
+        "downlink 0 is the plain run"
+    );
+    let later = pdcal_sim::simulate_downlink(&scenario, 5, 1).unwrap();
+    assert_eq!(later.constants.photodiodes, plain.constants.photodiodes);
+    assert_eq!(later.downlink, 1);
+    let differs = |a: &[nalgebra::Vector4<f64>], b: &[nalgebra::Vector4<f64>]| a[0] != b[0];
+    assert!(
+        differs(&plain.truth.q, &later.truth.q),
+        "its own initial attitude"
+    );
+    let gyro = |s: &SimOutput| s.telemetry.gyro_rad_s[10].unwrap();
+    assert_ne!(gyro(&plain), gyro(&later), "its own gyro noise");
+    let again = pdcal_sim::simulate_downlink(&scenario, 5, 1).unwrap();
+    assert_eq!(again.telemetry, later.telemetry, "seeded");
+}
