@@ -9,8 +9,11 @@ use pdcal_dataset::{Dataset, DatasetMeta, EpochUtc, Telemetry};
 use pdcal_ephem::{frames, time};
 
 use crate::error::{ErrorKind, ImportError, clip, line_col, text_of};
-use crate::map::{ImportMap, OrbitMap, PositionFrame, columns, linear, mounts, orbit_spec};
+use crate::map::{
+    ImportMap, MapSpec, OrbitMap, PositionFrame, Sentinels, columns, linear, mounts, orbit_spec,
+};
 use crate::timeform::TimeFault;
+use crate::units::Quantity;
 
 /// A dataset made from an export, and what was done to the rows.
 #[derive(Clone, Debug)]
@@ -51,7 +54,8 @@ struct Channel {
     index: usize,
     scale: f64,
     offset: f64,
-    sentinels: Vec<f64>,
+    quantity: Quantity,
+    sentinels: Sentinels,
     /// Where the map names it, for cell messages (`map.ron:31`).
     map_line: Option<usize>,
     sentinel_hits: usize,
@@ -116,8 +120,7 @@ pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Importe
         let index = find(&path, &column.column)?;
         // parse_map has checked every unit.
         let (scale, offset) = linear(&column, quantity).unwrap_or((f64::NAN, f64::NAN));
-        let mut sentinels = column.sentinels.clone();
-        sentinels.extend_from_slice(&spec.sentinels);
+        let sentinels = Sentinels::of(&[&column.sentinels, &spec.sentinels]);
         channels.push(Channel {
             map_line: locate
                 .column(&column.column)
@@ -126,21 +129,22 @@ pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Importe
             index,
             scale,
             offset,
+            quantity,
             sentinels,
             sentinel_hits: 0,
         });
     }
-    let mut time_sentinels = spec.time.sentinels.clone();
-    time_sentinels.extend_from_slice(&spec.sentinels);
+    let time_sentinels = Sentinels::of(&[&spec.time.sentinels, &spec.sentinels]);
 
     let n_pd = spec.photodiodes.len();
     let has_mag = spec.mag.is_some();
     let has_r = matches!(spec.orbit, OrbitMap::Positions { .. });
-    // Channel order of `columns`: gyro xyz, mag xyz, orbit xyz, photodiodes.
+    // Channel order of `columns`: gyro xyz, mag xyz, orbit xyz, photodiodes, temperatures.
     let gyro_at = 0;
     let mag_at = 3;
     let r_at = if has_mag { 6 } else { 3 };
     let pd_at = r_at + if has_r { 3 } else { 0 };
+    let temp_at = pd_at + n_pd;
 
     let mut report = ImportReport::default();
     let mut epochs: Vec<Epoch> = Vec::new();
@@ -149,6 +153,7 @@ pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Importe
     let mut mag = Vec::new();
     let mut r = Vec::new();
     let mut pd: Vec<Vec<Option<f64>>> = vec![Vec::new(); n_pd];
+    let mut temperature: Vec<Vec<Option<f64>>> = vec![Vec::new(); spec.temperatures.len()];
     let mut partial = [0usize; 3];
     let mut values = vec![None; channels.len()];
     for record in records {
@@ -175,6 +180,10 @@ pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Importe
             report.dropped_blank_time += 1;
             continue;
         }
+        if time_sentinels.text(cell) {
+            report.dropped_sentinel_time += 1;
+            continue;
+        }
         let form = &spec.time.form;
         let bad_time = |reason: String| {
             cell_error(
@@ -191,7 +200,7 @@ pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Importe
                 context(&format!("time, {}", form.describe()), time_map_line)
             })
             .map_err(|k| cell_error(time_index, k))?;
-            if time_sentinels.contains(&value) {
+            if time_sentinels.number(value) {
                 report.dropped_sentinel_time += 1;
                 continue;
             }
@@ -215,29 +224,9 @@ pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Importe
         }
         for (channel, value) in channels.iter_mut().zip(values.iter_mut()) {
             let cell = record.get(channel.index).unwrap_or("");
-            *value = if cell.is_empty() {
-                None
-            } else {
-                let raw = number(cell, || context(&channel.path, channel.map_line))
-                    .map_err(|k| cell_error(channel.index, k))?;
-                if channel.sentinels.contains(&raw) {
-                    channel.sentinel_hits += 1;
-                    None
-                } else {
-                    let value = raw * channel.scale + channel.offset;
-                    if !value.is_finite() {
-                        let kind = ErrorKind::NotFinite {
-                            value: cell.to_owned(),
-                            context: format!(
-                                "{}: it overflows when converted to the dataset's unit",
-                                context(&channel.path, channel.map_line)
-                            ),
-                        };
-                        return Err(cell_error(channel.index, kind));
-                    }
-                    Some(value)
-                }
-            };
+            *value = channel
+                .read(cell, context)
+                .map_err(|k| cell_error(channel.index, k))?;
         }
         let vector = |at: usize, count: &mut usize| match values[at..at + 3] {
             [Some(x), Some(y), Some(z)] => Some(Vector3::new(x, y, z)),
@@ -256,6 +245,9 @@ pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Importe
         }
         for (i, series) in pd.iter_mut().enumerate() {
             series.push(values[pd_at + i]);
+        }
+        for (i, series) in temperature.iter_mut().enumerate() {
+            series.push(values[temp_at + i]);
         }
         epochs.push(epoch);
         lines.push(line);
@@ -332,12 +324,81 @@ pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Importe
             mag_nt: has_mag.then_some(mag),
             pd_v: pd.into_iter().map(|c| c.into_iter().collect()).collect(),
             r_gcrf_km,
-            temperature_c: Vec::new(),
+            temperature_c: temperature_columns(spec, temperature),
         },
         truth: None,
     };
     pdcal_dataset::render_dataset(&dataset)?;
     Ok(Imported { dataset, report })
+}
+
+impl Channel {
+    /// A cell in the dataset's unit: `None` when empty or a sentinel (counted), else the
+    /// converted number, or the error for the cell (`context` says what the map reads it as,
+    /// given this channel's field path and map line).
+    fn read(
+        &mut self,
+        cell: &str,
+        context: impl Fn(&str, Option<usize>) -> String,
+    ) -> Result<Option<f64>, ErrorKind> {
+        let value = self.convert(cell, || context(&self.path, self.map_line))?;
+        if value.is_none() && !cell.is_empty() {
+            self.sentinel_hits += 1;
+        }
+        Ok(value)
+    }
+
+    /// [`Channel::read`] without the count: `None` for an empty or sentinel cell.
+    fn convert(&self, cell: &str, context: impl Fn() -> String) -> Result<Option<f64>, ErrorKind> {
+        if cell.is_empty() || self.sentinels.text(cell) {
+            return Ok(None);
+        }
+        let raw = number(cell, &context)?;
+        if self.sentinels.number(raw) {
+            return Ok(None);
+        }
+        let value = raw * self.scale + self.offset;
+        if !value.is_finite() {
+            return Err(ErrorKind::NotFinite {
+                value: cell.to_owned(),
+                context: format!(
+                    "{}: it overflows when converted to the dataset's unit",
+                    context()
+                ),
+            });
+        }
+        let (low, high) = pdcal_dataset::TEMPERATURE_RANGE_C;
+        if self.quantity == Quantity::Temperature && !(low..=high).contains(&value) {
+            return Err(ErrorKind::ImplausibleTemperature {
+                value: cell.to_owned(),
+                celsius: value,
+                low,
+                high,
+                context: context(),
+            });
+        }
+        Ok(Some(value))
+    }
+}
+
+/// telemetry.csv's temperature columns of the map's entries, in map order.
+fn temperature_columns(
+    spec: &MapSpec,
+    series: Vec<Vec<Option<f64>>>,
+) -> Vec<pdcal_dataset::TemperatureColumn> {
+    (spec.temperatures.iter())
+        .zip(series)
+        .map(|(t, values)| pdcal_dataset::TemperatureColumn {
+            // parse_map has checked that exactly one of the two is given.
+            name: match (t.photodiode, &t.panel) {
+                (Some(k), _) => pdcal_dataset::photodiode_temperature_column(k),
+                (None, panel) => {
+                    pdcal_dataset::panel_temperature_column(panel.as_deref().unwrap_or(""))
+                }
+            },
+            values,
+        })
+        .collect()
 }
 
 /// A finite number, or the error for the cell (with `context`, what the map reads it as).

@@ -116,6 +116,28 @@ pub enum ErrorKind {
         /// The rule.
         rule: &'static str,
     },
+    /// A temperature column without a valid photodiode or panel.
+    #[error("{reason}")]
+    BadTemperatureTarget {
+        /// What is wrong.
+        reason: String,
+    },
+    /// A temperature outside the dataset's plausible range: a unit or conversion mistake.
+    #[error(
+        "{value} converts to {celsius:.2} C, outside {low} .. {high} C{context}: a unit or conversion mistake (kelvin given as C?)"
+    )]
+    ImplausibleTemperature {
+        /// The cell as written.
+        value: String,
+        /// Its value in degrees Celsius.
+        celsius: f64,
+        /// The range's lower end, C.
+        low: f64,
+        /// The range's upper end, C.
+        high: f64,
+        /// What the map reads the cell as.
+        context: String,
+    },
     /// A value of the map that the dataset format refuses (a mounting angle out of range, a
     /// TLE checksum, a noise hint); the message is the dataset reader's.
     #[error("{message}")]

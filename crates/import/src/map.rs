@@ -26,7 +26,7 @@ pub struct MapSpec {
     pub time: TimeColumn,
     /// Sentinel values of every column: a cell holding one is treated as empty.
     #[serde(default)]
-    pub sentinels: Vec<f64>,
+    pub sentinels: Vec<Sentinel>,
     /// The gyro's three columns, body frame.
     pub gyro: VectorColumns,
     /// The magnetometer's three columns, body frame; absent for photodiode-only data.
@@ -34,11 +34,57 @@ pub struct MapSpec {
     pub mag: Option<VectorColumns>,
     /// One entry per photodiode, in the order they become `pd01_V`, `pd02_V`, ...
     pub photodiodes: Vec<PhotodiodeColumn>,
+    /// Temperature columns, each of one photodiode or of one panel's photodiodes.
+    #[serde(default)]
+    pub temperatures: Vec<TemperatureColumnMap>,
     /// Where the orbit comes from.
     pub orbit: OrbitMap,
     /// Noise hints copied into dataset.ron (same fields and units).
     #[serde(default)]
     pub noise: Option<NoiseHints>,
+}
+
+/// A cell value meaning "no value": a number (compared as a number, so `65535`, `65535.0`
+/// and `6.5535e4` are one sentinel) or a text (compared with the trimmed cell exactly, as
+/// `"N/A"`, `"NaN"`, `"---"` are written by ground tools).
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(untagged)]
+pub enum Sentinel {
+    /// A numeric sentinel.
+    Number(f64),
+    /// A text sentinel.
+    Text(String),
+}
+
+/// The sentinels that apply to one column, split for matching.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Sentinels {
+    numbers: Vec<f64>,
+    texts: Vec<String>,
+}
+
+impl Sentinels {
+    /// The union of sentinel lists (a column's own and the map's global ones).
+    pub(crate) fn of(lists: &[&[Sentinel]]) -> Self {
+        let mut out = Sentinels::default();
+        for s in lists.iter().flat_map(|l| l.iter()) {
+            match s {
+                Sentinel::Number(v) => out.numbers.push(*v),
+                Sentinel::Text(t) => out.texts.push(t.trim().to_owned()),
+            }
+        }
+        out
+    }
+
+    /// Whether the (trimmed) cell text is a text sentinel.
+    pub(crate) fn text(&self, cell: &str) -> bool {
+        self.texts.iter().any(|t| t == cell)
+    }
+
+    /// Whether the cell's number is a numeric sentinel.
+    pub(crate) fn number(&self, value: f64) -> bool {
+        self.numbers.contains(&value)
+    }
 }
 
 /// The time column.
@@ -51,7 +97,7 @@ pub struct TimeColumn {
     pub form: TimeForm,
     /// Values that mean "no time" (the row is dropped), beside the global sentinels.
     #[serde(default)]
-    pub sentinels: Vec<f64>,
+    pub sentinels: Vec<Sentinel>,
 }
 
 /// One numeric column and how its cells become the dataset's unit.
@@ -68,7 +114,7 @@ pub struct Column {
     pub counts: Option<Counts>,
     /// Values of this column that mean "not sampled", beside the global sentinels.
     #[serde(default)]
-    pub sentinels: Vec<f64>,
+    pub sentinels: Vec<Sentinel>,
 }
 
 /// A linear conversion of raw counts: `value = gain * count + offset`, in `unit`.
@@ -110,7 +156,7 @@ pub struct PhotodiodeColumn {
     pub counts: Option<Counts>,
     /// As [`Column::sentinels`].
     #[serde(default)]
-    pub sentinels: Vec<f64>,
+    pub sentinels: Vec<Sentinel>,
     /// Nominal azimuth, body frame, degrees (dataset.ron's).
     pub azimuth_deg: f64,
     /// Nominal elevation, body frame, degrees.
@@ -121,6 +167,41 @@ pub struct PhotodiodeColumn {
 }
 
 impl PhotodiodeColumn {
+    fn as_column(&self) -> Column {
+        Column {
+            column: self.column.clone(),
+            unit: self.unit.clone(),
+            counts: self.counts.clone(),
+            sentinels: self.sentinels.clone(),
+        }
+    }
+}
+
+/// One temperature column: its conversion, and whose temperature it is (exactly one of
+/// `photodiode` and `panel`). It becomes telemetry.csv's `temp_pdNN_C` or `temp_<panel>_C`.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TemperatureColumnMap {
+    /// Header of the column.
+    pub column: String,
+    /// As [`Column::unit`] (`C`, `K`).
+    #[serde(default)]
+    pub unit: Option<String>,
+    /// As [`Column::counts`].
+    #[serde(default)]
+    pub counts: Option<Counts>,
+    /// As [`Column::sentinels`].
+    #[serde(default)]
+    pub sentinels: Vec<Sentinel>,
+    /// The photodiode it measures, 1-based as in `pdNN_V` (the map's photodiode order).
+    #[serde(default)]
+    pub photodiode: Option<usize>,
+    /// The panel it measures: every photodiode whose map entry names this panel.
+    #[serde(default)]
+    pub panel: Option<String>,
+}
+
+impl TemperatureColumnMap {
     fn as_column(&self) -> Column {
         Column {
             column: self.column.clone(),
@@ -216,6 +297,7 @@ pub fn parse_map(file: &Path, bytes: &[u8]) -> Result<ImportMap, ImportError> {
     for (path, column, quantity) in columns(&spec) {
         check_column(&map, &path, &column, quantity)?;
     }
+    check_temperatures(&map, &spec)?;
     check_as_dataset(&map, &spec)?;
     if let OrbitMap::Tle { line1, line2 } = &spec.orbit
         && let Err(e) = pdcal_ephem::TleOrbit::from_lines(line1, line2)
@@ -277,6 +359,13 @@ pub(crate) fn columns(spec: &MapSpec) -> Vec<(String, Column, Quantity)> {
             Quantity::Voltage,
         ));
     }
+    for (i, t) in spec.temperatures.iter().enumerate() {
+        out.push((
+            format!("temperatures[{i}]"),
+            t.as_column(),
+            Quantity::Temperature,
+        ));
+    }
     out
 }
 
@@ -285,8 +374,10 @@ pub(crate) fn columns(spec: &MapSpec) -> Vec<(String, Column, Quantity)> {
 /// [`parse_map`]).
 pub(crate) fn linear(column: &Column, quantity: Quantity) -> Option<(f64, f64)> {
     match (&column.unit, &column.counts) {
-        (Some(unit), None) => quantity.factor(unit).map(|f| (f, 0.0)),
-        (None, Some(c)) => quantity.factor(&c.unit).map(|f| (c.gain * f, c.offset * f)),
+        (Some(unit), None) => (quantity.factor(unit)).map(|f| (f, quantity.zero(unit))),
+        (None, Some(c)) => {
+            (quantity.factor(&c.unit)).map(|f| (c.gain * f, c.offset * f + quantity.zero(&c.unit)))
+        }
         _ => None,
     }
 }
@@ -356,21 +447,90 @@ fn check_column(
 
 fn check_sentinels(
     map: &Locator<'_>,
-    values: &[f64],
+    values: &[Sentinel],
     path: &str,
     near: Option<usize>,
 ) -> Result<(), ImportError> {
-    let Some(v) = values.iter().find(|v| !v.is_finite()) else {
+    let fault = values.iter().find_map(|v| match v {
+        Sentinel::Number(x) if !x.is_finite() => Some((
+            format!("{x:?}"),
+            "a sentinel must be a finite number (an empty cell needs none; \"NaN\" as text)",
+        )),
+        Sentinel::Text(t) if t.trim().is_empty() => Some((
+            format!("{t:?}"),
+            "a text sentinel must not be blank (an empty cell needs none)",
+        )),
+        _ => None,
+    });
+    let Some((value, rule)) = fault else {
         return Ok(());
     };
-    let kind = ErrorKind::BadMapNumber {
-        value: format!("{v:?}"),
-        rule: "a sentinel must be a finite number (an empty cell needs none)",
-    };
+    let kind = ErrorKind::BadMapNumber { value, rule };
     let place = near
-        .or_else(|| map.key(path.rsplit('.').next().unwrap_or(path), 0))
+        .or_else(|| match path.split_once('.') {
+            Some((outer, _)) => map
+                .key(outer, 0)
+                .and_then(|o| map.key_after(o, "sentinels")),
+            None => map.top_level_key(path),
+        })
         .map(|o| line_col(map.text, o));
     Err(ImportError::maybe_at(map.file, place, kind).named(path))
+}
+
+/// Each temperature column names exactly one photodiode of the map or one panel some
+/// photodiode names, and no two name the same one (they would be one telemetry.csv column).
+fn check_temperatures(map: &Locator<'_>, spec: &MapSpec) -> Result<(), ImportError> {
+    let mut headers: Vec<String> = Vec::new();
+    for (i, t) in spec.temperatures.iter().enumerate() {
+        let path = format!("temperatures[{i}]");
+        let fault = |field: &str, reason: String| {
+            let place = (map.column(&t.column))
+                .and_then(|o| map.key_after(o, field).or(Some(o)))
+                .map(|o| line_col(map.text, o));
+            let kind = ErrorKind::BadTemperatureTarget { reason };
+            Err(ImportError::maybe_at(map.file, place, kind).named(format!("{path}.{field}")))
+        };
+        let header = match (t.photodiode, &t.panel) {
+            (Some(k), None) if (1..=spec.photodiodes.len()).contains(&k) => {
+                pdcal_dataset::photodiode_temperature_column(k)
+            }
+            (Some(k), None) => {
+                let n = spec.photodiodes.len();
+                return fault(
+                    "photodiode",
+                    format!("photodiode {k} is not one of the map's photodiodes 1 ..= {n}"),
+                );
+            }
+            (None, Some(panel))
+                if spec
+                    .photodiodes
+                    .iter()
+                    .any(|p| p.panel.as_ref() == Some(panel)) =>
+            {
+                pdcal_dataset::panel_temperature_column(panel)
+            }
+            (None, Some(panel)) => {
+                return fault(
+                    "panel",
+                    format!("no photodiode of the map names panel {panel:?}"),
+                );
+            }
+            _ => {
+                return fault(
+                    "column",
+                    "give exactly one of `photodiode: N` and `panel: \"NAME\"`".to_owned(),
+                );
+            }
+        };
+        if headers.contains(&header) {
+            return fault(
+                "column",
+                format!("a second column for {header}: one temperature per photodiode or panel"),
+            );
+        }
+        headers.push(header);
+    }
+    Ok(())
 }
 
 /// The map's mounting, TLE and noise hints through the dataset reader's own rules (a
@@ -494,6 +654,20 @@ impl Locator<'_> {
         None
     }
 
+    /// Byte offset of the `key:` of the map's outermost struct (not one inside a column).
+    fn top_level_key(&self, key: &str) -> Option<usize> {
+        (0..)
+            .map_while(|n| self.key(key, n))
+            .find(|&at| nesting(&self.text[..at]) == 1)
+    }
+
+    /// Byte offset of the first `key:` at or after `from`.
+    fn key_after(&self, from: usize, key: &str) -> Option<usize> {
+        let rest = self.text.get(from..)?;
+        let i = rest.find(&format!("{key}:"))?;
+        Some(from + i)
+    }
+
     /// Byte offset of the first `"needle"` literal (or bare token, for numbers' keys) at or
     /// after `from`.
     fn literal_after(&self, from: usize, needle: &str) -> Option<usize> {
@@ -503,6 +677,32 @@ impl Locator<'_> {
             .or_else(|| rest.find(needle))
             .map(|i| from + i)
     }
+}
+
+/// How many brackets are open at the end of `text` (outside strings and `//` comments).
+fn nesting(text: &str) -> usize {
+    let mut depth = 0usize;
+    for line in text.lines() {
+        let mut in_string = false;
+        let mut escaped = false;
+        let mut prev = ' ';
+        for c in line.chars() {
+            if in_string {
+                in_string = escaped || c != '"';
+                escaped = !escaped && c == '\\';
+                continue;
+            }
+            match c {
+                '"' => in_string = true,
+                '/' if prev == '/' => break,
+                '(' | '[' => depth += 1,
+                ')' | ']' => depth = depth.saturating_sub(1),
+                _ => {}
+            }
+            prev = c;
+        }
+    }
+    depth
 }
 
 /// Deserialises the map, mapping ron's span start to line:column.

@@ -11,6 +11,8 @@ pub enum Quantity {
     Voltage,
     /// Position, to km.
     Length,
+    /// Temperature, to degrees Celsius.
+    Temperature,
 }
 
 impl Quantity {
@@ -21,6 +23,7 @@ impl Quantity {
             Quantity::MagneticField => "magnetic field",
             Quantity::Voltage => "voltage",
             Quantity::Length => "length",
+            Quantity::Temperature => "temperature",
         }
     }
 
@@ -33,6 +36,16 @@ impl Quantity {
             Quantity::MagneticField => &[("nT", 1.0), ("uT", 1.0e3), ("mG", 1.0e2), ("G", 1.0e5)],
             Quantity::Voltage => &[("V", 1.0), ("mV", 1.0e-3)],
             Quantity::Length => &[("km", 1.0), ("m", 1.0e-3)],
+            Quantity::Temperature => &[("C", 1.0), ("K", 1.0)],
+        }
+    }
+
+    /// The dataset-unit value of zero in `unit`: `value = x * factor + zero`. Nonzero only
+    /// for kelvin (0 K is -273.15 C); every other unit is a pure factor.
+    pub fn zero(self, unit: &str) -> f64 {
+        match (self, unit) {
+            (Quantity::Temperature, "K") => -273.15,
+            _ => 0.0,
         }
     }
 
@@ -70,5 +83,10 @@ mod tests {
         assert!((f(Quantity::Voltage, "mV") * 3300.0 - 3.3).abs() < 1e-15);
         assert_eq!(Quantity::MagneticField.factor("nt"), None);
         assert_eq!(Quantity::AngularRate.factor("nT"), None);
+        // 293.15 K is 20 C.
+        let t = Quantity::Temperature;
+        assert!((293.15 * f(t, "K") + t.zero("K") - 20.0).abs() < 1e-12);
+        assert_eq!(t.zero("C"), 0.0);
+        assert_eq!(Quantity::Voltage.zero("V"), 0.0);
     }
 }

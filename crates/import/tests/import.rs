@@ -334,3 +334,132 @@ fn map_syntax_and_shape_errors_are_placed() {
     );
     assert!(matches!(e.kind(), ErrorKind::NoRows { dropped: 1 }), "{e}");
 }
+
+/// `map_text` with `extra` inserted before the orbit, and `from` replaced by `to`.
+fn map_with(extra: &str, from: &str, to: &str) -> String {
+    map_text()
+        .replace("    orbit: Tle(", &format!("{extra}    orbit: Tle("))
+        .replace(from, to)
+}
+
+#[test]
+fn text_sentinels_blank_cells_and_drop_rows() {
+    let map = map_with(
+        "",
+        "sentinels: [65535],",
+        r#"sentinels: [65535, "N/A", "NaN"],"#,
+    )
+    .replace(r#"sentinels: [-1]"#, r#"sentinels: [-1, "--"]"#);
+    let csv = "\
+adc0,wz,unix,wx,wy,bx,by,bz,adc1,status
+1500,0.01,1320431385,1.8,0,300,0.2,25,1250,ok
+N/A,0.01,1320431386,1.8,0,NaN,0.2,25, NaN ,ok
+1500,0.01,--,1.8,0,300,0.2,25,1250,ok
+1600,0.02,1320431387.5,-90,45,300,0.2,25,250,ok
+";
+    let imported = import(&map, csv).unwrap();
+    let tm = &imported.dataset.telemetry;
+    assert_eq!(
+        tm.t_s,
+        [0.0, 1.0, 2.5],
+        "the row with time \"--\" is dropped"
+    );
+    assert_eq!(tm.pd_v[0].get(1), None);
+    assert_eq!(tm.pd_v[1].get(1), None);
+    assert_eq!(tm.mag_nt.as_ref().unwrap()[1], None);
+    assert_eq!(imported.report.dropped_sentinel_time, 1);
+    let hits: Vec<(&str, usize)> = (imported.report.sentinel_cells.iter())
+        .map(|(path, _, n)| (path.as_str(), *n))
+        .collect();
+    assert_eq!(
+        hits,
+        [("mag.x", 1), ("photodiodes[0]", 1), ("photodiodes[1]", 1)]
+    );
+    // Without the text sentinel, "NaN" is what it always was: not a finite number.
+    let e = error(&map_text(), csv).to_string();
+    assert!(e.starts_with("export.csv:3:6 (bx):"), "{e}");
+    assert!(e.contains("\"NaN\" is not a finite number"), "{e}");
+}
+
+#[test]
+fn a_blank_text_sentinel_is_refused_in_the_map() {
+    let map = map_with("", "sentinels: [65535],", r#"sentinels: [65535, "  "],"#);
+    let e = error(&map, CSV).to_string();
+    assert!(e.starts_with("map.ron:5:"), "{e}");
+    assert!(e.contains("must not be blank"), "{e}");
+}
+
+const TEMPERATURES: &str = r#"    temperatures: [
+        (column: "therm", unit: "K", panel: "xplus"),
+        (column: "t2", counts: (gain: 0.5, offset: -40.0, unit: "C"), photodiode: 2, sentinels: [255]),
+    ],
+"#;
+
+#[test]
+fn temperature_columns_become_the_dataset_columns_in_celsius() {
+    let map = map_with(
+        TEMPERATURES,
+        "azimuth_deg: 17.0, elevation_deg: -10.0)",
+        r#"azimuth_deg: 17.0, elevation_deg: -10.0, panel: "xplus")"#,
+    );
+    let csv = "\
+adc0,wz,unix,wx,wy,bx,by,bz,adc1,therm,t2
+1500,0.01,1320431385,1.8,0,300,0.2,25,1250,293.15,120
+1500,0.01,1320431386,1.8,0,300,0.2,25,1250,,255
+";
+    let imported = import(&map, csv).unwrap();
+    let columns = &imported.dataset.telemetry.temperature_c;
+    let names: Vec<&str> = columns.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(names, ["temp_xplus_C", "temp_pd02_C"]);
+    // 293.15 K = 20 C; 0.5 * 120 - 40 = 20 C; an empty cell and a sentinel are not sampled.
+    assert!((columns[0].values[0].unwrap() - 20.0).abs() < 1e-12);
+    assert_eq!(columns[1].values[0], Some(20.0));
+    assert_eq!((columns[0].values[1], columns[1].values[1]), (None, None));
+    let bad = csv.replace("293.15", "20.0");
+    let e = error(&map, &bad).to_string();
+    assert!(e.starts_with("export.csv:2:10 (therm):"), "{e}");
+    assert!(e.contains("converts to -253.15 C"), "{e}");
+}
+
+#[test]
+fn a_temperature_column_names_one_photodiode_or_panel() {
+    let with_panel = |t: &str| {
+        map_with(
+            t,
+            "azimuth_deg: 17.0, elevation_deg: -10.0)",
+            r#"azimuth_deg: 17.0, elevation_deg: -10.0, panel: "xplus")"#,
+        )
+    };
+    let cases = [
+        (
+            r#"    temperatures: [(column: "t2", unit: "C", photodiode: 3)],
+"#,
+            "photodiode 3 is not one of the map's photodiodes 1 ..= 2",
+        ),
+        (
+            r#"    temperatures: [(column: "t2", unit: "C", panel: "zminus")],
+"#,
+            "no photodiode of the map names panel \"zminus\"",
+        ),
+        (
+            r#"    temperatures: [(column: "t2", unit: "C", panel: "xplus", photodiode: 1)],
+"#,
+            "give exactly one of",
+        ),
+        (
+            r#"    temperatures: [(column: "t2", unit: "C", photodiode: 1), (column: "t3", unit: "C", photodiode: 1)],
+"#,
+            "a second column for temp_pd01_C",
+        ),
+        (
+            r#"    temperatures: [(column: "t2", unit: "F", photodiode: 1)],
+"#,
+            "unit \"F\" is not a unit of temperature: use one of C, K",
+        ),
+    ];
+    for (entry, expected) in cases {
+        let e = error(&with_panel(entry), CSV).to_string();
+        assert!(e.starts_with("map.ron:20:"), "{e}");
+        assert!(e.contains(expected), "{e}");
+    }
+}
