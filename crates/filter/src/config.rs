@@ -66,9 +66,15 @@ pub struct FilterConfig {
     pub rate_change_fraction: f64,
     /// Gyro bias random walk, rad/s per sqrt(s). Default 2e-6 (0.01 deg/s over 2 h).
     pub gyro_bias_walk_rad_s_sqrt_s: f64,
-    /// Scale-factor random walk (Eq. 19), fraction of C per sqrt(hour). Default 1e-3.
+    /// Scale-factor random walk (Eq. 19), fraction of C per sqrt(hour). Default 1e-4: 0.27 %
+    /// per sqrt(month), about 1 % per sqrt(year), slow degradation of photodiodes under
+    /// coverglass. It walks across the time between data sets too, so it sets how much of
+    /// an earlier set's calibration a joint run keeps; hardware that degrades faster says
+    /// so with a larger value (docs/cli-contract.md, "Several data sets").
     pub scale_walk_fraction_per_sqrt_h: f64,
-    /// Normal random walk (Eq. 19), deg per sqrt(hour) per tangent axis. Default 0.01.
+    /// Normal random walk (Eq. 19), deg per sqrt(hour) per tangent axis. Default 0.001:
+    /// 0.03 deg per sqrt(month). Mountings do not move after launch; the walk only keeps
+    /// the covariance from collapsing over days of data.
     pub normal_walk_deg_per_sqrt_h: f64,
     /// Initial gyro-bias sigma per axis, deg/s. Default 0.5.
     pub initial_bias_sigma_deg_s: f64,
@@ -161,8 +167,8 @@ impl Default for FilterConfig {
             gyro_noise_inflation: 1.5,
             rate_change_fraction: 0.3,
             gyro_bias_walk_rad_s_sqrt_s: 2e-6,
-            scale_walk_fraction_per_sqrt_h: 1e-3,
-            normal_walk_deg_per_sqrt_h: 0.01,
+            scale_walk_fraction_per_sqrt_h: 1e-4,
+            normal_walk_deg_per_sqrt_h: 0.001,
             initial_bias_sigma_deg_s: 0.5,
             initial_scale_sigma_fraction: 0.15,
             initial_normal_sigma_deg: 10.0,
