@@ -133,6 +133,9 @@ const NAMES: &[&str] = &[
     "counts",
     "sentinels",
     "form",
+    "temperatures",
+    "photodiode",
+    "\"N/A\"",
 ];
 
 /// One kind of damage.
