@@ -154,7 +154,7 @@ pub fn find_start(
     // The reason of the row that came furthest through the checks: a row failing an
     // earlier check must not hide why a better row failed.
     const REASONS: [&str; 6] = [
-        "no sample in full Sun",
+        "no sample in full Sun (in eclipse throughout: no photodiode to calibrate from, so no attitude is acquired from the magnetometer and gyro alone)",
         "no photodiode sample in full Sun",
         "no gyro sample near a sunlit photodiode sample",
         "no magnetometer sample near a sunlit photodiode sample",

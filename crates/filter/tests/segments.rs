@@ -163,7 +163,12 @@ fn passes_with_gaps_are_segments_each_reacquired() {
         assert!(s.lost.is_none(), "{s:#?}");
         match s.acquired_row {
             Some(_) => assert_eq!(s.acquisition, Acquisition::SunAndField),
-            None => assert_eq!(s.skipped.as_deref(), Some("no sample in full Sun")),
+            None => assert_eq!(
+                s.skipped.as_deref(),
+                Some(
+                    "no sample in full Sun (in eclipse throughout: no photodiode to calibrate from, so no attitude is acquired from the magnetometer and gyro alone)"
+                )
+            ),
         }
         // Every segment but the last ends at a gap.
         assert!(matches!(s.ended_by, SegmentBreak::Gap | SegmentBreak::End));
