@@ -179,6 +179,8 @@ impl PhotodiodeColumn {
 
 /// One temperature column: its conversion, and whose temperature it is (exactly one of
 /// `photodiode` and `panel`). It becomes telemetry.csv's `temp_pdNN_C` or `temp_<panel>_C`.
+// Column's fields are repeated, as in PhotodiodeColumn, because serde cannot combine
+// `flatten` with `deny_unknown_fields`, and a misspelt key must stay an error.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TemperatureColumnMap {
