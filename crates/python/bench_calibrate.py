@@ -4,9 +4,11 @@ both see the same machine load (docs/performance.md).
     python crates/python/bench_calibrate.py DATASET_DIR PDCAL_BIN [RUNS]
 
 Times, per run: the CLI process (read, calibrate, write the files); in Python the same
-three steps (`Dataset.read`, `calibrate`, `Calibration.write`), and `calibrate` alone.
+three steps (`Dataset.read`, `calibrate`, `Calibration.write`), and `calibrate` alone; and
+both runs' filter time (`runtime_s` of summary.json).
 """
 
+import json
 import os
 import statistics
 import subprocess
@@ -20,7 +22,7 @@ import pdcal
 def main():
     dataset, binary = sys.argv[1], sys.argv[2]
     runs = int(sys.argv[3]) if len(sys.argv) > 3 else 10
-    cli, py_all, py_cal = [], [], []
+    cli, py_all, py_cal, cli_filter, py_filter = [], [], [], [], []
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(runs):
             out = os.path.join(tmp, f"cli{i}")
@@ -28,15 +30,19 @@ def main():
             subprocess.run([binary, "calibrate", dataset, "--out", out], check=True,
                            capture_output=True)
             cli.append(time.perf_counter() - start)
+            with open(os.path.join(out, "summary.json")) as f:
+                cli_filter.append(json.load(f)["runtime_s"])
             start = time.perf_counter()
             ds = pdcal.Dataset.read(dataset)
             t_cal = time.perf_counter()
             cal = pdcal.calibrate(ds)
             py_cal.append(time.perf_counter() - t_cal)
+            py_filter.append(cal.summary["runtime_s"])
             cal.write(os.path.join(tmp, f"py{i}"))
             py_all.append(time.perf_counter() - start)
     for name, xs in [("cli process", cli), ("python read+calibrate+write", py_all),
-                     ("python calibrate", py_cal)]:
+                     ("python calibrate", py_cal), ("cli filter (runtime_s)", cli_filter),
+                     ("python filter (runtime_s)", py_filter)]:
         print(f"{name:30s} median {statistics.median(xs):.3f} s  min {min(xs):.3f} s"
               f"  max {max(xs):.3f} s  (n={len(xs)})")
     ratio = statistics.median(py_all) / statistics.median(cli)

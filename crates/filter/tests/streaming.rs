@@ -141,21 +141,7 @@ impl RunSink for StopAfter {
 fn a_sink_can_cancel_the_forward_pass_and_the_smoother() {
     let case = Case::rax2(13, 1300);
     let (meta, tel, refs, _) = case.build();
-    let inputs = RunInputs {
-        meta: &meta,
-        telemetry: &tel,
-        references: (&refs).into(),
-        albedo: None,
-    };
     let config = FilterConfig::default();
-    let model = || {
-        let pds = meta
-            .photodiodes
-            .iter()
-            .map(|m| Photodiode::from_az_el_deg(1.0, m.azimuth_deg, m.elevation_deg, 0.0))
-            .collect();
-        paper_model(pds, &config)
-    };
     let run = |stop_at: usize| {
         let mut sink = StopAfter {
             stop_at,
@@ -163,11 +149,18 @@ fn a_sink_can_cancel_the_forward_pass_and_the_smoother() {
             forward_rows: 0,
             smoothed_rows: 0,
         };
+        let inputs = RunInputs {
+            meta: &meta,
+            telemetry: &tel,
+            references: (&refs).into(),
+            albedo: None,
+        };
+        let model = paper_model(pdcal_filter::nominal_photodiodes(&meta), &config);
         let result = calibrate_streaming(
             &inputs,
             &config,
             &Mode::Full,
-            model(),
+            model,
             Algebra::Structured,
             pdcal_filter::SMOOTHER_BLOCK_ROWS,
             &mut sink,

@@ -10,7 +10,7 @@ use crate::errors::argument;
 fn as_f64<'py>(value: &Bound<'py, PyAny>) -> PyResult<PyReadonlyArrayDyn<'py, f64>> {
     let np = value.py().import("numpy")?;
     let array = np.call_method1("asarray", (value, "float64"))?;
-    Ok(array.extract::<PyReadonlyArrayDyn<'py, f64>>()?)
+    array.extract::<PyReadonlyArrayDyn<'py, f64>>()
 }
 
 /// A one-dimensional argument.

@@ -17,7 +17,7 @@ use pyo3::types::PyDict;
 
 use crate::arrays::from_vec;
 use crate::dataset::{Dataset, datasets};
-use crate::errors::{argument, py_err};
+use crate::errors::{argument, json_loads, py_err};
 
 /// Time between two looks at Python's signal handlers during a calibration: a Ctrl-C is
 /// answered within this (plus one poll interval of rows).
@@ -114,8 +114,7 @@ impl Calibration {
     /// summary.json as a dict.
     #[getter]
     fn summary<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        py.import("json")?
-            .call_method1("loads", (&self.summary_json,))
+        json_loads(py, &self.summary_json)
     }
 
     /// Calibrated scale factors (output at 1 AU, normal incidence), V, (M,).
@@ -333,5 +332,5 @@ pub fn evaluate<'py>(
     let evaluation =
         pdcal::evaluate::evaluate_output(truth, constants, &calibration.out()).map_err(py_err)?;
     let json = serde_json::to_string(&evaluation).map_err(py_err)?;
-    py.import("json")?.call_method1("loads", (json,))
+    json_loads(py, &json)
 }

@@ -18,7 +18,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use crate::arrays::{from_columns, from_vec, matrix, vector};
-use crate::errors::{argument, py_err};
+use crate::errors::{argument, json_loads, py_err};
 
 /// A dataset: what a spacecraft downlinks (dataset.ron and telemetry.csv) and, from a
 /// simulator, the truth. Arrays are numpy `float64`; a blank (not sampled) cell is NaN.
@@ -531,7 +531,7 @@ pub fn simulate(
 pub fn scenario<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
     let scenario = pdcal_sim::Scenario::builtin(name).map_err(py_err)?;
     let json = serde_json::to_string(&scenario).map_err(py_err)?;
-    py.import("json")?.call_method1("loads", (json,))
+    json_loads(py, &json)
 }
 
 /// The data sets of a calibration: one `Dataset` or a sequence of them.

@@ -7,7 +7,7 @@ use pdcal::output::OutputDir;
 use pyo3::prelude::*;
 
 use crate::dataset::Dataset;
-use crate::errors::py_err;
+use crate::errors::{json_loads, py_err};
 
 /// A finished diagnosis: the verdict, the rounds and the gap figures of diagnosis.json.
 #[pyclass(module = "pdcal", frozen)]
@@ -28,8 +28,7 @@ impl Diagnosis {
     /// diagnosis.json as a dict.
     #[getter]
     fn summary<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        py.import("json")?
-            .call_method1("loads", (&self.summary_json,))
+        json_loads(py, &self.summary_json)
     }
 
     /// The verdict: effects found, strongest first, joined by `+` (then `unexplained`), or

@@ -29,3 +29,12 @@ pub fn py_err<E: Into<anyhow::Error>>(error: E) -> PyErr {
 pub fn argument(message: impl Into<String>) -> PyErr {
     PyValueError::new_err(message.into())
 }
+
+/// Python's `json.loads` of `text` (exact for the shortest round-trip floats serde writes).
+pub fn json_loads<'py>(
+    py: pyo3::Python<'py>,
+    text: &str,
+) -> pyo3::PyResult<pyo3::Bound<'py, pyo3::PyAny>> {
+    use pyo3::types::PyAnyMethods;
+    py.import("json")?.call_method1("loads", (text,))
+}
