@@ -186,3 +186,20 @@ def test_the_constructor_raises_the_cli_message_for_the_same_values(
     with pytest.raises(ValueError) as e:
         pdcal.Dataset(**a)
     assert str(e.value) == expected.replace(f"{bad}/", "")
+
+
+def test_a_bad_scenario_raises_the_cli_message(pdcal_bin, tmp_path):
+    expected = cli_error(pdcal_bin, "simulate", "--scenario", "no-such", "--out", tmp_path / "x")
+    with pytest.raises(ValueError) as e:
+        pdcal.simulate("no-such")
+    assert str(e.value) == expected
+    bad = tmp_path / "bad.ron"
+    bad.write_text("(name: 1)\n")
+    expected = cli_error(pdcal_bin, "simulate", "--scenario", bad, "--out", tmp_path / "x")
+    with pytest.raises(ValueError) as e:
+        pdcal.simulate(bad)
+    assert str(e.value) == expected
+    scenario = pdcal.scenario()
+    scenario["duration_s"] = -1.0
+    with pytest.raises(ValueError, match="duration_s"):
+        pdcal.simulate(scenario)
