@@ -320,8 +320,10 @@ impl Dataset {
 
     /// Reads a dataset directory (dataset.ron, telemetry.csv, and truth.* when present).
     #[staticmethod]
-    fn read(path: PathBuf) -> PyResult<Self> {
-        let inner = pdcal_dataset::read_dataset(&path).map_err(py_err)?;
+    fn read(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        let inner = py
+            .detach(|| pdcal_dataset::read_dataset(&path))
+            .map_err(py_err)?;
         Ok(Dataset {
             inner,
             dir: Some(path),
@@ -329,8 +331,9 @@ impl Dataset {
     }
 
     /// Writes the dataset directory, whole or not at all (as `pdcal simulate --out`).
-    fn write(&self, path: PathBuf) -> PyResult<()> {
-        pdcal_dataset::write_dataset(&path, &self.inner).map_err(py_err)
+    fn write(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        py.detach(|| pdcal_dataset::write_dataset(&path, &self.inner))
+            .map_err(py_err)
     }
 
     /// dataset.ron `name`.
