@@ -22,6 +22,27 @@ use crate::errors::{argument, json_loads, py_err};
 
 /// A dataset: what a spacecraft downlinks (dataset.ron and telemetry.csv) and, from a
 /// simulator, the truth. Arrays are numpy `float64`; a blank (not sampled) cell is NaN.
+///
+/// `Dataset(*, epoch_utc, t_s, gyro_rad_s, photodiodes_V, nominal_az_el_deg, ...)`, N rows
+/// and M photodiodes (docs/dataset-format.md):
+///
+/// - `epoch_utc`: ISO 8601 UTC text (`"2011-11-04T18:29:45Z"`); `t_s` counts from it.
+/// - `t_s` (N,): s, strictly increasing.
+/// - `gyro_rad_s` (N, 3): body rate, rad/s; a row all NaN is a row without a gyro sample.
+/// - `photodiodes_V` (N, M): raw outputs, V; NaN where not sampled.
+/// - `nominal_az_el_deg` (M, 2): nominal azimuth and elevation, body frame, deg (paper
+///   Eq. 16: `n = [cos el cos az, cos el sin az, sin el]`).
+/// - `mag_nT` (N, 3) or None: magnetometer, body frame, nT (None: photodiode-only mode).
+/// - `tle=(line1, line2)` or `positions_gcrf_km` (N, 3): the orbit, one of the two.
+/// - `fov_deg` (M,) or None: field-of-view half-angle, deg, NaN for none.
+/// - `panel`: list of M panel names or None.
+/// - `temperatures_C`: dict of `temp_pdNN_C` / `temp_<panel>_C` columns, (N,) each.
+/// - `noise`: dict of 1-sigma hints `gyro_rad_s`, `mag_nT`, `photodiode_V` (each optional).
+/// - `name`: dataset.ron `name` (default `"dataset"`).
+/// - `truth`: dict as the `truth` property gives it, or None.
+///
+/// Values are checked by the dataset reader (the files are rendered and read back), so a
+/// bad value raises `ValueError` with the CLI's message for the file `write` would write.
 #[pyclass(module = "pdcal", frozen)]
 pub struct Dataset {
     /// The dataset.
@@ -252,6 +273,11 @@ impl Dataset {
     /// A dataset from arrays (N rows, M photodiodes); blank cells are NaN. Exactly one of
     /// `tle` (two TLE lines) and `positions_gcrf_km` gives the orbit.
     #[new]
+    #[pyo3(
+        text_signature = "(*, epoch_utc, t_s, gyro_rad_s, photodiodes_V, nominal_az_el_deg, \
+        mag_nT=None, tle=None, positions_gcrf_km=None, fov_deg=None, panel=None, \
+        temperatures_C=None, noise=None, name='dataset', truth=None)"
+    )]
     #[pyo3(signature = (
         *, epoch_utc, t_s, gyro_rad_s, photodiodes_V, nominal_az_el_deg, mag_nT=None, tle=None,
         positions_gcrf_km=None, fov_deg=None, panel=None, temperatures_C=None, noise=None,
