@@ -182,3 +182,23 @@ def test_several_sets_calibrate_as_the_cli_joins_them(short_dir, pdcal_bin, tmp_
     assert summary_without_runtime(tmp_path / "cli" / "summary.json") == summary_without_runtime(
         tmp_path / "py" / "summary.json"
     )
+
+
+def test_write_keeps_the_cli_rules_for_an_output_directory(short_set, short_dir, pdcal_bin, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine\n")
+    status, stderr = cli(pdcal_bin, "calibrate", short_dir, "--out", out)
+    assert status != 0
+    expected = stderr.splitlines()[-1].removeprefix("pdcal: error: ")
+    cal = pdcal.calibrate(short_set, smoother=False)
+    with pytest.raises(ValueError) as e:
+        cal.write(out)
+    assert str(e.value) == expected
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
+    # A dataset directory likewise: never over what pdcal did not write.
+    status, stderr = cli(pdcal_bin, "simulate", "--out", out)
+    assert status != 0
+    with pytest.raises(ValueError) as e:
+        short_set.write(out)
+    assert str(e.value) == stderr.splitlines()[-1].removeprefix("pdcal: error: ")
