@@ -71,11 +71,14 @@ pub use files::{
     render_dataset, write_dataset,
 };
 pub use meta::{
-    DatasetMeta, EpochUtc, FORMAT_VERSION, NoiseHints, NominalMount, OrbitSpec, meta_from_str,
+    DatasetMeta, EpochUtc, FORMAT_VERSION, MetaFields, NoiseHints, NominalMount, OrbitSpec,
+    meta_from_fields, meta_from_str,
 };
 pub use pdcal_effects::{Effect, EffectId};
 pub use samples::Samples;
-pub use telemetry::{Telemetry, columns, photodiode_column, telemetry_from_str};
+pub use telemetry::{
+    Telemetry, columns, photodiode_column, telemetry_from_columns, telemetry_from_str,
+};
 pub use temperature::{
     HeldTemperatures, TEMPERATURE_RANGE_C, TemperatureColumn, is_panel_name,
     panel_temperature_column, photodiode_temperature_column,

@@ -207,6 +207,52 @@ fn split_iso(text: &str) -> Option<([u32; 6], u32)> {
     Some((fields, nanos))
 }
 
+/// dataset.ron's fields as a program holds them, not yet checked: [`meta_from_fields`] turns
+/// them into a [`DatasetMeta`] through the reader.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MetaFields {
+    /// Free-text name of the data set.
+    pub name: String,
+    /// ISO 8601 UTC text, as dataset.ron's `epoch_utc`.
+    pub epoch_utc: String,
+    /// Where the orbit comes from.
+    pub orbit: OrbitSpec,
+    /// Intended mounting of each photodiode, in `pdNN` order.
+    pub photodiodes: Vec<NominalMount>,
+    /// Optional 1-sigma noise hints.
+    pub noise: Option<NoiseHints>,
+}
+
+/// dataset.ron's layout, field for field as [`DatasetMeta`] serialises.
+#[derive(Serialize)]
+struct MetaText<'a> {
+    format_version: u32,
+    name: &'a str,
+    epoch_utc: &'a str,
+    orbit: &'a OrbitSpec,
+    photodiodes: &'a [NominalMount],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    noise: &'a Option<NoiseHints>,
+}
+
+/// The metadata of `fields`, checked by the one reader: they are rendered as the writer
+/// renders dataset.ron and read back, so a value the reader refuses gets the reader's error,
+/// naming the line and column of the dataset.ron the writer would write.
+pub fn meta_from_fields(fields: &MetaFields) -> Result<DatasetMeta, DatasetError> {
+    let text = to_ron(
+        Path::new(crate::DATASET_RON),
+        &MetaText {
+            format_version: FORMAT_VERSION,
+            name: &fields.name,
+            epoch_utc: &fields.epoch_utc,
+            orbit: &fields.orbit,
+            photodiodes: &fields.photodiodes,
+            noise: &fields.noise,
+        },
+    )?;
+    meta_from_str(&text)
+}
+
 /// Parses and validates the text of dataset.ron (file name `dataset.ron` in errors).
 pub fn meta_from_str(text: &str) -> Result<DatasetMeta, DatasetError> {
     parse_meta(Path::new(crate::DATASET_RON), text)

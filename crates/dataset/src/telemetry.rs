@@ -241,6 +241,42 @@ fn check_temperature_header<R: Read>(
     find(rows, h).map(|_| ())
 }
 
+/// The telemetry of named columns a program holds (headers as in telemetry.csv, one value
+/// per row, NaN for an empty cell), checked by the one reader: the columns are rendered as
+/// telemetry.csv text in the order given and read back against `meta`, so whatever they
+/// hold, the result and the errors (line, column, header, value) are those of that file.
+pub fn telemetry_from_columns(
+    columns: &[(String, Vec<f64>)],
+    meta: &DatasetMeta,
+) -> Result<Telemetry, DatasetError> {
+    let file = Path::new(crate::TELEMETRY_CSV);
+    let rows = columns.first().map_or(0, |(_, c)| c.len());
+    if let Some((name, column)) = columns.iter().find(|(_, c)| c.len() != rows) {
+        let kind = ErrorKind::WrongLength {
+            expected: rows,
+            found: column.len(),
+        };
+        return Err(DatasetError::whole_file(file, kind).named(name.clone()));
+    }
+    // The csv writer quotes a header that needs it, as a CSV library would write it.
+    let mut header = csv::Writer::from_writer(Vec::new());
+    let written = header.write_record(columns.iter().map(|(name, _)| name));
+    let mut text = written
+        .ok()
+        .and_then(|()| header.into_inner().ok())
+        .and_then(|bytes| String::from_utf8(bytes).ok())
+        .unwrap_or_default();
+    for k in 0..rows {
+        push_row(
+            &mut text,
+            columns
+                .iter()
+                .map(|(_, c)| Some(c[k]).filter(|x| !x.is_nan())),
+        );
+    }
+    telemetry_from_str(&text, meta)
+}
+
 /// Parses and validates telemetry.csv text against its dataset.ron (file name
 /// `telemetry.csv` in errors).
 pub fn telemetry_from_str(text: &str, meta: &DatasetMeta) -> Result<Telemetry, DatasetError> {

@@ -95,6 +95,13 @@ pub enum FilterError {
         /// The ephemeris crate's error.
         source: pdcal_ephem::ReferenceError,
     },
+    /// The run's sink asked to stop ([`crate::RunSink::cancelled`]): a user interrupt, not
+    /// a fault of the data.
+    #[error("calibration cancelled at row {index}")]
+    Cancelled {
+        /// The row the forward pass or the smoother had reached.
+        index: usize,
+    },
     /// An error from the albedo model.
     #[error("albedo at sample {index}: {message}")]
     Albedo {

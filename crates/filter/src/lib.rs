@@ -116,8 +116,8 @@ pub use layout::StateLayout;
 pub use output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
 pub use references::{References, orbit_source, reference_model, step_references};
 pub use run::{
-    ForwardPass, RunInputs, RunSink, SMOOTHER_BLOCK_ROWS, calibrate, calibrate_streaming,
-    calibrate_with_model, nominal_photodiodes, nominal_step_s, paper_model,
+    CANCEL_POLL_ROWS, ForwardPass, RunInputs, RunSink, SMOOTHER_BLOCK_ROWS, calibrate,
+    calibrate_streaming, calibrate_with_model, nominal_photodiodes, nominal_step_s, paper_model,
 };
 pub use screen::{Bounded, Channel, ChannelRejections, Rejections, RowList};
 pub use segments::{

@@ -131,6 +131,35 @@ pub trait RunSink {
     /// Smoothed estimates of consecutive rows of one segment in increasing order. Blocks
     /// arrive last first (the backward pass), each of at most `block_rows + 1` rows.
     fn smoothed(&mut self, segment: &[StepEstimate]);
+    /// Whether the run should stop, asked every [`CANCEL_POLL_ROWS`] rows of the forward
+    /// pass and of the smoother's replays; the run then ends with
+    /// [`FilterError::Cancelled`]. A caller that must stay responsive (an interactive
+    /// session's interrupt) answers here; the default never stops.
+    fn cancelled(&mut self) -> bool {
+        false
+    }
+}
+
+/// Steps between two [`RunSink::cancelled`] polls: short enough to stop within a fraction
+/// of a second, long enough that a poll that takes a lock costs nothing measurable.
+pub const CANCEL_POLL_ROWS: usize = 256;
+
+/// Counts the steps of a streaming run and asks its sink, every [`CANCEL_POLL_ROWS`] of
+/// them, whether to stop.
+#[derive(Default)]
+struct CancelPoll {
+    steps: usize,
+}
+
+impl CancelPoll {
+    /// [`FilterError::Cancelled`] at row `k` when this is a poll step and `sink` asks to stop.
+    fn step(&mut self, sink: &mut dyn RunSink, k: usize) -> Result<(), FilterError> {
+        self.steps += 1;
+        if self.steps.is_multiple_of(CANCEL_POLL_ROWS) && sink.cancelled() {
+            return Err(FilterError::Cancelled { index: k });
+        }
+        Ok(())
+    }
 }
 
 /// Rows per block of the streaming smoother: the forward state is kept every this many
@@ -160,15 +189,15 @@ pub fn calibrate_streaming(
     let mut kept: Vec<(PassCheckpoint, bool)> = Vec::new();
     let mut residuals = Vec::new();
     let mut in_block = 0;
+    let mut poll = CancelPoll::default();
     loop {
         let segment_start = pass.at_segment_start();
         if config.smoother && (segment_start || in_block == block_rows) {
             kept.push((pass.checkpoint(), segment_start));
             in_block = 0;
         }
-        if pass.step()?.is_none() {
-            break;
-        }
+        let Some(k) = pass.step()? else { break };
+        poll.step(sink, k)?;
         in_block += 1;
         residuals.clear();
         residuals.extend(pass.residual_records());
@@ -196,6 +225,7 @@ pub fn calibrate_streaming(
                     break;
                 }
                 let Some(k) = pass.step()? else { break };
+                poll.step(sink, k)?;
                 pass.record_for_smoother(&mut store);
                 if Some(k) == through {
                     break;

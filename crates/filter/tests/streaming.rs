@@ -112,3 +112,81 @@ fn compare(
     }
     memory
 }
+
+/// A sink that asks to stop at its `stop_at`-th poll, counting the polls and the forward
+/// and smoothed rows it received.
+struct StopAfter {
+    stop_at: usize,
+    polls: usize,
+    forward_rows: usize,
+    smoothed_rows: usize,
+}
+
+impl RunSink for StopAfter {
+    fn forward(&mut self, _: &StepEstimate, _: &[ResidualRecord]) {
+        self.forward_rows += 1;
+    }
+    fn smoothed(&mut self, segment: &[StepEstimate]) {
+        self.smoothed_rows += segment.len();
+    }
+    fn cancelled(&mut self) -> bool {
+        self.polls += 1;
+        self.polls >= self.stop_at
+    }
+}
+
+/// A sink that asks to stop ends the run with `Cancelled` within one poll interval, in the
+/// forward pass and in the smoother's replays; one that never asks sees the whole run.
+#[test]
+fn a_sink_can_cancel_the_forward_pass_and_the_smoother() {
+    let case = Case::rax2(13, 1300);
+    let (meta, tel, refs, _) = case.build();
+    let config = FilterConfig::default();
+    let run = |stop_at: usize| {
+        let mut sink = StopAfter {
+            stop_at,
+            polls: 0,
+            forward_rows: 0,
+            smoothed_rows: 0,
+        };
+        let inputs = RunInputs {
+            meta: &meta,
+            telemetry: &tel,
+            references: (&refs).into(),
+            albedo: None,
+        };
+        let model = paper_model(pdcal_filter::nominal_photodiodes(&meta), &config);
+        let result = calibrate_streaming(
+            &inputs,
+            &config,
+            &Mode::Full,
+            model,
+            Algebra::Structured,
+            pdcal_filter::SMOOTHER_BLOCK_ROWS,
+            &mut sink,
+        );
+        (result, sink)
+    };
+    let (whole, sink) = run(usize::MAX);
+    assert!(whole.is_ok());
+    let rows = sink.forward_rows;
+    assert!(rows > 3 * pdcal_filter::CANCEL_POLL_ROWS, "{rows} rows");
+    assert!(sink.smoothed_rows >= rows);
+    let forward_polls = rows / pdcal_filter::CANCEL_POLL_ROWS;
+    // At the first poll: in the forward pass, after one interval of rows.
+    let (first, sink) = run(1);
+    assert!(matches!(
+        first,
+        Err(pdcal_filter::FilterError::Cancelled { .. })
+    ));
+    assert_eq!(sink.forward_rows, pdcal_filter::CANCEL_POLL_ROWS - 1);
+    assert_eq!(sink.smoothed_rows, 0);
+    // After the forward pass: in the smoother's replay, with the forward rows all out.
+    let (late, sink) = run(forward_polls + 1);
+    assert!(matches!(
+        late,
+        Err(pdcal_filter::FilterError::Cancelled { .. })
+    ));
+    assert_eq!(sink.forward_rows, rows);
+    assert!(sink.smoothed_rows < rows, "{} smoothed", sink.smoothed_rows);
+}

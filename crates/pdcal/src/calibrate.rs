@@ -202,7 +202,24 @@ pub fn run_dirs(
 ) -> Result<(Outcome, crate::files::Summary)> {
     let dir = OutputDir::create(out, "calibrate")?;
     // Only meta and telemetry: calibrate never reads truth.*.
-    let joint = crate::joint::join(crate::joint::read(datasets)?)?;
+    run_sets(crate::joint::read(datasets)?, dir, config, None)
+}
+
+/// Asked every [`pdcal_filter::CANCEL_POLL_ROWS`] rows of a calibration whether to stop
+/// (an interactive session's interrupt); the run then fails with
+/// [`pdcal_filter::FilterError::Cancelled`] and publishes nothing.
+pub type CancelCheck = Box<dyn FnMut() -> bool>;
+
+/// The calibration of [`run_dirs`] on data sets held in memory (each with the directory
+/// it stands for, named in `summary.json` `datasets`), its outputs written into `dir` and
+/// published there; `cancel` may stop it.
+pub fn run_sets(
+    sets: Vec<(PathBuf, DatasetMeta, Telemetry)>,
+    dir: OutputDir,
+    config: &RunConfig,
+    cancel: Option<CancelCheck>,
+) -> Result<(Outcome, crate::files::Summary)> {
+    let joint = crate::joint::join(sets)?;
     let (meta, mut telemetry) = (joint.meta, joint.telemetry);
     let warnings = crate::checks::check_telemetry(&telemetry)?;
     // Screened here, not only inside the filter, so that the Sun-vector metrics and the
@@ -244,7 +261,8 @@ pub fn run_dirs(
         telemetry.len(),
         config.filter.smoother,
     )?
-    .with_sets(&set_starts);
+    .with_sets(&set_starts)
+    .with_cancel(cancel);
     let start = Instant::now();
     let model = pdcal_filter::paper_model(pdcal_filter::nominal_photodiodes(&meta), &config.filter);
     let mut run = pdcal_filter::calibrate_streaming(

@@ -670,17 +670,27 @@ pub fn run_dir(dataset: &Path, out: &Path) -> Result<Evaluation> {
             dataset.display()
         );
     };
-    let cal_path = out.join("calibration.ron");
-    let text = std::fs::read_to_string(&cal_path)
-        .with_context(|| format!("cannot read {}", cal_path.display()))?;
-    let final_cal =
-        Calibration::from_ron_str(&text).with_context(|| format!("{}", cal_path.display()))?;
-    let estimates = read_estimates(&out.join("estimates.csv"))?;
-    let evaluation = evaluate(&estimates, &final_cal, &truth, &constants)?;
+    let evaluation = evaluate_output(&truth, &constants, out)?;
     crate::output::add_file(
         out,
         "evaluation.json",
         serde_json::to_string_pretty(&evaluation)?.as_bytes(),
     )?;
     Ok(evaluation)
+}
+
+/// [`evaluate`] of the calibration outputs in `out` (`calibration.ron`, `estimates.csv`)
+/// against a dataset's truth, writing nothing.
+pub fn evaluate_output(
+    truth: &TruthSeries,
+    constants: &TruthConstants,
+    out: &Path,
+) -> Result<Evaluation> {
+    let cal_path = out.join("calibration.ron");
+    let text = std::fs::read_to_string(&cal_path)
+        .with_context(|| format!("cannot read {}", cal_path.display()))?;
+    let final_cal =
+        Calibration::from_ron_str(&text).with_context(|| format!("{}", cal_path.display()))?;
+    let estimates = read_estimates(&out.join("estimates.csv"))?;
+    evaluate(&estimates, &final_cal, truth, constants)
 }

@@ -78,6 +78,7 @@ pub struct StreamSink {
     set_starts: Vec<usize>,
     set_sums: Vec<ResidualSums>,
     error: Option<anyhow::Error>,
+    cancel: Option<crate::calibrate::CancelCheck>,
 }
 
 fn create(path: &Path) -> Result<csv::Writer<BufWriter<File>>> {
@@ -112,6 +113,7 @@ impl StreamSink {
             set_starts: vec![0],
             set_sums: vec![ResidualSums::default()],
             error: None,
+            cancel: None,
         })
     }
 
@@ -122,6 +124,12 @@ impl StreamSink {
             self.set_starts = starts.to_vec();
             self.set_sums = vec![ResidualSums::default(); starts.len()];
         }
+        self
+    }
+
+    /// Lets `cancel` stop the run ([`RunSink::cancelled`]); `None` never stops it.
+    pub fn with_cancel(mut self, cancel: Option<crate::calibrate::CancelCheck>) -> Self {
+        self.cancel = cancel;
         self
     }
 
@@ -257,5 +265,9 @@ impl RunSink for StreamSink {
         self.keep(result);
         self.attitudes
             .push(segment.iter().map(|e| (e.index, e.q)).collect());
+    }
+
+    fn cancelled(&mut self) -> bool {
+        self.cancel.as_mut().is_some_and(|check| check())
     }
 }
