@@ -35,6 +35,7 @@ __all__ = [
     "epoch_utc_string",
     "dataset_kwargs_from_basilisk",
     "dataset_from_basilisk",
+    "truth_from_basilisk",
     "NANOTESLA_PER_TESLA",
     "KM_PER_M",
 ]
@@ -161,7 +162,10 @@ def dataset_kwargs_from_basilisk(
     tle: Optional[Sequence[str]] = None,
     imu_dcm_PB: Any = None,
     tam_dcm_SB: Any = None,
+    css_fov_rad: Any = None,
     noise: Optional[Mapping[str, float]] = None,
+    name: str = "basilisk",
+    truth: Optional[Mapping[str, Any]] = None,
 ) -> dict:
     """The keyword arguments of ``pdcal.Dataset(...)`` from Basilisk recorder arrays.
 
@@ -180,8 +184,11 @@ def dataset_kwargs_from_basilisk(
     * ``tam_sensor_T``: ``TAMSensorMsg.tam_S`` ``(N, 3)``, tesla, rotated with ``tam_dcm_SB``;
       None for photodiode-only data.
     * ``r_BN_N_m``: ``SCStatesMsg.r_BN_N`` ``(N, 3)``, metres, N taken as GCRF; or ``tle``.
+    * ``css_fov_rad``: each CSS's ``fov`` (half angle, rad; one value for all or M values);
+      becomes ``fov_deg``. None leaves the cosine law to 90 deg.
     * ``noise``: 1-sigma hints ``{"gyro_rad_s", "mag_nT", "photodiode_V"}`` in pdcal's units
       (a CSS ``senNoiseStd`` is in cosine units before ``scaleFactor``: multiply by it).
+    * ``truth``: for simulations, :func:`truth_from_basilisk`'s dict (``pdcal.evaluate``).
     """
     if (t_ns is None) == (t_s is None):
         raise ValueError("give exactly one of t_ns and t_s")
@@ -215,9 +222,66 @@ def dataset_kwargs_from_basilisk(
     else:
         line1, line2 = tle
         kwargs["tle"] = (line1, line2)
+    if css_fov_rad is not None:
+        fov_deg = np.degrees(np.broadcast_to(np.asarray(css_fov_rad, dtype=float), (m,))).copy()
+        kwargs["fov_deg"] = fov_deg
     if noise is not None:
         kwargs["noise"] = dict(noise)
+    kwargs["name"] = name
+    if truth is not None:
+        kwargs["truth"] = dict(truth)
     return kwargs
+
+
+def truth_from_basilisk(
+    *,
+    t_ns: Any,
+    sigma_BN: Any,
+    omega_BN_B_rad_s: Any,
+    r_BN_N_m: Any,
+    r_sun_N_m: Any,
+    shadow_factor: Any,
+    mag_field_N_T: Any,
+    gyro_bias_platform_rad_s: Any,
+    css_true_normals_B: Any,
+    css_scale_factors: Any,
+    imu_dcm_PB: Any = None,
+    effects: Sequence[str] = (),
+) -> dict:
+    """The ``truth`` of a simulated ``pdcal.Dataset`` (what ``pdcal.evaluate`` compares
+    against) from Basilisk's own states: ``SCStatesMsg`` (``sigma_BN``, ``omega_BN_B``,
+    ``r_BN_N``), the Sun's ``SpicePlanetStateMsg.PositionVector`` (``r_sun_N_m``, m, one row
+    or one per sample), ``EclipseMsg.shadowFactor``, ``MagneticFieldMsg.magField_N`` (T), the
+    IMU's ``senRotBias`` (platform frame) and the CSS configuration actually simulated
+    (``nHat_B``, ``scaleFactor``). ``effects``: truth.ron effect spellings, e.g.
+    ``["Albedo(map: \"toms-mean-1p25x1\")"]`` when Basilisk's albedo used that map.
+    """
+    t_s = np.asarray(t_ns, dtype=float) / NANOSECONDS_PER_SECOND
+    n = t_s.shape[0]
+    q = mrp_to_quaternion(_rows("sigma_BN", sigma_BN, n, 3))
+    dcm_bn = np.stack([quaternion_to_dcm(qk) for qk in q])
+    r_n = _rows("r_BN_N_m", r_BN_N_m, n, 3)
+    sun_n = np.broadcast_to(np.asarray(r_sun_N_m, dtype=float), (n, 3))
+    to_sun = sun_n - r_n
+    to_sun = to_sun / np.linalg.norm(to_sun, axis=1)[:, None]
+    mag_n = _rows("mag_field_N_T", mag_field_N_T, n, 3)
+    bias_p = np.broadcast_to(np.asarray(gyro_bias_platform_rad_s, dtype=float), (n, 3))
+    scale = np.asarray(css_scale_factors, dtype=float)
+    az_el = normal_to_az_el_deg(np.atleast_2d(np.asarray(css_true_normals_B, dtype=float)))
+    return {
+        "t_s": t_s,
+        "q_xyzw": q,
+        "w_body_rad_s": _rows("omega_BN_B_rad_s", omega_BN_B_rad_s, n, 3),
+        "gyro_bias_rad_s": bias_p @ _dcm("imu_dcm_PB", imu_dcm_PB),
+        "sun_body": np.einsum("kij,kj->ki", dcm_bn, to_sun),
+        "eclipse": np.asarray(shadow_factor, dtype=float).reshape(n),
+        "r_gcrf_km": r_n * KM_PER_M,
+        "mag_body_nT": np.einsum("kij,kj->ki", dcm_bn, mag_n) * NANOTESLA_PER_TESLA,
+        "scale_V": scale,
+        "azimuth_deg": az_el[:, 0],
+        "elevation_deg": az_el[:, 1],
+        "effects": list(effects),
+    }
 
 
 def dataset_from_basilisk(**kwargs: Any):
