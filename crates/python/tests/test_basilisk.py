@@ -276,15 +276,14 @@ def run_basilisk_sim(seed: int = 1, duration_s: float = 2400.0, albedo_model: st
     oe.e = 0.0005
     oe.i = math.radians(97.6)
     beta = math.radians(68.0)
-    sun_ra = math.atan2(s_hat[1], s_hat[0])
-    # choose the node so that the orbit normal h leans toward the Sun by 90 - beta
+    # the node whose orbit normal is 90 - beta from the Sun
     best = min(
         (abs(math.asin(np.clip(np.dot(
             [math.sin(oe.i) * math.sin(om), -math.sin(oe.i) * math.cos(om), math.cos(oe.i)],
             s_hat), -1, 1)) - beta), om)
         for om in np.radians(np.arange(0.0, 360.0, 0.25))
     )
-    oe.Omega = best[1] - 0.0 * sun_ra
+    oe.Omega = best[1]
     oe.omega = math.radians(30.0)
     oe.f = math.radians(rng.uniform(0, 360))
     r_n, v_n = orbitalMotion.elem2rv(mu, oe)
@@ -309,7 +308,7 @@ def run_basilisk_sim(seed: int = 1, duration_s: float = 2400.0, albedo_model: st
     sim.AddModelToTask("task", sc, 10)
 
     def planet_payload(name, pos_m, t):
-        p = messaging.SpicePlanetStatePayload() if hasattr(messaging, "SpicePlanetStatePayload") else messaging.SpicePlanetStateMsgPayload()
+        p = messaging.SpicePlanetStateMsgPayload()
         p.PlanetName = name
         p.PositionVector = list(pos_m)
         p.VelocityVector = [0.0, 0.0, 0.0]
@@ -416,9 +415,10 @@ def run_basilisk_sim(seed: int = 1, duration_s: float = 2400.0, albedo_model: st
     started = time.perf_counter()
     steps = int(round(duration_s))
     for k in range(1, steps + 1):
-        # the Sun and the Earth's orientation at the step about to run
-        t = t0 + dt.timedelta(seconds=k - 1)
-        if (k - 1) % 60 == 0:
+        # Each call runs the task at time k (the first also at 0): the Earth's orientation
+        # (0.004 deg/s) and the Sun (0.0007 deg/min) of that time.
+        t = t0 + dt.timedelta(seconds=k)
+        if k % 60 == 1:
             sun_msg.write(planet_payload("sun", sun_gcrf_km(t) * 1e3, t), macros.sec2nano(k - 1))
         earth_msg.write(planet_payload("earth", [0.0, 0.0, 0.0], t), macros.sec2nano(k - 1))
         sim.ConfigureStopTime(macros.sec2nano(float(k)))
@@ -426,8 +426,8 @@ def run_basilisk_sim(seed: int = 1, duration_s: float = 2400.0, albedo_model: st
     run_s = time.perf_counter() - started
 
     n_css = len(true_n)
-    # The IMU writes zeros at time 0 (it differences the state since its previous call), so
-    # the first row is left out of every series.
+    # The IMU's output at time 0 is all zeros (Basilisk 2.12.1), so the first row is left
+    # out of every series.
     keep = slice(1, None)
     out = {
         "epoch_utc": bridge.epoch_utc_string(t0),
@@ -596,6 +596,32 @@ def test_kwargs_refuse_what_does_not_fit():
         bridge.dataset_kwargs_from_basilisk(**dict(a, epoch_utc="2026-03-20T12:00:00"))
     kw = bridge.dataset_kwargs_from_basilisk(**dict(a, tam_sensor_T=None))
     assert "mag_nT" not in kw
+
+
+def test_truth_from_basilisk_rotates_into_the_body_frame():
+    n = 4
+    rng = np.random.default_rng(8)
+    sigma = rng.uniform(-0.5, 0.5, (n, 3))
+    r_m = rng.normal(0, 7e6, (n, 3))
+    sun_m = np.array([1.496e11, 0.0, 0.0])
+    b_t = rng.normal(0, 3e-5, (n, 3))
+    truth = bridge.truth_from_basilisk(
+        t_ns=np.arange(n) * 10**9, sigma_BN=sigma, omega_BN_B_rad_s=np.ones((n, 3)) * 0.01,
+        r_BN_N_m=r_m, r_sun_N_m=sun_m, shadow_factor=np.ones(n), mag_field_N_T=b_t,
+        gyro_bias_platform_rad_s=[1e-3, 0, 0], css_true_normals_B=np.eye(3)[[0, 2]],
+        css_scale_factors=[2.4, 2.6], imu_dcm_PB=_axis_angle_dcm([0, 0, 1], math.pi / 2),
+        effects=['Albedo(map: "toms-mean-1p25x1")'])
+    for k in range(n):
+        dcm = bridge.quaternion_to_dcm(truth["q_xyzw"][k])
+        to_sun = (sun_m - r_m[k]) / np.linalg.norm(sun_m - r_m[k])
+        np.testing.assert_allclose(truth["sun_body"][k], dcm @ to_sun, atol=1e-12)
+        np.testing.assert_allclose(truth["mag_body_nT"][k], dcm @ b_t[k] * 1e9, rtol=1e-12)
+    np.testing.assert_allclose(truth["gyro_bias_rad_s"], np.tile([0, 1e-3, 0], (n, 1)), atol=1e-15)
+    np.testing.assert_allclose(truth["r_gcrf_km"], r_m / 1000)
+    np.testing.assert_allclose(truth["azimuth_deg"], [0, 0], atol=1e-12)
+    np.testing.assert_allclose(truth["elevation_deg"], [0, 90], atol=1e-12)
+    np.testing.assert_array_equal(truth["t_s"], np.arange(n))
+    assert truth["effects"] == ['Albedo(map: "toms-mean-1p25x1")']
 
 
 def test_epoch_forms():
