@@ -834,8 +834,8 @@ def _errors(cal, sim):
 # 0.94 %). docs/basilisk.md has the table.
 BOUNDS = {"toms": (0.25, 0.3), "average": (1.0, 1.5)}
 # (attitude error RMS deg, fraction of the 27 final calibration states within 3 sigma):
-# measured over seeds 1-8 0.18-0.23 deg and 1.0 with the TOMS map; seeds 1, 4, 7 with the
-# average model 0.27-0.81 deg and 0.89-1.0.
+# measured over seeds 1-8 0.18-0.23 deg and 1.0 with the TOMS map, 0.20-0.81 deg and
+# 0.89-1.0 with the average model.
 ATTITUDE_BOUNDS = {"toms": (0.4, 0.9), "average": (1.5, 0.8)}
 
 
