@@ -871,7 +871,6 @@ def test_pdcal_calibrates_the_basilisk_css(albedo_model):
     assert evaluation["consistency"]["final_states_within_3sigma"] >= min_within_3sigma
 
 
-
 if __name__ == "__main__":
     out_path = pathlib.Path(sys.argv[1])
     seed = int(sys.argv[2]) if len(sys.argv) > 2 else 1
