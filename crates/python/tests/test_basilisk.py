@@ -624,6 +624,24 @@ def test_truth_from_basilisk_rotates_into_the_body_frame():
     assert truth["effects"] == ['Albedo(map: "toms-mean-1p25x1")']
 
 
+def test_common_time_line_leaves_blanks_where_a_recorder_has_no_sample():
+    s = 10**9
+    imu = (np.arange(0, 4 * s, s // 2), np.arange(8 * 3, dtype=float).reshape(8, 3))
+    css = (np.arange(0, 4 * s, s), np.arange(4 * 2, dtype=float).reshape(4, 2))
+    tam = (np.array([s, 3 * s]), np.array([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]))
+    t_ns, a = bridge.common_time_line({"imu": imu, "css": css, "tam": tam})
+    np.testing.assert_array_equal(t_ns, np.arange(0, 4 * s, s // 2))
+    np.testing.assert_array_equal(a["imu"], imu[1])
+    np.testing.assert_array_equal(a["css"][::2], css[1])
+    assert np.all(np.isnan(a["css"][1::2]))
+    np.testing.assert_array_equal(a["tam"][[2, 6]], tam[1])
+    assert np.isnan(a["tam"][[0, 1, 3, 4, 5, 7]]).all()
+    with pytest.raises(ValueError, match="strictly increasing"):
+        bridge.common_time_line({"css": (np.array([0, 0]), np.zeros((2, 2)))})
+    with pytest.raises(ValueError, match="rows"):
+        bridge.common_time_line({"css": (np.array([0, 1]), np.zeros((3, 2)))})
+
+
 def test_epoch_forms():
     assert bridge.epoch_utc_string(dt.datetime(2026, 3, 20, 12, 0, 0)) == "2026-03-20T12:00:00Z"
     assert bridge.epoch_utc_string(dt.datetime(2026, 3, 20, 12, 0, 0, 250000)) == "2026-03-20T12:00:00.250000Z"
@@ -869,6 +887,34 @@ def test_pdcal_calibrates_the_basilisk_css(albedo_model):
     max_attitude_rms_deg, min_within_3sigma = ATTITUDE_BOUNDS[albedo_model]
     assert evaluation["attitude"]["rms_deg"] < max_attitude_rms_deg, evaluation["attitude"]
     assert evaluation["consistency"]["final_states_within_3sigma"] >= min_within_3sigma
+
+
+def test_pdcal_calibrates_recorders_at_different_rates():
+    """The magnetometer task at 0.5 Hz and the CSS at 1 Hz on one time line: the blank rows
+    reach pdcal as blank cells and the calibration still holds."""
+    pytest.importorskip("pdcal._pdcal")
+    import pdcal
+    import pdcal.basilisk
+
+    sim = simulated("toms")
+    t = sim["t_ns"]
+    every_2 = slice(None, None, 2)
+    t_ns, a = pdcal.basilisk.common_time_line({
+        "css": (t, sim["css_cos_values"]),
+        "imu": (t, sim["imu_rate_platform_rad_s"]),
+        "tam": (t[every_2], sim["tam_sensor_T"][every_2]),
+        "sc": (t, sim["r_BN_N_m"]),
+    })
+    args = dict(bridge_arguments(sim), t_ns=t_ns, css_cos_values=a["css"],
+                imu_rate_platform_rad_s=a["imu"], tam_sensor_T=a["tam"], r_BN_N_m=a["sc"])
+    ds = pdcal.basilisk.dataset_from_basilisk(**args)
+    mag = np.asarray(ds.mag_nT)
+    assert np.isnan(mag[1::2]).all() and not np.isnan(mag[::2]).any()
+    cal = pdcal.calibrate(ds)
+    normal_err_deg, scale_err_pct = _errors(cal, sim)
+    max_normal, max_scale = BOUNDS["toms"]
+    assert normal_err_deg.max() < max_normal, normal_err_deg
+    assert np.abs(scale_err_pct).max() < max_scale, scale_err_pct
 
 
 if __name__ == "__main__":

@@ -33,6 +33,7 @@ __all__ = [
     "normal_to_az_el_deg",
     "az_el_deg_to_normal",
     "epoch_utc_string",
+    "common_time_line",
     "dataset_kwargs_from_basilisk",
     "dataset_from_basilisk",
     "truth_from_basilisk",
@@ -129,6 +130,33 @@ def epoch_utc_string(epoch: Any) -> str:
             text += f".{epoch.microsecond:06d}"
         return text + "Z"
     raise TypeError(f"cannot read an epoch from {type(epoch).__name__}")
+
+
+def common_time_line(series: Mapping[str, Sequence[Any]]) -> tuple:
+    """Recorders of tasks at different rates on one time line, for the bridge.
+
+    ``series`` maps a name to ``(t_ns, values)`` (``recorder.times()`` and the recorded
+    field, one row per time). Returns ``(t_ns, arrays)``: the sorted union of all times (ns,
+    int64) and, per name, the values on it with NaN rows where that recorder has no sample
+    (pdcal's blank cells). Times are matched exactly, as Basilisk's integer-ns task times
+    are; a recorder with a repeated time is an error.
+    """
+    times = {}
+    for name, (t_ns, values) in series.items():
+        t = np.asarray(t_ns, dtype=np.int64)
+        if t.ndim != 1 or np.any(np.diff(t) <= 0):
+            raise ValueError(f"{name}: times must be one-dimensional and strictly increasing")
+        times[name] = t
+    union = np.unique(np.concatenate(list(times.values()))) if times else np.zeros(0, np.int64)
+    arrays = {}
+    for name, (_, values) in series.items():
+        v = np.asarray(values, dtype=float)
+        if v.shape[0] != times[name].shape[0]:
+            raise ValueError(f"{name}: {v.shape[0]} rows for {times[name].shape[0]} times")
+        out = np.full((union.shape[0],) + v.shape[1:], np.nan)
+        out[np.searchsorted(union, times[name])] = v
+        arrays[name] = out
+    return union, arrays
 
 
 def _rows(name: str, values: Any, n_rows: int, n_cols: int) -> np.ndarray:
