@@ -529,13 +529,16 @@ fn scenario_from_dict(dict: &Bound<'_, PyDict>) -> PyResult<pdcal_sim::Scenario>
 }
 
 /// Simulates a scenario (a built-in name, `"rax2-like"` when None, a scenario RON file, or
-/// a dict from `pdcal.scenario`) with `seed`; the dataset carries the truth.
+/// a dict from `pdcal.scenario`) with `seed`; the dataset carries the truth. `downlink`
+/// picks one of the seed spacecraft's downlinks: the same hardware, its own noise, start
+/// attitude and gyro bias (`pdcal simulate --downlink`).
 #[pyfunction]
-#[pyo3(signature = (scenario=None, seed=1))]
+#[pyo3(signature = (scenario=None, seed=1, downlink=0))]
 pub fn simulate(
     py: Python<'_>,
     scenario: Option<&Bound<'_, PyAny>>,
     seed: u64,
+    downlink: u64,
 ) -> PyResult<Dataset> {
     let scenario = match scenario {
         Some(s) if s.is_instance_of::<PyDict>() => scenario_from_dict(s.cast::<PyDict>()?)?,
@@ -546,7 +549,7 @@ pub fn simulate(
         None => pdcal::simulate::load_scenario("rax2-like").map_err(py_err)?,
     };
     let output = py
-        .detach(|| pdcal::simulate::run(&scenario, seed))
+        .detach(|| pdcal::simulate::run_downlink(&scenario, seed, downlink))
         .map_err(py_err)?;
     Ok(Dataset {
         inner: output.to_dataset(),

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import pdcal
+from conftest import cli
 
 
 def same(a, b):
@@ -132,3 +133,19 @@ def test_rows_of_unequal_length_name_the_column(short_set):
         pdcal.Dataset(**a)
     assert "pd01_V" in str(e.value) and str(short_set.rows) in str(e.value)
     assert not math.isnan(short_set.t_s[0])
+
+
+def test_downlinks_of_a_seed_share_the_hardware_and_not_the_noise(pdcal_bin, tmp_path):
+    scenario = pdcal.scenario("rax2-like")
+    scenario["duration_s"] = 120.0
+    first = pdcal.simulate(scenario, seed=4)
+    later = pdcal.simulate(scenario, seed=4, downlink=2)
+    np.testing.assert_array_equal(first.truth["scale_V"], later.truth["scale_V"])
+    np.testing.assert_array_equal(first.truth["azimuth_deg"], later.truth["azimuth_deg"])
+    assert not np.array_equal(first.gyro_rad_s, later.gyro_rad_s)
+    assert pdcal.simulate(scenario, seed=4, downlink=0) == first
+    # The CLI's --downlink is the same data set.
+    out = tmp_path / "downlink2"
+    status, stderr = cli(pdcal_bin, "simulate", "--seed", "4", "--downlink", "2", "--out", out)
+    assert status == 0, stderr
+    assert pdcal.Dataset.read(out) == pdcal.simulate("rax2-like", seed=4, downlink=2)
