@@ -71,6 +71,20 @@ enum Place {
     LineAndColumn,
 }
 
+impl Place {
+    /// Whether an error's line, column and field path place it this precisely.
+    fn given_by(&self, line: Option<usize>, column: Option<usize>, field: Option<&str>) -> bool {
+        match self {
+            Place::File => true,
+            Place::LineOrField => {
+                (line.is_some() && column.is_some()) || field.is_some_and(|f| !f.is_empty())
+            }
+            Place::Line => line.is_some(),
+            Place::LineAndColumn => line.is_some() && column.is_some(),
+        }
+    }
+}
+
 /// Checks a result of the dataset reader; `files` are the paths written and their bytes.
 pub(crate) fn dataset(result: Result<(), DatasetError>, files: &[(PathBuf, &[u8])]) -> Verdict {
     let Err(e) = result else {
@@ -88,15 +102,7 @@ pub(crate) fn dataset(result: Result<(), DatasetError>, files: &[(PathBuf, &[u8]
     };
     let is_ron = path.extension().is_some_and(|x| x == "ron");
     let place = dataset_place(e.kind(), is_ron);
-    let placed = match place {
-        Place::File => true,
-        Place::LineOrField => {
-            (e.line().is_some() && e.column().is_some()) || e.field().is_some_and(|f| !f.is_empty())
-        }
-        Place::Line => e.line().is_some(),
-        Place::LineAndColumn => e.line().is_some() && e.column().is_some(),
-    };
-    if !placed {
+    if !place.given_by(e.line(), e.column(), e.field()) {
         problems.push(Problem::NoPosition);
     }
     if let Some(line) = e.line() {
@@ -157,15 +163,7 @@ pub(crate) fn import(result: anyhow::Result<()>, files: &[(PathBuf, &[u8])]) -> 
         return Verdict::Rejected { message, problems };
     };
     let is_map = path.extension().is_some_and(|x| x == "ron");
-    let placed = match import_place(e.kind(), is_map) {
-        Place::File => true,
-        Place::LineOrField => {
-            (e.line().is_some() && e.column().is_some()) || e.field().is_some_and(|f| !f.is_empty())
-        }
-        Place::Line => e.line().is_some(),
-        Place::LineAndColumn => e.line().is_some() && e.column().is_some(),
-    };
-    if !placed {
+    if !import_place(e.kind(), is_map).given_by(e.line(), e.column(), e.field()) {
         problems.push(Problem::NoPosition);
     }
     if let Some(line) = e.line() {

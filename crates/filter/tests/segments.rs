@@ -118,6 +118,24 @@ fn worst_errors(calibration: &Calibration) -> (f64, f64) {
     worst
 }
 
+/// Every calibrated normal and scale within 3 sigma of the truth.
+fn assert_within_3_sigma(truth: &TruthConstants, calibration: &Calibration) {
+    for (t, e) in truth.photodiodes.iter().zip(&calibration.photodiodes) {
+        let n = normal_from_az_el(t.azimuth_deg.to_radians(), t.elevation_deg.to_radians());
+        let sigma_deg = e
+            .elevation_sigma_deg
+            .max(e.azimuth_sigma_deg.unwrap_or(0.0));
+        assert!(
+            n.angle(&e.n_body()).to_degrees() < 3.0 * sigma_deg,
+            "{e:?} {t:?}"
+        );
+        assert!(
+            (e.scale_v - t.scale_v).abs() < 3.0 * e.scale_sigma_v,
+            "{e:?} {t:?}"
+        );
+    }
+}
+
 /// RMS attitude error (deg) over sunlit estimates at least `settle_s` after the first row
 /// of their segment.
 fn settled_attitude_rms_deg(estimates: &[StepEstimate], settle_s: f64) -> (f64, usize) {
@@ -370,25 +388,7 @@ fn sparse_flight_frames_calibrate_honestly() {
         assert_eq!(s.paired_field_row, s.acquired_row.map(|r| r + 1), "{s:#?}");
     }
     // Honest: every calibrated parameter within 3 sigma of the truth.
-    for (t, e) in sim
-        .constants
-        .photodiodes
-        .iter()
-        .zip(&run.calibration.photodiodes)
-    {
-        let n = normal_from_az_el(t.azimuth_deg.to_radians(), t.elevation_deg.to_radians());
-        let sigma_deg = e
-            .elevation_sigma_deg
-            .max(e.azimuth_sigma_deg.unwrap_or(0.0));
-        assert!(
-            n.angle(&e.n_body()).to_degrees() < 3.0 * sigma_deg,
-            "{e:?} {t:?}"
-        );
-        assert!(
-            (e.scale_v - t.scale_v).abs() < 3.0 * e.scale_sigma_v,
-            "{e:?} {t:?}"
-        );
-    }
+    assert_within_3_sigma(&sim.constants, &run.calibration);
     let pd: Vec<_> = run
         .residuals
         .iter()
@@ -447,23 +447,5 @@ fn irregular_random_cuts_and_blank_cells_stay_honest() {
             .count()
             >= 2
     );
-    for (t, e) in f
-        .constants
-        .photodiodes
-        .iter()
-        .zip(&run.calibration.photodiodes)
-    {
-        let n = normal_from_az_el(t.azimuth_deg.to_radians(), t.elevation_deg.to_radians());
-        let sigma_deg = e
-            .elevation_sigma_deg
-            .max(e.azimuth_sigma_deg.unwrap_or(0.0));
-        assert!(
-            n.angle(&e.n_body()).to_degrees() < 3.0 * sigma_deg,
-            "{e:?} {t:?}"
-        );
-        assert!(
-            (e.scale_v - t.scale_v).abs() < 3.0 * e.scale_sigma_v,
-            "{e:?} {t:?}"
-        );
-    }
+    assert_within_3_sigma(&f.constants, &run.calibration);
 }
