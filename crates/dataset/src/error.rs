@@ -212,10 +212,7 @@ pub enum ErrorKind {
         missing: String,
     },
     /// The output path holds something that is not a pdcal dataset.
-    #[error(
-        "refusing to replace: {reason}; only an empty directory or a pdcal dataset directory \
-         (dataset.ron and at most telemetry.csv, truth.csv, truth.ron) is replaced"
-    )]
+    #[error("{reason}")]
     NotADatasetDir {
         /// What is there instead.
         reason: String,

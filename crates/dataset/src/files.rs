@@ -4,7 +4,9 @@ use std::fs;
 use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
+use crate::bounded::{MAX_RON_BYTES, open_regular, read_bounded};
 use crate::error::{DatasetError, ErrorKind, text_of};
+use crate::manifest::Manifest;
 use crate::meta::{DatasetMeta, parse_meta, render_meta};
 use crate::publish::{Publication, PublishError, PublishErrorKind};
 use crate::table::CsvRows;
@@ -37,14 +39,23 @@ fn io_error(file: &Path, action: &str, source: std::io::Error) -> DatasetError {
 }
 
 fn read_text(file: &Path) -> Result<String, DatasetError> {
-    let bytes = fs::read(file).map_err(|e| io_error(file, "cannot read", e))?;
+    read_text_at_most(file, u64::MAX - 1)
+}
+
+/// A RON file's text, at most [`MAX_RON_BYTES`].
+fn read_ron_text(file: &Path) -> Result<String, DatasetError> {
+    read_text_at_most(file, MAX_RON_BYTES)
+}
+
+fn read_text_at_most(file: &Path, max_bytes: u64) -> Result<String, DatasetError> {
+    let bytes = read_bounded(file, max_bytes).map_err(|e| io_error(file, "cannot read", e))?;
     text_of(file, bytes)
 }
 
 /// Reads and validates `dir/dataset.ron`.
 pub fn read_meta(dir: &Path) -> Result<DatasetMeta, DatasetError> {
     let file = dir.join(DATASET_RON);
-    parse_meta(&file, &read_text(&file)?)
+    parse_meta(&file, &read_ron_text(&file)?)
 }
 
 /// Reads and validates `dir/telemetry.csv` against its dataset.ron.
@@ -55,7 +66,7 @@ pub fn read_meta(dir: &Path) -> Result<DatasetMeta, DatasetError> {
 pub fn read_telemetry(dir: &Path, meta: &DatasetMeta) -> Result<Telemetry, DatasetError> {
     let file = dir.join(TELEMETRY_CSV);
     let bom = check_text_file(&file)?;
-    let mut source = fs::File::open(&file).map_err(|e| io_error(&file, "cannot read", e))?;
+    let mut source = open_regular(&file).map_err(|e| io_error(&file, "cannot read", e))?;
     if bom {
         source
             .seek(SeekFrom::Start(BOM.len() as u64))
@@ -72,7 +83,7 @@ const BOM: &str = "\u{feff}";
 /// one.
 fn check_text_file(file: &Path) -> Result<bool, DatasetError> {
     let read_error = |e| io_error(file, "cannot read", e);
-    let mut source = fs::File::open(file).map_err(read_error)?;
+    let mut source = open_regular(file).map_err(read_error)?;
     let mut buf = vec![0_u8; 1 << 16];
     // Bytes of a character cut by the end of the previous read, kept at the buffer's start.
     let mut carry = 0;
@@ -173,7 +184,7 @@ pub fn read_truth(
         )),
         (true, true) => {
             let series = parse_truth_series(&csv_file, &read_text(&csv_file)?)?;
-            let constants = parse_truth_constants(&ron_file, &read_text(&ron_file)?, meta)?;
+            let constants = parse_truth_constants(&ron_file, &read_ron_text(&ron_file)?, meta)?;
             Ok(Some((series, constants)))
         }
     }
@@ -222,18 +233,42 @@ pub fn write_dataset(dir: &Path, ds: &Dataset) -> Result<(), DatasetError> {
 }
 
 /// A dataset directory being written (see [`crate::publish`]): its target checked and
-/// locked, its staging directory ready.
+/// locked, its staging directory ready, and the command that writes it (its manifest's).
 #[derive(Debug)]
-pub struct DatasetWriter(Publication);
+pub struct DatasetWriter {
+    publication: Publication,
+    command: String,
+    force: bool,
+}
 
-/// Starts writing a dataset into `dir`, before the dataset exists: an existing `dir` is
-/// replaced only when it is empty or a pdcal dataset directory (`dataset.ron`, plus at most
-/// `telemetry.csv`, `truth.csv`, `truth.ron`, nothing else); anything else is refused with
-/// [`ErrorKind::NotADatasetDir`] and left untouched. Missing parent directories are created.
-/// Call it before simulating, so a bad `--out` costs nothing.
+/// The manifest `command` of a dataset written by [`write_dataset`] or [`begin_dataset`]
+/// (a library or Python write rather than a pdcal command).
+pub const LIBRARY_WRITE_COMMAND: &str = "dataset";
+
+/// Starts writing a dataset into `dir`, before the dataset exists, as
+/// [`LIBRARY_WRITE_COMMAND`]: [`begin_dataset_as`].
 pub fn begin_dataset(dir: &Path) -> Result<DatasetWriter, DatasetError> {
-    Publication::begin(dir, &dataset_rule)
-        .map(DatasetWriter)
+    begin_dataset_as(dir, LIBRARY_WRITE_COMMAND, false)
+}
+
+/// Starts writing a dataset into `dir` for `command` (`simulate`, `import`), before the
+/// dataset exists: an existing `dir` is replaced only when it is empty or holds a dataset
+/// the same command wrote, unchanged since (or changed, with `force`) and with nothing
+/// beside it ([`crate::manifest::replace_rule`]); anything else is refused with
+/// [`ErrorKind::NotADatasetDir`] and left untouched. Missing parent directories are
+/// created. Call it before simulating, so a bad `--out` costs nothing.
+pub fn begin_dataset_as(
+    dir: &Path,
+    command: &str,
+    force: bool,
+) -> Result<DatasetWriter, DatasetError> {
+    let rule = dataset_rule(command, force);
+    Publication::begin(dir, &rule)
+        .map(|publication| DatasetWriter {
+            publication,
+            command: command.to_owned(),
+            force,
+        })
         .map_err(publish_error)
 }
 
@@ -246,10 +281,17 @@ impl DatasetWriter {
     }
 
     fn write_rendered(self, files: &[(&'static str, String)]) -> Result<(), DatasetError> {
+        let staging = self.publication.path();
         for (name, text) in files {
-            write_synced(&self.0.path().join(name), text)?;
+            write_synced(&staging.join(name), text)?;
         }
-        self.0.publish(&dataset_rule).map_err(publish_error)
+        Manifest::of_dir(staging, &self.command)
+            .and_then(|m| m.write(staging))
+            .map_err(|e| {
+                DatasetError::whole_file(&e.path, ErrorKind::Output { message: e.message })
+            })?;
+        let rule = dataset_rule(&self.command, self.force);
+        self.publication.publish(&rule).map_err(publish_error)
     }
 }
 
@@ -277,22 +319,16 @@ fn write_synced(file: &Path, text: &str) -> Result<(), DatasetError> {
         .map_err(|e| io_error(file, "cannot write", e))
 }
 
-/// The rule of [`begin_dataset`] for an existing directory.
-fn dataset_rule(dir: &Path) -> Result<(), String> {
-    let entries = fs::read_dir(dir).map_err(|e| format!("cannot list it: {e}"))?;
-    let mut names = Vec::new();
-    for entry in entries {
-        let entry = entry.map_err(|e| format!("cannot list it: {e}"))?;
-        let name = entry.file_name().to_string_lossy().into_owned();
-        let is_file = entry.file_type().is_ok_and(|t| t.is_file());
-        let known = [DATASET_RON, TELEMETRY_CSV, TRUTH_CSV, TRUTH_RON].contains(&name.as_str());
-        if !(is_file && known) {
-            return Err(format!("it holds {}", crate::error::quote(&name)));
-        }
-        names.push(name);
+/// The rule of [`begin_dataset_as`] for an existing directory.
+fn dataset_rule(command: &str, force: bool) -> impl Fn(&Path) -> Result<(), String> + '_ {
+    move |dir| {
+        crate::manifest::replace_rule(
+            dir,
+            &crate::manifest::Replacing {
+                command,
+                force,
+                late_files: &[],
+            },
+        )
     }
-    if !names.is_empty() && !names.iter().any(|n| n == DATASET_RON) {
-        return Err("it has no dataset.ron".into());
-    }
-    Ok(())
 }

@@ -54,11 +54,14 @@
 //! time scales and can panic on some malformed text. The staging output directory is
 //! hand-made ([`publish`]) because `tempfile` creates it with mode 0700.
 
+pub mod bounded;
 mod error;
 mod files;
+pub mod manifest;
 mod meta;
 pub mod publish;
 mod ron_text;
+pub mod rules;
 mod samples;
 mod table;
 mod telemetry;
@@ -67,8 +70,8 @@ mod truth;
 
 pub use error::{DatasetError, ErrorKind, QUOTE_MAX_CHARS, clip, quote};
 pub use files::{
-    Dataset, DatasetWriter, begin_dataset, read_dataset, read_meta, read_telemetry, read_truth,
-    render_dataset, write_dataset,
+    Dataset, DatasetWriter, LIBRARY_WRITE_COMMAND, begin_dataset, begin_dataset_as, read_dataset,
+    read_meta, read_telemetry, read_truth, render_dataset, write_dataset,
 };
 pub use meta::{
     DatasetMeta, EpochUtc, FORMAT_VERSION, MetaFields, NoiseHints, NominalMount, OrbitSpec,

@@ -416,25 +416,17 @@ fn check_mounts(file: &Path, text: &str, mounts: &[NominalMount]) -> Result<(), 
         ] {
             check_finite(file, v, || format!("photodiodes[{i}].{name}"))?;
         }
-        let out_of_range = |name: &str, value: f64, rule: &str| {
+        if let Err((name, rule)) = crate::rules::mounting(m.azimuth_deg, m.elevation_deg) {
+            let value = match name {
+                "azimuth_deg" => m.azimuth_deg,
+                _ => m.elevation_deg,
+            };
             let kind = ErrorKind::OutOfRange {
                 value,
                 rule: rule.into(),
             };
-            Err(DatasetError::whole_file(file, kind).named(format!("photodiodes[{i}].{name}")))
-        };
-        if !(-90.0..=90.0).contains(&m.elevation_deg) {
-            return out_of_range(
-                "elevation_deg",
-                m.elevation_deg,
-                "elevation must be in [-90, 90] deg",
-            );
-        }
-        if !(-360.0..=360.0).contains(&m.azimuth_deg) {
-            return out_of_range(
-                "azimuth_deg",
-                m.azimuth_deg,
-                "azimuth must be in [-360, 360] deg",
+            return Err(
+                DatasetError::whole_file(file, kind).named(format!("photodiodes[{i}].{name}"))
             );
         }
         if let Some(panel) = &m.panel

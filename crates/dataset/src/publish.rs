@@ -79,6 +79,13 @@ pub enum PublishErrorKind {
     /// The target exists and is not a directory.
     #[error("exists and is not a directory; refusing to replace it")]
     NotADirectory,
+    /// The target is a mount point: it cannot be renamed, and an output is replaced by a
+    /// rename.
+    #[error(
+        "is a mount point; pdcal replaces an output directory by renaming it, which a mount \
+         point does not allow; pass a directory inside it (nothing was changed)"
+    )]
+    MountPoint,
     /// The target has no final name (`/`, `..`).
     #[error("does not name a directory that can be created")]
     NoName,
@@ -144,6 +151,7 @@ impl Publication {
     pub fn begin(out: &Path, may_replace: ReplaceRule<'_>) -> Result<Self, PublishError> {
         let target = resolve_target(out)?;
         let parent = parent_of(&target);
+        refuse_mount_point(&target, &parent)?;
         fs::create_dir_all(&parent).map_err(io_error("create", &parent))?;
         let name = target
             .file_name()
@@ -205,6 +213,24 @@ impl Drop for Publication {
             let _ = fs::remove_file(&self.lock);
         }
     }
+}
+
+/// A target on another file system than its parent is a mount point (or a bind mount):
+/// refused before any computation, since its replacement by a rename would fail at the end.
+fn refuse_mount_point(target: &Path, parent: &Path) -> Result<(), PublishError> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let (Ok(t), Ok(p)) = (fs::metadata(target), fs::metadata(parent))
+            && t.is_dir()
+            && (t.dev() != p.dev() || t.ino() == p.ino())
+        {
+            return Err(PublishError::new(target, PublishErrorKind::MountPoint));
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = (target, parent);
+    Ok(())
 }
 
 fn parent_of(path: &Path) -> PathBuf {

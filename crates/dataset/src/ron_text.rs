@@ -29,7 +29,7 @@ pub(crate) fn from_ron<T: DeserializeOwned>(file: &Path, text: &str) -> Result<T
                 name: field.to_owned(),
             },
             other => ErrorKind::Ron {
-                message: crate::error::clip(&other.to_string()),
+                message: pdcal_ephem::text::parser_message(&other.to_string()),
             },
         };
         let (line, col) = pdcal_ephem::text::skip_blanks(text, e.span.start.line, e.span.start.col);

@@ -103,11 +103,24 @@ fn replaces_a_dataset_dir_but_nothing_else() {
     // Empty directory: replaced.
     fs::create_dir(&out).unwrap();
     write_dataset(&out, &ds).unwrap();
-    // A dataset directory: replaced, stale truth files gone with it.
-    fs::write(out.join("truth.csv"), "stale").unwrap();
-    fs::write(out.join("truth.ron"), "stale").unwrap();
+    // A dataset directory the same writer wrote: replaced.
     write_dataset(&out, &ds).unwrap();
-    assert!(!out.join("truth.csv").exists());
+    assert_eq!(read_dataset(&out).unwrap(), ds);
+    // A file of it edited since: the user's, refused (and kept) unless forced.
+    fs::write(out.join("telemetry.csv"), "edited").unwrap();
+    let err = write_dataset(&out, &ds).unwrap_err();
+    assert!(
+        err.to_string().contains("was changed after pdcal wrote it"),
+        "{err}"
+    );
+    assert_eq!(
+        fs::read_to_string(out.join("telemetry.csv")).unwrap(),
+        "edited"
+    );
+    pdcal_dataset::begin_dataset_as(&out, pdcal_dataset::LIBRARY_WRITE_COMMAND, true)
+        .unwrap()
+        .write(&ds)
+        .unwrap();
     assert_eq!(read_dataset(&out).unwrap(), ds);
 
     // A directory with a foreign file: refused and untouched.

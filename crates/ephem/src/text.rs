@@ -9,12 +9,35 @@
 pub const QUOTE_MAX_CHARS: usize = 80;
 
 /// `text` for a message, unquoted (a library's own message quoting the input): at most
-/// [`QUOTE_MAX_CHARS`] characters of it, and the full length when cut.
+/// [`QUOTE_MAX_CHARS`] characters of it, and the full length when cut; control characters
+/// escaped ([`escape_controls`]).
 pub fn clip(text: &str) -> String {
     match text.char_indices().nth(QUOTE_MAX_CHARS) {
-        None => text.to_owned(),
-        Some((cut, _)) => format!("{}... ({} bytes)", &text[..cut], text.len()),
+        None => escape_controls(text),
+        Some((cut, _)) => format!(
+            "{}... ({} bytes)",
+            escape_controls(&text[..cut]),
+            text.len()
+        ),
     }
+}
+
+/// `text` with its control characters (ESC, NUL, a carriage return...) escaped as Rust
+/// writes them (`\u{1b}`, `\0`, `\r`), so that echoed input cannot drive the terminal or
+/// split a one-line message.
+pub fn escape_controls(text: &str) -> String {
+    if !text.chars().any(char::is_control) {
+        return text.to_owned();
+    }
+    text.chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_debug().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
 }
 
 /// `text` quoted for a message: Rust string syntax, at most [`QUOTE_MAX_CHARS`] characters
@@ -24,6 +47,17 @@ pub fn quote(text: &str) -> String {
         None => format!("{text:?}"),
         Some((cut, _)) => format!("{:?}... ({} bytes)", &text[..cut], text.len()),
     }
+}
+
+/// A parser's message for a user, in our words where the parser speaks of its own
+/// internals (ron's "Exceeded recursion limit, try increasing `ron::Options::recursion_limit`
+/// ...", which the user cannot do), then [`clip`]ped.
+pub fn parser_message(message: &str) -> String {
+    if message.contains("recursion limit") {
+        return "nested too deeply: more brackets inside brackets than any pdcal file has"
+            .to_owned();
+    }
+    clip(message)
 }
 
 /// A number for a message: `Display` writes every digit (`1e300` is 301 characters), so it

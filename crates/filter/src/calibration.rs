@@ -147,7 +147,8 @@ pub struct Calibration {
 }
 
 impl Calibration {
-    /// Parses `calibration.ron` text and checks that every number is finite.
+    /// Parses `calibration.ron` text and checks every photodiode by the dataset's own rules
+    /// for a mounting and a scale factor ([`pdcal_dataset::rules`]).
     pub fn from_ron_str(text: &str) -> Result<Self, FilterError> {
         let cal: Calibration =
             ron::from_str(text).map_err(|e| FilterError::ron_parse("calibration", &e))?;
@@ -158,29 +159,8 @@ impl Calibration {
                 rule: "calibration format version must be 1",
             });
         }
-        for pd in &cal.photodiodes {
-            let values = [
-                pd.scale_v,
-                pd.scale_sigma_v,
-                pd.azimuth_deg,
-                pd.elevation_deg,
-                pd.elevation_sigma_deg,
-                pd.azimuth_sigma_deg.unwrap_or(0.0),
-            ];
-            if let Some(v) = values.iter().find(|v| !v.is_finite()) {
-                return Err(FilterError::Config {
-                    field: "photodiodes",
-                    value: *v,
-                    rule: "every number must be finite",
-                });
-            }
-            if pd.scale_v <= 0.0 {
-                return Err(FilterError::Config {
-                    field: "photodiodes.scale_V",
-                    value: pd.scale_v,
-                    rule: "must be positive",
-                });
-            }
+        for (i, pd) in cal.photodiodes.iter().enumerate() {
+            check_photodiode(i, pd)?;
         }
         Ok(cal)
     }
@@ -194,4 +174,36 @@ impl Calibration {
             }
         })
     }
+}
+
+/// Photodiode `i` of a calibration by the rules every file's mounting and scale factor
+/// obey ([`pdcal_dataset::rules`]); the error names `photodiodes[i].field` and the value.
+fn check_photodiode(i: usize, pd: &PdCalibration) -> Result<(), FilterError> {
+    use pdcal_dataset::rules;
+    let bad = |field: &str, value: f64, rule: String| FilterError::Invalid {
+        field: format!("photodiodes[{i}].{field}"),
+        value: pdcal_ephem::text::number(value),
+        rule,
+    };
+    if let Err((field, rule)) = rules::mounting(pd.azimuth_deg, pd.elevation_deg) {
+        let value = match field {
+            "azimuth_deg" => pd.azimuth_deg,
+            _ => pd.elevation_deg,
+        };
+        return Err(bad(field, value, rule.to_owned()));
+    }
+    rules::scale_factor(pd.scale_v).map_err(|rule| bad("scale_V", pd.scale_v, rule.to_owned()))?;
+    let sigmas = [
+        ("scale_sigma_V", pd.scale_sigma_v, rules::MAX_SCALE_V),
+        ("elevation_sigma_deg", pd.elevation_sigma_deg, 180.0),
+        (
+            "azimuth_sigma_deg",
+            pd.azimuth_sigma_deg.unwrap_or(0.0),
+            360.0,
+        ),
+    ];
+    for (field, value, max) in sigmas {
+        rules::sigma(value, max).map_err(|rule| bad(field, value, rule))?;
+    }
+    Ok(())
 }

@@ -15,6 +15,17 @@ pub enum FilterError {
         /// What the field must satisfy.
         rule: &'static str,
     },
+    /// A calibration's value breaks the rule every file's value of its kind obeys
+    /// (`pdcal_dataset::rules`).
+    #[error("calibration: {field} = {value}: {rule}")]
+    Invalid {
+        /// Field path as in the RON file (`photodiodes[2].scale_V`).
+        field: String,
+        /// Offending value, as a message shows it.
+        value: String,
+        /// What the field must satisfy.
+        rule: String,
+    },
     /// The RON text of a config or calibration could not be parsed or written.
     #[error("{what}: {message}")]
     Ron {
@@ -139,7 +150,7 @@ impl FilterError {
             message: format!(
                 "{}: {}",
                 e.span,
-                pdcal_ephem::text::clip(&e.code.to_string())
+                pdcal_ephem::text::parser_message(&e.code.to_string())
             ),
         }
     }

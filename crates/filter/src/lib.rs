@@ -96,6 +96,7 @@ pub mod gate;
 pub mod guard;
 pub mod init;
 pub mod layout;
+pub mod mounting;
 pub mod output;
 pub mod references;
 pub mod run;

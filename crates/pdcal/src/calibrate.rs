@@ -43,12 +43,21 @@ impl Default for RunConfig {
 /// becomes the prior of a scale-factors-only run (the paper's third data set).
 pub fn load_config(path: &Path) -> Result<RunConfig> {
     let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    if let Ok(prior) = Calibration::from_ron_str(&text) {
-        return Ok(RunConfig {
-            filter: FilterConfig::default(),
-            mode: Mode::ScaleOnly { prior },
-        });
+        pdcal_dataset::bounded::read_text_bounded(path, pdcal_dataset::bounded::MAX_RON_BYTES)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+    match Calibration::from_ron_str(&text) {
+        Ok(prior) => {
+            return Ok(RunConfig {
+                filter: FilterConfig::default(),
+                mode: Mode::ScaleOnly { prior },
+            });
+        }
+        // A calibration.ron with a bad value gets the calibration's own message, not the
+        // filter configuration's "unknown field".
+        Err(e) if has_field(&text, "gyro_bias_rad_s") && has_field(&text, "photodiodes") => {
+            return Err(e).with_context(|| format!("{}", path.display()));
+        }
+        Err(_) => {}
     }
     if let Some(kind) = other_kind_of_file(&text) {
         bail!(
@@ -69,13 +78,7 @@ pub fn load_config(path: &Path) -> Result<RunConfig> {
 /// What a file passed as `--config` is when it is another pdcal file, recognised by the
 /// fields only that kind has (so the message names it instead of an unexpected field).
 fn other_kind_of_file(text: &str) -> Option<&'static str> {
-    let has = |field: &str| {
-        text.match_indices(field).any(|(i, _)| {
-            let before = text[..i].chars().next_back();
-            let after = text[i + field.len()..].trim_start().chars().next();
-            !before.is_some_and(|c| c.is_alphanumeric() || c == '_') && after == Some(':')
-        })
-    };
+    let has = |field: &str| has_field(text, field);
     let first_line = text.lines().next().unwrap_or("");
     if first_line.split(',').any(|c| c.trim() == "t_s") {
         Some("a CSV table (telemetry.csv or truth.csv)")
@@ -88,6 +91,15 @@ fn other_kind_of_file(text: &str) -> Option<&'static str> {
     } else {
         None
     }
+}
+
+/// Whether RON `text` has a field named `field` (a whole word followed by `:`).
+fn has_field(text: &str, field: &str) -> bool {
+    text.match_indices(field).any(|(i, _)| {
+        let before = text[..i].chars().next_back();
+        let after = text[i + field.len()..].trim_start().chars().next();
+        !before.is_some_and(|c| c.is_alphanumeric() || c == '_') && after == Some(':')
+    })
 }
 
 /// Everything a calibration produces, in memory.
@@ -105,6 +117,9 @@ pub struct Outcome {
     /// The data sets of a joint calibration with their own residual statistics (empty for
     /// one data set).
     pub datasets: Vec<DatasetSummary>,
+    /// Photodiodes whose data contradict their nominal mounting or polarity, and what the
+    /// calibration did about each ([`crate::mounting`]).
+    pub mountings: Vec<pdcal_filter::mounting::MountingFinding>,
 }
 
 /// One data set of a calibration and the statistics of its own photodiode residuals
@@ -146,7 +161,18 @@ pub fn run_with_references(
     config: &RunConfig,
     albedo: &AlbedoModel,
 ) -> Result<Outcome> {
-    let warnings = crate::checks::check_telemetry(telemetry)?;
+    let mut warnings = crate::checks::check_telemetry(telemetry)?;
+    let mountings = crate::mounting::check(meta, telemetry, (&references).into(), &config.filter)?;
+    warnings.extend(mountings.iter().map(|f| f.message()));
+    let corrected = (!mountings.is_empty()).then(|| {
+        let (mut meta, mut telemetry) = (meta.clone(), telemetry.clone());
+        crate::mounting::apply(&mountings, &mut meta, &mut telemetry);
+        (meta, telemetry)
+    });
+    let (meta, telemetry) = match &corrected {
+        Some((meta, telemetry)) => (meta, telemetry),
+        None => (meta, telemetry),
+    };
     let inputs = RunInputs {
         meta,
         telemetry,
@@ -172,6 +198,7 @@ pub fn run_with_references(
         runtime_s,
         warnings,
         datasets: Vec::new(),
+        mountings,
     })
 }
 
@@ -200,9 +227,52 @@ pub fn run_dirs(
     out: &Path,
     config: &RunConfig,
 ) -> Result<(Outcome, crate::files::Summary)> {
-    let dir = OutputDir::create(out, "calibrate")?;
+    run_dirs_forced(datasets, out, config, false)
+}
+
+/// [`run_dirs`]; with `force`, an earlier calibration in `out` is replaced even when its
+/// files were changed since (`--force`).
+pub fn run_dirs_forced(
+    datasets: &[PathBuf],
+    out: &Path,
+    config: &RunConfig,
+    force: bool,
+) -> Result<(Outcome, crate::files::Summary)> {
+    let dir = OutputDir::create_forced(out, "calibrate", force)?;
     // Only meta and telemetry: calibrate never reads truth.*.
     run_sets(crate::joint::read(datasets)?, dir, config, None)
+}
+
+/// The largest number of photodiodes `calibrate` and `diagnose` accept
+/// (docs/performance.md, "Many photodiodes"): the filter's state grows as `3 m`, its
+/// covariance as `9 m^2` and the smoother's work per row as `27 m^3`, so beyond this count a
+/// two-hour set takes more than an hour; a larger set is refused before any computation.
+pub const MAX_PHOTODIODES: usize = 200;
+
+/// Memory the streaming smoother's block of stored rows may take, bytes: the block shrinks
+/// as the state grows, so that many photodiodes do not multiply the memory.
+pub const SMOOTHER_BLOCK_BYTES: usize = 64 << 20;
+
+/// Rows per block of the streaming smoother for `m` photodiodes: the filter's
+/// [`pdcal_filter::SMOOTHER_BLOCK_ROWS`], fewer when one block of stored covariances (the
+/// lower triangle of `n x n`, `n = 6 + 3 m`) would exceed [`SMOOTHER_BLOCK_BYTES`].
+pub fn smoother_block_rows(m: usize) -> usize {
+    let n = 6 + 3 * m;
+    let per_row = 8 * (n * (n + 1) / 2 + 2 * n);
+    (SMOOTHER_BLOCK_BYTES / per_row).clamp(16, pdcal_filter::SMOOTHER_BLOCK_ROWS)
+}
+
+/// Refuses a layout of more than [`MAX_PHOTODIODES`] photodiodes, naming the limit.
+pub fn check_photodiode_count(m: usize, what: &str) -> Result<()> {
+    if m > MAX_PHOTODIODES {
+        bail!(
+            "{what}: {m} photodiodes, more than the {MAX_PHOTODIODES} pdcal calibrates (the \
+             filter's work grows as the cube of the count; docs/performance.md, \"Many \
+             photodiodes\"); calibrate a subset of at most {MAX_PHOTODIODES} (the others' \
+             columns left empty or removed) at a time"
+        );
+    }
+    Ok(())
 }
 
 /// Asked every [`pdcal_filter::CANCEL_POLL_ROWS`] rows of a calibration whether to stop
@@ -219,9 +289,12 @@ pub fn run_sets(
     config: &RunConfig,
     cancel: Option<CancelCheck>,
 ) -> Result<(Outcome, crate::files::Summary)> {
+    if let Some((dir, meta, _)) = sets.first() {
+        check_photodiode_count(meta.photodiodes.len(), &dir.display().to_string())?;
+    }
     let joint = crate::joint::join(sets)?;
-    let (meta, mut telemetry) = (joint.meta, joint.telemetry);
-    let warnings = crate::checks::check_telemetry(&telemetry)?;
+    let (mut meta, mut telemetry) = (joint.meta, joint.telemetry);
+    let mut warnings = crate::checks::check_telemetry(&telemetry)?;
     // Screened here, not only inside the filter, so that the Sun-vector metrics and the
     // figures never see a wild sample either.
     config.filter.validate().context("calibration filter")?;
@@ -241,6 +314,18 @@ pub fn run_sets(
         }
         None => None,
     };
+    let mountings = {
+        let references = match &stored {
+            Some(stored) => References::Stored(stored),
+            None => References::Computed {
+                model: &reference_model,
+                t_s: &telemetry.t_s,
+            },
+        };
+        crate::mounting::check(&meta, &telemetry, references, &config.filter)?
+    };
+    crate::mounting::apply(&mountings, &mut meta, &mut telemetry);
+    warnings.extend(mountings.iter().map(|f| f.message()));
     let references = match &stored {
         Some(stored) => References::Stored(stored),
         None => References::Computed {
@@ -271,7 +356,7 @@ pub fn run_sets(
         &config.mode,
         model,
         Algebra::Structured,
-        pdcal_filter::SMOOTHER_BLOCK_ROWS,
+        smoother_block_rows(meta.photodiodes.len()),
         &mut sink,
     )
     .context("calibration filter")?;
@@ -306,6 +391,7 @@ pub fn run_sets(
                 .map(|(span, residuals)| DatasetSummary { span, residuals })
                 .collect(),
         },
+        mountings,
     };
     let summary = crate::files::summary(&meta, &outcome);
     crate::files::write_summary_and_figures(dir, &telemetry, &outcome, &summary, None)?;

@@ -95,6 +95,7 @@ pub fn check_telemetry(telemetry: &Telemetry) -> Result<Vec<String>> {
             ));
         }
     }
+    check_positions(telemetry)?;
     for (i, column) in telemetry.pd_v.iter().enumerate() {
         let name = photodiode_column(i + 1);
         let sampled = column.iter().flatten().count();
@@ -129,4 +130,25 @@ pub fn check_telemetry(telemetry: &Telemetry) -> Result<Vec<String>> {
         warnings.push(format!("{what}; they are outliers"));
     }
     Ok(warnings)
+}
+
+/// The position columns (`orbit: PositionColumns`) as an orbit: every position above the
+/// Earth and within the Moon's distance, consecutive positions no faster apart than the
+/// escape speed ([`pdcal_dataset::rules::orbit_position`]). The error names the row.
+fn check_positions(telemetry: &Telemetry) -> Result<()> {
+    let Some(r) = &telemetry.r_gcrf_km else {
+        return Ok(());
+    };
+    let mut previous = None;
+    for (k, (t, p)) in telemetry.t_s.iter().zip(r).enumerate() {
+        let Some(p) = p else { continue };
+        if let Err(why) = pdcal_dataset::rules::orbit_position(previous, *t, p) {
+            bail!(
+                "{TELEMETRY_CSV} (r_x_km, r_y_km, r_z_km), row {k} (t_s = {t:?}): {why}; \
+                 these positions are not an orbit"
+            );
+        }
+        previous = Some((*t, *p));
+    }
+    Ok(())
 }

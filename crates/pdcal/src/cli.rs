@@ -37,6 +37,10 @@ pub enum Command {
         /// Also write the figures of the simulated set (Figs. 2 and 3) into this directory.
         #[arg(long)]
         plots: Option<PathBuf>,
+        /// Replace an earlier output of this command in OUT even where its files were
+        /// changed since pdcal wrote them (never files pdcal did not write).
+        #[arg(long)]
+        force: bool,
     },
     /// Turn a ground-segment CSV export into a dataset directory, as a column map says
     /// (docs/import.md).
@@ -49,6 +53,10 @@ pub enum Command {
         /// Output dataset directory.
         #[arg(long)]
         out: PathBuf,
+        /// Replace an earlier output of this command in OUT even where its files were
+        /// changed since pdcal wrote them (never files pdcal did not write).
+        #[arg(long)]
+        force: bool,
     },
     /// Calibrate a dataset: summary.json, calibration.ron, estimates.csv, residuals.csv,
     /// figures and index.html in OUT_DIR.
@@ -64,6 +72,10 @@ pub enum Command {
         /// scale-factors-only run.
         #[arg(long)]
         config: Option<PathBuf>,
+        /// Replace an earlier output of this command in OUT even where its files were
+        /// changed since pdcal wrote them (never files pdcal did not write).
+        #[arg(long)]
+        force: bool,
     },
     /// Compare a calibration in OUT_DIR with the dataset's truth; writes evaluation.json.
     Evaluate {
@@ -83,6 +95,10 @@ pub enum Command {
         /// The model to start from: cosine (Eq. 11) or paper (Eq. 15, with albedo).
         #[arg(long, default_value = "paper", value_parser = ["cosine", "paper"])]
         base_model: String,
+        /// Replace an earlier output of this command in OUT even where its files were
+        /// changed since pdcal wrote them (never files pdcal did not write).
+        #[arg(long)]
+        force: bool,
     },
 }
 
@@ -99,12 +115,15 @@ pub fn run(cli: Cli) -> Result<()> {
             downlink,
             out,
             plots,
+            force,
         }) => {
             let scenario = crate::simulate::load_scenario(&scenario)?;
             let plots = plots
-                .map(|dir| crate::output::OutputDir::create(&dir, "simulate --plots"))
+                .map(|dir| crate::output::OutputDir::create_forced(&dir, "simulate --plots", force))
                 .transpose()?;
-            let output = crate::simulate::run_downlink_to_dir(&scenario, seed, downlink, &out)?;
+            let output = crate::simulate::run_downlink_to_dir_forced(
+                &scenario, seed, downlink, &out, force,
+            )?;
             if let Some(dir) = plots {
                 crate::simulate::write_plots(&output, dir)?;
             }
@@ -117,8 +136,13 @@ pub fn run(cli: Cli) -> Result<()> {
             );
             Ok(())
         }
-        Some(Command::Import { source, map, out }) => {
-            let imported = crate::import::run_to_dir(&source, &map, &out)?;
+        Some(Command::Import {
+            source,
+            map,
+            out,
+            force,
+        }) => {
+            let imported = crate::import::run_to_dir_forced(&source, &map, &out, force)?;
             for line in crate::import::report_lines(&imported.report) {
                 println!("{line}");
             }
@@ -135,12 +159,14 @@ pub fn run(cli: Cli) -> Result<()> {
             datasets,
             out,
             config,
+            force,
         }) => {
             let config = match config {
                 Some(path) => crate::calibrate::load_config(&path)?,
                 None => crate::calibrate::RunConfig::default(),
             };
-            let (outcome, summary) = crate::calibrate::run_dirs(&datasets, &out, &config)?;
+            let (outcome, summary) =
+                crate::calibrate::run_dirs_forced(&datasets, &out, &config, force)?;
             print_warnings(&outcome.warnings);
             print!("{}", crate::tables::console_summary(&summary));
             eprintln!(
@@ -154,9 +180,10 @@ pub fn run(cli: Cli) -> Result<()> {
             dataset,
             out,
             base_model,
+            force,
         }) => {
             let base: pdcal_diagnose::BaseModel = base_model.parse()?;
-            let outcome = crate::diagnose::run_dir(&dataset, &out, base)?;
+            let outcome = crate::diagnose::run_dir_forced(&dataset, &out, base, force)?;
             print_warnings(&outcome.warnings);
             print!("{}", crate::diagnose::console_summary(&outcome));
             eprintln!("diagnosis -> {}", out.display());

@@ -51,7 +51,18 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry, base: BaseModel) -> Result
 
 /// `pdcal diagnose DATASET_DIR --out OUT_DIR [--base-model ...]`.
 pub fn run_dir(dataset: &Path, out: &Path, base: BaseModel) -> Result<DiagnoseOutcome> {
-    let dir = OutputDir::create(out, "diagnose")?;
+    run_dir_forced(dataset, out, base, false)
+}
+
+/// [`run_dir`]; with `force`, an earlier diagnosis in `out` is replaced even when its files
+/// were changed since (`--force`).
+pub fn run_dir_forced(
+    dataset: &Path,
+    out: &Path,
+    base: BaseModel,
+    force: bool,
+) -> Result<DiagnoseOutcome> {
+    let dir = OutputDir::create_forced(out, "diagnose", force)?;
     let meta = pdcal_dataset::read_meta(dataset)?;
     let telemetry = pdcal_dataset::read_telemetry(dataset, &meta)?;
     let outcome = run(&meta, &telemetry, base)?;

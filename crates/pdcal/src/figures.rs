@@ -99,37 +99,76 @@ fn push(out: &mut Vec<FigureEntry>, caption: &str, stem: &str) {
 }
 
 fn raw_outputs(dir: &Path, telemetry: &Telemetry, out: &mut Vec<FigureEntry>) -> Result<()> {
-    raw_outputs_figure(dir, telemetry, "Raw photodiode outputs")?;
-    push(out, "Fig. 2: raw photodiode outputs", "fig02_raw_outputs");
+    for (stem, which) in raw_outputs_figure(dir, telemetry, "Raw photodiode outputs")? {
+        push(
+            out,
+            &format!("Fig. 2: raw photodiode outputs{which}"),
+            &stem,
+        );
+    }
     Ok(())
 }
 
-/// Fig. 2: every photodiode's raw output over time (`fig02_raw_outputs` in `dir`); empty
-/// cells are gaps.
-pub fn raw_outputs_figure(dir: &Path, telemetry: &Telemetry, title: &str) -> Result<()> {
+/// Photodiodes per page of Fig. 2 when they are more than [`pdcal_report::MAX_SERIES`]:
+/// few enough that each line's colour and legend entry can still be told apart.
+pub const RAW_OUTPUTS_PER_PAGE: usize = 20;
+
+/// The pages of Fig. 2 for `m` photodiodes: one figure `fig02_raw_outputs` for up to
+/// [`pdcal_report::MAX_SERIES`], else pages of [`RAW_OUTPUTS_PER_PAGE`], the first keeping
+/// that stem and the others `fig02_raw_outputs_pN`; each with its photodiode range and the
+/// caption's suffix naming it.
+pub fn raw_output_pages(m: usize) -> Vec<(String, std::ops::Range<usize>, String)> {
+    if m <= pdcal_report::MAX_SERIES {
+        return vec![("fig02_raw_outputs".to_owned(), 0..m, String::new())];
+    }
+    (0..m.div_ceil(RAW_OUTPUTS_PER_PAGE))
+        .map(|page| {
+            let range = page * RAW_OUTPUTS_PER_PAGE..((page + 1) * RAW_OUTPUTS_PER_PAGE).min(m);
+            let stem = match page {
+                0 => "fig02_raw_outputs".to_owned(),
+                _ => format!("fig02_raw_outputs_p{}", page + 1),
+            };
+            let which = format!(", pd{:02}-pd{:02}", range.start + 1, range.end);
+            (stem, range, which)
+        })
+        .collect()
+}
+
+/// Fig. 2: every photodiode's raw output over time (`fig02_raw_outputs` in `dir`, in pages
+/// for many photodiodes, [`raw_output_pages`]); empty cells are gaps. Returns each page's
+/// stem and the caption suffix naming its photodiodes.
+pub fn raw_outputs_figure(
+    dir: &Path,
+    telemetry: &Telemetry,
+    title: &str,
+) -> Result<Vec<(String, String)>> {
     let stride = stride_for(telemetry.len());
     let broken = Broken::time_gaps(&every(&telemetry.t_s, stride));
     let t = &broken.t_min;
-    let columns: Vec<Vec<f64>> = telemetry
-        .pd_v
-        .iter()
-        .map(|c| broken.pick(|i| c.get(i * stride).unwrap_or(f64::NAN)))
-        .collect();
-    let names: Vec<String> = (1..=columns.len()).map(|i| format!("pd{i:02}")).collect();
-    let series: Vec<Series> = columns
-        .iter()
-        .zip(&names)
-        .map(|(c, n)| Series::new(n, c, Mark::Line))
-        .collect();
-    let figure = Figure::new("fig02_raw_outputs", title);
-    lines(
-        dir,
-        &figure,
-        &LineAxes::new("time (min)", "output (V)"),
-        t,
-        &series,
-    )?;
-    Ok(())
+    let mut pages = Vec::new();
+    for (stem, range, which) in raw_output_pages(telemetry.pd_v.len()) {
+        let columns: Vec<Vec<f64>> = telemetry.pd_v[range.clone()]
+            .iter()
+            .map(|c| broken.pick(|i| c.get(i * stride).unwrap_or(f64::NAN)))
+            .collect();
+        let names: Vec<String> = range.map(|i| format!("pd{:02}", i + 1)).collect();
+        let series: Vec<Series> = columns
+            .iter()
+            .zip(&names)
+            .map(|(c, n)| Series::new(n, c, Mark::Line))
+            .collect();
+        let page_title = format!("{title}{which}");
+        let figure = Figure::new(&stem, &page_title);
+        lines(
+            dir,
+            &figure,
+            &LineAxes::new("time (min)", "output (V)"),
+            t,
+            &series,
+        )?;
+        pages.push((stem, which));
+    }
+    Ok(pages)
 }
 
 fn sun_directions(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Result<()> {

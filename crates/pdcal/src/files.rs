@@ -65,6 +65,9 @@ pub struct Summary {
     /// time line and its own photodiode residual statistics.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub datasets: Vec<crate::calibrate::DatasetSummary>,
+    /// Photodiodes whose data contradict their nominal mounting or polarity: what dataset.ron
+    /// says, what the data support, and what the calibration did (`crate::mounting`).
+    pub mounting_findings: Vec<pdcal_filter::mounting::MountingFinding>,
 }
 
 /// One photodiode in `summary.json`.
@@ -126,6 +129,25 @@ fn photodiode_flag(
     let beyond = normal_change_deg > 3.0 * normal_sigma_deg
         || scale_change_v.abs() > 3.0 * init.scale_sigma_v;
     beyond.then(|| "change beyond 3 sigma of the prior".to_owned())
+}
+
+/// The flag of a photodiode with a mounting finding: what the data say instead of
+/// dataset.ron.
+fn mounting_flag(
+    index: usize,
+    findings: &[pdcal_filter::mounting::MountingFinding],
+) -> Option<String> {
+    use pdcal_filter::mounting::Action;
+    let f = findings.iter().find(|f| f.photodiode == index)?;
+    Some(match (f.action, f.polarity_reversed) {
+        (Action::Excluded, _) => "nominal mounting contradicted: left out".to_owned(),
+        (Action::CalibratedNegated, _) => "polarity reversed: outputs negated".to_owned(),
+        (Action::CalibratedFromSupported, reversed) => format!(
+            "nominal mounting off by {:.0} deg: calibrated from the data's normal{}",
+            f.angle_deg.unwrap_or(f64::NAN),
+            if reversed { ", outputs negated" } else { "" }
+        ),
+    })
 }
 
 /// Initial values of one photodiode.
@@ -356,7 +378,8 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
                 normal_change_deg,
                 scale_change_percent: 100.0 * (cal.scale_v - init.scale_v) / init.scale_v,
                 time_used_min,
-                flag: photodiode_flag(*used, time_used_min, change, init),
+                flag: mounting_flag(i + 1, &outcome.mountings)
+                    .or_else(|| photodiode_flag(*used, time_used_min, change, init)),
             }
         })
         .collect();
@@ -397,6 +420,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         segment_rules: run.segment_rules,
         segments: run.segments.clone(),
         datasets: outcome.datasets.clone(),
+        mounting_findings: outcome.mountings.clone(),
     }
 }
 

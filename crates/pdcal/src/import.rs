@@ -9,9 +9,13 @@ use pdcal_import::{ImportReport, Imported};
 /// Reads the map and the export and converts (writes nothing).
 pub fn import_files(source: &Path, map: &Path) -> Result<Imported> {
     let read = |path: &Path| {
-        std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))
+        pdcal_dataset::bounded::read_bounded(path, u64::MAX - 1)
+            .with_context(|| format!("cannot read {}", path.display()))
     };
-    let map = pdcal_import::parse_map(map, &read(map)?)?;
+    let map_bytes =
+        pdcal_dataset::bounded::read_bounded(map, pdcal_dataset::bounded::MAX_RON_BYTES)
+            .with_context(|| format!("cannot read {}", map.display()))?;
+    let map = pdcal_import::parse_map(map, &map_bytes)?;
     Ok(pdcal_import::convert(&map, source, &read(source)?)?)
 }
 
@@ -19,7 +23,13 @@ pub fn import_files(source: &Path, map: &Path) -> Result<Imported> {
 /// is checked and locked before the export is read (the rule of `simulate --out`: a missing
 /// or empty directory, or a dataset directory).
 pub fn run_to_dir(source: &Path, map: &Path, out: &Path) -> Result<Imported> {
-    let writer = pdcal_dataset::begin_dataset(out)?;
+    run_to_dir_forced(source, map, out, false)
+}
+
+/// [`run_to_dir`]; with `force`, an earlier import into `out` is replaced even when its
+/// files were changed since (`--force`).
+pub fn run_to_dir_forced(source: &Path, map: &Path, out: &Path, force: bool) -> Result<Imported> {
+    let writer = pdcal_dataset::begin_dataset_as(out, "import", force)?;
     let imported = import_files(source, map)?;
     writer.write(&imported.dataset)?;
     Ok(imported)

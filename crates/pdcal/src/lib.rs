@@ -16,6 +16,7 @@ pub mod files;
 pub mod import;
 pub mod import_fixture;
 pub mod joint;
+pub mod mounting;
 pub mod output;
 pub mod simulate;
 pub mod stream;

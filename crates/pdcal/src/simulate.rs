@@ -9,8 +9,9 @@ use pdcal_sim::{Scenario, SimOutput};
 pub fn load_scenario(name_or_file: &str) -> Result<Scenario> {
     let path = Path::new(name_or_file);
     if path.extension().is_some_and(|e| e == "ron") {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read {}", path.display()))?;
+        let text =
+            pdcal_dataset::bounded::read_text_bounded(path, pdcal_dataset::bounded::MAX_RON_BYTES)
+                .with_context(|| format!("cannot read {}", path.display()))?;
         Scenario::from_ron_str(&text).with_context(|| format!("{}", path.display()))
     } else {
         Scenario::builtin(name_or_file).with_context(|| format!("scenario {name_or_file:?}"))
@@ -42,7 +43,19 @@ pub fn run_downlink_to_dir(
     downlink: u64,
     out: &Path,
 ) -> Result<SimOutput> {
-    let writer = pdcal_dataset::begin_dataset(out)?;
+    run_downlink_to_dir_forced(scenario, seed, downlink, out, false)
+}
+
+/// [`run_downlink_to_dir`]; with `force`, an earlier simulation in `out` is replaced even
+/// when its files were changed since (`--force`).
+pub fn run_downlink_to_dir_forced(
+    scenario: &Scenario,
+    seed: u64,
+    downlink: u64,
+    out: &Path,
+    force: bool,
+) -> Result<SimOutput> {
+    let writer = pdcal_dataset::begin_dataset_as(out, "simulate", force)?;
     let output = run_downlink(scenario, seed, downlink)?;
     writer.write(&output.to_dataset())?;
     Ok(output)
@@ -57,7 +70,7 @@ pub fn write_plots(output: &SimOutput, staging: crate::output::OutputDir) -> Res
         "Raw photodiode outputs, {} (seed {})",
         output.meta.name, output.seed
     );
-    crate::figures::raw_outputs_figure(staging.path(), telemetry, &title)?;
+    let pages = crate::figures::raw_outputs_figure(staging.path(), telemetry, &title)?;
     let sunlit: Vec<[f64; 3]> = output
         .truth
         .sun_body
@@ -75,13 +88,18 @@ pub fn write_plots(output: &SimOutput, staging: crate::output::OutputDir) -> Res
         dirs_body: &sunlit,
     };
     pdcal_report::sphere_directions(staging.path(), &figure, &[set])?;
-    let figures = [
-        ("Fig. 2: raw photodiode outputs", "fig02_raw_outputs"),
-        (
-            "Fig. 3: true Sun directions, body frame",
-            "fig03_sun_directions",
-        ),
-    ];
+    let mut captions: Vec<(String, String)> = pages
+        .into_iter()
+        .map(|(stem, which)| (format!("Fig. 2: raw photodiode outputs{which}"), stem))
+        .collect();
+    captions.push((
+        "Fig. 3: true Sun directions, body frame".to_owned(),
+        "fig03_sun_directions".to_owned(),
+    ));
+    let figures: Vec<(&str, &str)> = captions
+        .iter()
+        .map(|(caption, stem)| (caption.as_str(), stem.as_str()))
+        .collect();
     let rows = [
         ("samples", telemetry.len().to_string()),
         ("photodiodes", telemetry.pd_v.len().to_string()),

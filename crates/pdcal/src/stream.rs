@@ -79,6 +79,13 @@ pub struct StreamSink {
     set_sums: Vec<ResidualSums>,
     error: Option<anyhow::Error>,
     cancel: Option<crate::calibrate::CancelCheck>,
+    estimates_path: PathBuf,
+    residuals_path: PathBuf,
+}
+
+/// `cannot write PATH` for an error writing `path` (a full disk says which file).
+fn writing(path: &Path) -> impl Fn() -> String + '_ {
+    move || format!("cannot write {}", path.display())
 }
 
 fn create(path: &Path) -> Result<csv::Writer<BufWriter<File>>> {
@@ -90,13 +97,17 @@ impl StreamSink {
     /// Files in `dir` for `m` photodiodes over at most `rows` rows.
     pub fn new(dir: &OutputDir, m: usize, rows: usize, smoother: bool) -> Result<Self> {
         let spill_path = dir.file(".estimates_smoothed.spill");
-        let mut residuals = create(&dir.file("residuals.csv"))?;
-        residuals.write_record(RESIDUAL_COLUMNS)?;
+        let residuals_path = dir.file("residuals.csv");
+        let estimates_path = dir.file("estimates.csv");
+        let mut residuals = create(&residuals_path)?;
+        residuals
+            .write_record(RESIDUAL_COLUMNS)
+            .with_context(writing(&residuals_path))?;
         Ok(StreamSink {
             m,
             stride: stride_for(rows),
             smoother,
-            estimates: create(&dir.file("estimates.csv"))?,
+            estimates: create(&estimates_path)?,
             estimates_header: false,
             residuals,
             spill: create(&spill_path)?,
@@ -114,6 +125,8 @@ impl StreamSink {
             set_sums: vec![ResidualSums::default()],
             error: None,
             cancel: None,
+            estimates_path,
+            residuals_path,
         })
     }
 
@@ -152,18 +165,30 @@ impl StreamSink {
     fn write_forward(&mut self, e: &StepEstimate, residuals: &[ResidualRecord]) -> Result<()> {
         if !self.estimates_header {
             let header = self.header(e);
-            self.estimates.write_record(&header)?;
+            self.estimates
+                .write_record(&header)
+                .with_context(writing(&self.estimates_path))?;
             self.smoothed_header = Some(header);
             self.estimates_header = true;
         }
-        self.estimates.write_record(estimate_row(e))?;
+        self.estimates
+            .write_record(estimate_row(e))
+            .with_context(writing(&self.estimates_path))?;
         for r in residuals {
-            self.residuals.write_record(residual_row(r))?;
+            self.residuals
+                .write_record(residual_row(r))
+                .with_context(writing(&self.residuals_path))?;
         }
         Ok(())
     }
 
     fn write_segment(&mut self, segment: &[StepEstimate]) -> Result<()> {
+        let path = self.spill_path.clone();
+        self.write_segment_to_spill(segment)
+            .with_context(writing(&path))
+    }
+
+    fn write_segment_to_spill(&mut self, segment: &[StepEstimate]) -> Result<()> {
         self.spill.flush()?;
         let mut file: &File = self.spill.get_ref().get_ref();
         let start = file.stream_position()?;
@@ -184,27 +209,34 @@ impl StreamSink {
         if let Some(e) = self.error.take() {
             return Err(e);
         }
-        self.estimates.flush()?;
-        self.residuals.flush()?;
-        self.spill.flush()?;
+        self.estimates
+            .flush()
+            .with_context(writing(&self.estimates_path))?;
+        self.residuals
+            .flush()
+            .with_context(writing(&self.residuals_path))?;
+        self.spill.flush().with_context(writing(&self.spill_path))?;
         drop(self.spill);
         if self.smoother {
             let mut out = create(&self.smoothed_path)?;
             if let Some(header) = &self.smoothed_header {
-                out.write_record(header)?;
+                out.write_record(header)
+                    .with_context(writing(&self.smoothed_path))?;
             }
-            out.flush()?;
+            out.flush().with_context(writing(&self.smoothed_path))?;
             let mut out = out
                 .into_inner()
                 .map_err(|e| anyhow::anyhow!("{}: {e}", self.smoothed_path.display()))?;
             let mut spill = File::open(&self.spill_path)
                 .with_context(|| format!("cannot read {}", self.spill_path.display()))?;
             for &(start, end) in self.segments.iter().rev() {
-                spill.seek(SeekFrom::Start(start))?;
+                spill
+                    .seek(SeekFrom::Start(start))
+                    .with_context(|| format!("cannot read {}", self.spill_path.display()))?;
                 std::io::copy(&mut (&mut spill).take(end - start), &mut out)
                     .with_context(|| format!("cannot write {}", self.smoothed_path.display()))?;
             }
-            out.flush()?;
+            out.flush().with_context(writing(&self.smoothed_path))?;
         }
         std::fs::remove_file(&self.spill_path)
             .with_context(|| format!("cannot remove {}", self.spill_path.display()))?;

@@ -95,8 +95,8 @@ fn a_foreign_out_directory_is_refused_before_reading() {
     let o = import(&tmp.path().join("missing.csv"), &fixture("map.ron"), &out);
     assert!(!o.status.success());
     let err = stderr(&o);
-    assert!(err.contains("refusing to replace"), "{err}");
-    assert!(err.contains("notes.txt"), "{err}");
+    assert!(err.contains("refusing to write into it"), "{err}");
+    assert!(err.contains("not a pdcal output"), "{err}");
     assert_eq!(
         std::fs::read_to_string(out.join("notes.txt")).unwrap(),
         "mine"

@@ -187,9 +187,8 @@ fn diagnose_and_simulate_check_out_before_computing() {
     assert_eq!(
         format!("{err:#}"),
         format!(
-            "{}: refusing to replace: it holds \"notes.txt\"; only an empty directory or a pdcal \
-             dataset directory (dataset.ron and at most telemetry.csv, truth.csv, truth.ron) is \
-             replaced",
+            "{}: not empty and not a pdcal output (no .pdcal-manifest.json); refusing to write \
+             into it (nothing was changed); pass a new or empty directory",
             out.display()
         )
     );

@@ -10,7 +10,7 @@ use std::str::FromStr;
 use nalgebra::{Matrix3, Vector3};
 use pdcal_albedo::MapChoice;
 use pdcal_dataset::{Effect, EffectId, NominalMount};
-use pdcal_ephem::text::{clip, number, quote};
+use pdcal_ephem::text::{number, quote};
 use serde::{Deserialize, Serialize};
 
 use crate::dynamics::{DEFAULT_MAX_STEP_S, RigidBody};
@@ -399,7 +399,7 @@ impl Scenario {
             .map_err(|e| ScenarioError::Ron {
                 line: e.span.start.line,
                 column: e.span.start.col,
-                message: clip(&e.code.to_string()),
+                message: pdcal_ephem::text::parser_message(&e.code.to_string()),
             })?;
         scenario.validate()?;
         Ok(scenario)

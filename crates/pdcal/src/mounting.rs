@@ -1,0 +1,23 @@
+//! The mounting and polarity check before a calibration (`pdcal_filter::mounting`): a
+//! photodiode whose data contradict its nominal normal or sign is a finding, reported in
+//! the warnings and `summary.json` `mounting_findings`, and calibrated from what the data
+//! support.
+
+use anyhow::{Context, Result};
+use pdcal_dataset::{DatasetMeta, Telemetry};
+use pdcal_filter::mounting::{MountingFinding, check_mountings};
+use pdcal_filter::{FilterConfig, References};
+
+pub use pdcal_filter::mounting::apply;
+
+/// The findings on `meta` and `telemetry` with the filter's photodiode noise.
+pub fn check(
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+    references: References<'_>,
+    config: &FilterConfig,
+) -> Result<Vec<MountingFinding>> {
+    let sigmas = config.resolve(meta.noise.as_ref());
+    check_mountings(meta, telemetry, &references, config, sigmas.photodiode_v)
+        .context("mounting check")
+}
