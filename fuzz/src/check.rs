@@ -218,7 +218,7 @@ pub(crate) fn config(result: anyhow::Result<()>, path: &Path, bytes: &[u8]) -> V
         .and_then(|f| match f {
             // ron's message starts with its span, `LINE:COL` or `LINE:COL-LINE:COL`.
             FilterError::Ron { message, .. } => Some(ron_position(message)),
-            FilterError::Config { .. } => Some(None),
+            FilterError::Config { .. } | FilterError::Invalid { .. } => Some(None),
             _ => None,
         });
     anyhow_verdict(&e, path, bytes, position)

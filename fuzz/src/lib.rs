@@ -101,6 +101,24 @@ impl Target {
     }
 }
 
+impl Target {
+    /// Hostile inputs of the issues' hand tests that the reader must refuse, keeping every
+    /// promise of its errors (`hostile/TARGET/`); none for most targets.
+    pub fn hostile(self) -> Vec<&'static [u8]> {
+        match self {
+            Target::ConfigRon => vec![
+                include_bytes!("../hostile/config-ron/prior-elevation-1000.ron"),
+                include_bytes!("../hostile/config-ron/prior-azimuth-1e9.ron"),
+                include_bytes!("../hostile/config-ron/prior-scale-negative.ron"),
+                include_bytes!("../hostile/config-ron/prior-scale-zero.ron"),
+                include_bytes!("../hostile/config-ron/prior-scale-nan.ron"),
+                include_bytes!("../hostile/config-ron/prior-scale-1e300.ron"),
+            ],
+            _ => Vec::new(),
+        }
+    }
+}
+
 const TLE_META: &[u8] = include_bytes!("../seeds/dataset-ron/tle.ron");
 const POSITIONS_META: &[u8] = include_bytes!("../seeds/dataset-ron/positions.ron");
 /// truth.ron of the seed dataset, matching [`TLE_META`]'s photodiodes.

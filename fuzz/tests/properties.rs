@@ -157,6 +157,21 @@ fn seeds_are_accepted() {
 }
 
 #[test]
+fn hostile_inputs_are_refused_keeping_the_promises() {
+    for target in Target::ALL {
+        let scratch = Scratch::new(None, &format!("hostile-{}", target.name())).unwrap();
+        for (i, input) in target.hostile().into_iter().enumerate() {
+            let verdict = exercise(target, input, scratch.path());
+            assert!(
+                matches!(&verdict, Verdict::Rejected { problems, .. } if problems.is_empty()),
+                "{} hostile input {i}: {verdict:?}",
+                target.name()
+            );
+        }
+    }
+}
+
+#[test]
 fn dataset_pair_never_panics_and_places_errors() {
     assert_holds(Target::DatasetPair, Promises::Placement);
 }

@@ -16,6 +16,10 @@ use pdcal_dataset::{TELEMETRY_CSV, Telemetry, photodiode_column};
 
 /// Sampled rows below which a constant column is not called stuck.
 pub const MIN_ROWS_FOR_STUCK: usize = 10;
+/// Least spread of a magnetometer axis over a data set, nT: in orbit the field on any body
+/// axis changes by hundreds of nT within a minute even without rotation, so a smaller
+/// spread is a stuck sensor whose value carries a little jitter.
+pub const MIN_FIELD_SPREAD_NT: f64 = 1.0;
 /// Field magnitude range of low Earth orbit, nT.
 pub const FIELD_RANGE_NT: (f64, f64) = (10_000.0, 70_000.0);
 /// Photodiode output above any plausible full scale, V.
@@ -72,6 +76,17 @@ pub fn check_telemetry(telemetry: &Telemetry) -> Result<Vec<String>> {
                 bail!(
                     "{f} (mag_{name}_nT): stuck at {v:?} on all {n} sampled rows; a working \
                      magnetometer on a rotating spacecraft never reads the same twice throughout"
+                );
+            }
+            let (lo, hi, n) = axis(mag, i).fold((f64::INFINITY, f64::NEG_INFINITY, 0), |acc, v| {
+                (acc.0.min(v), acc.1.max(v), acc.2 + 1)
+            });
+            if n >= MIN_ROWS_FOR_STUCK && hi - lo < MIN_FIELD_SPREAD_NT {
+                bail!(
+                    "{f} (mag_{name}_nT): varies by only {:.3e} nT over all {n} sampled rows, \
+                     less than {MIN_FIELD_SPREAD_NT} nT; an orbiting magnetometer sees the field \
+                     change by far more (a stuck sensor with a little jitter added)",
+                    hi - lo
                 );
             }
         }

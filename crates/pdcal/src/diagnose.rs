@@ -28,6 +28,14 @@ pub struct DiagnoseOutcome {
 
 /// Diagnoses a dataset held in memory (its metadata and telemetry: never its truth).
 pub fn run(meta: &DatasetMeta, telemetry: &Telemetry, base: BaseModel) -> Result<DiagnoseOutcome> {
+    crate::calibrate::check_photodiode_count(meta.photodiodes.len(), &meta.name)?;
+    if telemetry.len() < MIN_DIAGNOSE_ROWS {
+        anyhow::bail!(
+            "too little data to diagnose: {} rows; a diagnosis tests each effect's signature \
+             against the residuals' own noise and needs at least {MIN_DIAGNOSE_ROWS} rows",
+            telemetry.len()
+        );
+    }
     let warnings = crate::checks::check_telemetry(telemetry)?;
     let references = pdcal_filter::step_references(meta, telemetry)?;
     let albedo = crate::calibrate::albedo_model()?;
@@ -48,6 +56,11 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry, base: BaseModel) -> Result
         warnings,
     })
 }
+
+/// Fewest telemetry rows a diagnosis runs on: its statistics (autocorrelation-robust Wald
+/// tests, a BIC penalty) compare signatures with the residuals' own noise, which a few
+/// dozen rows cannot estimate; below it the answer is "too little data", not a verdict.
+pub const MIN_DIAGNOSE_ROWS: usize = 100;
 
 /// `pdcal diagnose DATASET_DIR --out OUT_DIR [--base-model ...]`.
 pub fn run_dir(dataset: &Path, out: &Path, base: BaseModel) -> Result<DiagnoseOutcome> {

@@ -142,6 +142,29 @@ pub fn console_summary(summary: &Summary) -> String {
     format!(
         "{}\n{}",
         text(&photodiode_table(summary)),
-        text(&segment_table(summary))
+        text(&shortened(segment_table(summary), CONSOLE_SEGMENTS))
     )
+}
+
+/// Segments the printed summary shows at most (the first and last half of them): the
+/// printed output stays short for any number of segments; every one is in summary.json and
+/// index.html.
+pub const CONSOLE_SEGMENTS: usize = 20;
+
+/// `table` with at most `keep` rows: the first and last `keep / 2`, and between them one
+/// row saying how many are left out and where they are.
+pub fn shortened(mut table: Table, keep: usize) -> Table {
+    let n = table.rows.len();
+    if n <= keep {
+        return table;
+    }
+    let half = keep / 2;
+    let tail = table.rows.split_off(n - half);
+    table.rows.truncate(half);
+    table.rows.push(vec![
+        "...".to_owned(),
+        format!("{} segments more (summary.json segments)", n - 2 * half),
+    ]);
+    table.rows.extend(tail);
+    table
 }
