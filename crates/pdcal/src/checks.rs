@@ -20,6 +20,11 @@ pub const MIN_ROWS_FOR_STUCK: usize = 10;
 /// axis changes by hundreds of nT within a minute even without rotation, so a smaller
 /// spread is a stuck sensor whose value carries a little jitter.
 pub const MIN_FIELD_SPREAD_NT: f64 = 1.0;
+/// How many times faster than the magnetometer's field turns in the body frame the gyro
+/// may say the body turns before its units are suspect: the field direction turns with the
+/// body rate across it (the field's own turn along an orbit is far slower), so the two agree
+/// to a factor near 1; deg/s written as rad/s makes it 57.
+pub const GYRO_OVER_FIELD_RATE_MAX: f64 = 10.0;
 /// Field magnitude range of low Earth orbit, nT.
 pub const FIELD_RANGE_NT: (f64, f64) = (10_000.0, 70_000.0);
 /// Photodiode output above any plausible full scale, V.
@@ -89,6 +94,9 @@ pub fn check_telemetry(telemetry: &Telemetry) -> Result<Vec<String>> {
                     hi - lo
                 );
             }
+        }
+        if let Some(warning) = gyro_units(telemetry, mag) {
+            warnings.push(warning);
         }
         let (lo, hi) = FIELD_RANGE_NT;
         let outside: Vec<(usize, f64)> = mag
@@ -166,4 +174,48 @@ fn check_positions(telemetry: &Telemetry) -> Result<()> {
         previous = Some((*t, *p));
     }
     Ok(())
+}
+
+/// A warning when the gyro says the body turns far faster than the magnetometer's field
+/// turns in the body frame ([`GYRO_OVER_FIELD_RATE_MAX`]): the medians, over consecutive rows
+/// at most 2 s apart with both sensors sampled, of the gyro's rate across the field times
+/// the step and of the field direction's angle between the rows.
+fn gyro_units(telemetry: &Telemetry, mag: &[Option<Vector3<f64>>]) -> Option<String> {
+    let mut predicted = Vec::new();
+    let mut observed = Vec::new();
+    for k in 1..telemetry.len() {
+        let dt = telemetry.t_s[k] - telemetry.t_s[k - 1];
+        let (Some(w), Some(b0), Some(b1)) = (telemetry.gyro_rad_s[k - 1], mag[k - 1], mag[k])
+        else {
+            continue;
+        };
+        let Some(b0_unit) = b0.try_normalize(0.0) else {
+            continue;
+        };
+        if !(dt > 0.0 && dt <= 2.0) || b1.norm() == 0.0 {
+            continue;
+        }
+        let across = w - b0_unit * w.dot(&b0_unit);
+        predicted.push(across.norm() * dt);
+        observed.push(b0.angle(&b1));
+    }
+    if predicted.len() < MIN_ROWS_FOR_STUCK {
+        return None;
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let (p, o) = (median(&mut predicted), median(&mut observed));
+    let ratio = p / o;
+    (ratio > GYRO_OVER_FIELD_RATE_MAX).then(|| {
+        format!(
+            "{TELEMETRY_CSV} (gyro_x_rad_s, gyro_y_rad_s, gyro_z_rad_s): the gyro says the body \
+             turns {ratio:.0} times faster than the magnetometer's field turns in the body \
+             frame (median {:.3} against {:.3} deg per row); are the rates in deg/s rather \
+             than rad/s (a factor of 57.3)?",
+            p.to_degrees(),
+            o.to_degrees()
+        )
+    })
 }

@@ -67,6 +67,7 @@ pub fn join(mut sets: Vec<(PathBuf, DatasetMeta, Telemetry)>) -> Result<Joint> {
     for pair in sets.windows(2) {
         same_layout(&pair[0], &pair[1])?;
     }
+    same_spacecraft(&sets)?;
     let first_epoch = sets[0].1.epoch_utc.epoch();
     let mut spans = Vec::with_capacity(sets.len());
     let mut references = Vec::new();
@@ -117,6 +118,65 @@ pub fn join(mut sets: Vec<(PathBuf, DatasetMeta, Telemetry)>) -> Result<Joint> {
         references: several.then_some(references),
         sets: spans,
     })
+}
+
+/// Longest time between the first and the last set of a joint calibration, days: the
+/// scale-factor random walk is meant for drifts within a mission year; sets further apart
+/// are better calibrated separately and compared.
+pub const MAX_JOINT_SPAN_DAYS: f64 = 366.0;
+
+/// The checks across all sets that they are one spacecraft's and can run in one mode: every
+/// set has a magnetometer or none has (a set without one cannot run in the joint full
+/// mode, so it is an error naming it, not a silently skipped set), every TLE names the same
+/// object, and the epochs lie within [`MAX_JOINT_SPAN_DAYS`].
+fn same_spacecraft(sets: &[(PathBuf, DatasetMeta, Telemetry)]) -> Result<()> {
+    let name = |dir: &Path| dir.display().to_string();
+    if let Some(with) = sets.iter().find(|s| s.2.mag_nt.is_some())
+        && let Some(without) = sets.iter().find(|s| s.2.mag_nt.is_none())
+    {
+        bail!(
+            "{}: has no magnetometer columns (mag_x_nT, mag_y_nT, mag_z_nT), but {} has: a \
+             joint calibration runs in one mode, and this set cannot run in the full mode the \
+             others need; calibrate it alone (photodiode-only), or the others without it",
+            name(&without.0),
+            name(&with.0)
+        );
+    }
+    let object = |meta: &DatasetMeta| match &meta.orbit {
+        OrbitSpec::Tle { line1, .. } => line1.get(2..7).map(|n| n.trim().to_owned()),
+        OrbitSpec::PositionColumns => None,
+    };
+    if let Some(first) = sets.first()
+        && let Some(a) = object(&first.1)
+    {
+        for (dir, meta, _) in &sets[1..] {
+            if let Some(b) = object(meta)
+                && a != b
+            {
+                bail!(
+                    "{}: its TLE is of object {}, but {}'s is of object {}: data sets of one \
+                     calibration must be one spacecraft's (another spacecraft's TLE?)",
+                    name(dir),
+                    pdcal_dataset::quote(&b),
+                    name(&first.0),
+                    pdcal_dataset::quote(&a)
+                );
+            }
+        }
+    }
+    if let (Some(first), Some(last)) = (sets.first(), sets.last()) {
+        let days = (last.1.epoch_utc.epoch() - first.1.epoch_utc.epoch()).to_seconds() / 86_400.0;
+        if days > MAX_JOINT_SPAN_DAYS {
+            bail!(
+                "{}: its epoch is {days:.0} days after {}'s, more than the {MAX_JOINT_SPAN_DAYS} \
+                 days one joint calibration spans; calibrate the sets separately and compare \
+                 the results",
+                name(&last.0),
+                name(&first.0)
+            );
+        }
+    }
+    Ok(())
 }
 
 /// The first difference between two sets' photodiode layouts or orbit kinds, as an error.

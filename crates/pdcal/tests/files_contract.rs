@@ -45,7 +45,13 @@ fn simulate_read_round_trip_and_seeds() {
     let names: Vec<String> = files(&a).into_iter().map(|(n, _)| n).collect();
     assert_eq!(
         names,
-        ["dataset.ron", "telemetry.csv", "truth.csv", "truth.ron"]
+        [
+            ".pdcal-manifest.json",
+            "dataset.ron",
+            "telemetry.csv",
+            "truth.csv",
+            "truth.ron"
+        ]
     );
     assert_eq!(files(&a), files(&b), "same seed, same bytes");
     let telemetry = |d: &Path| std::fs::read(d.join("telemetry.csv")).unwrap();

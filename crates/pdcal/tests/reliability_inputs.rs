@@ -311,3 +311,83 @@ fn the_printed_summary_stays_short_for_many_segments() {
     );
     assert_eq!(short.rows[20], vec!["999"]);
 }
+
+#[test]
+fn a_joint_set_that_cannot_run_in_the_joint_mode_is_an_error_naming_it() {
+    let first = (
+        std::path::PathBuf::from("set1"),
+        sim().meta.clone(),
+        sim().telemetry.clone(),
+    );
+    let mut meta = sim().meta.clone();
+    meta.epoch_utc = pdcal_dataset::EpochUtc::parse("2011-11-05T18:29:45Z").unwrap();
+    let mut telemetry = sim().telemetry.clone();
+    telemetry.mag_nt = None;
+    let second = (std::path::PathBuf::from("set2"), meta.clone(), telemetry);
+    let err = pdcal::joint::join(vec![first.clone(), second])
+        .map(|_| ())
+        .unwrap_err();
+    assert_eq!(
+        format!("{err:#}"),
+        "set2: has no magnetometer columns (mag_x_nT, mag_y_nT, mag_z_nT), but set1 has: a joint \
+         calibration runs in one mode, and this set cannot run in the full mode the others \
+         need; calibrate it alone (photodiode-only), or the others without it"
+    );
+    // Another object's TLE.
+    let pdcal_dataset::OrbitSpec::Tle { line1, line2 } = &sim().meta.orbit else {
+        panic!("the scenario flies a TLE");
+    };
+    let other = pdcal_dataset::OrbitSpec::Tle {
+        line1: line1.replacen("37853", "25544", 1),
+        line2: line2.replacen("37853", "25544", 1),
+    };
+    let mut meta_other = meta.clone();
+    meta_other.orbit = other;
+    let third = (
+        std::path::PathBuf::from("set3"),
+        meta_other,
+        sim().telemetry.clone(),
+    );
+    let err = pdcal::joint::join(vec![first.clone(), third])
+        .map(|_| ())
+        .unwrap_err();
+    assert_eq!(
+        format!("{err:#}"),
+        "set3: its TLE is of object \"25544\", but set1's is of object \"37853\": data sets \
+         of one calibration must be one spacecraft's (another spacecraft's TLE?)"
+    );
+    // Two years apart.
+    let mut meta_late = sim().meta.clone();
+    meta_late.epoch_utc = pdcal_dataset::EpochUtc::parse("2013-11-04T18:29:45Z").unwrap();
+    let late = (
+        std::path::PathBuf::from("set4"),
+        meta_late,
+        sim().telemetry.clone(),
+    );
+    let err = pdcal::joint::join(vec![first, late])
+        .map(|_| ())
+        .unwrap_err();
+    assert_eq!(
+        format!("{err:#}"),
+        "set4: its epoch is 731 days after set1's, more than the 366 days one joint calibration \
+         spans; calibrate the sets separately and compare the results"
+    );
+}
+
+#[test]
+fn a_gyro_in_deg_s_declared_as_rad_s_gets_a_hint() {
+    let mut telemetry = sim().telemetry.clone();
+    for w in telemetry.gyro_rad_s.iter_mut().flatten() {
+        *w *= 180.0 / std::f64::consts::PI;
+    }
+    let warnings = pdcal::checks::check_telemetry(&telemetry).unwrap();
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(
+        warnings[0].starts_with(
+            "telemetry.csv (gyro_x_rad_s, gyro_y_rad_s, gyro_z_rad_s): the gyro says the body \
+             turns "
+        ) && warnings[0].ends_with("are the rates in deg/s rather than rad/s (a factor of 57.3)?"),
+        "{}",
+        warnings[0]
+    );
+}
