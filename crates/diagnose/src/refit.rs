@@ -108,6 +108,7 @@ mod tests {
             residual,
             bound_3sigma: 3.0 * sigma,
             accepted: true,
+            attitude_held: true,
         }
     }
 

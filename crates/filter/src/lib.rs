@@ -89,11 +89,13 @@
 mod algebra;
 pub mod calibration;
 pub mod config;
+pub mod consistency;
 pub mod dense;
 mod error;
 pub mod filter;
 pub mod gate;
 pub mod guard;
+pub mod identifiability;
 pub mod init;
 pub mod layout;
 pub mod output;
@@ -106,6 +108,7 @@ pub mod smoother;
 
 pub use calibration::{Calibration, ParameterEstimate, PdCalibration};
 pub use config::{FilterConfig, Mode, ParameterSigma, SensorSigmas};
+pub use consistency::{Consistency, ConsistencyAccumulator, Verdict};
 pub use error::FilterError;
 pub use filter::{
     Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Propagation, Sensor,

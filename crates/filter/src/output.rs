@@ -47,6 +47,10 @@ pub struct ResidualRecord {
     pub bound_3sigma: f64,
     /// Applied (true) or rejected by the gate.
     pub accepted: bool,
+    /// Whether the attitude was held at the row (its sigma in the observed directions at
+    /// most `segments.held_attitude_sigma_deg`): the rows whose bounds the consistency
+    /// verdict judges ([`crate::consistency`]).
+    pub attitude_held: bool,
 }
 
 /// The mode a run actually used.

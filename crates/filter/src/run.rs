@@ -274,6 +274,8 @@ struct Cursor {
     steps: usize,
     /// The segment of the last step's row.
     step_segment: usize,
+    /// Whether the attitude was held after the last step (`segments.held_attitude_sigma_deg`).
+    held: bool,
 }
 
 /// Rows between two full factorisations of the covariance by the guard
@@ -471,7 +473,10 @@ impl<'a> ForwardPass<'a> {
             extra_sigma,
             used: used.clone(),
         };
-        let filter = Filter::new(model, layout, init, noise, algebra)?;
+        let mut filter = Filter::new(model, layout, init, noise, algebra)?;
+        if !use_mag {
+            filter.set_sun_line_unobserved(Some(config.unobserved_axis_sigma_deg.to_radians()));
+        }
         let initial = filter.calibration(prior);
         let mut pass = ForwardPass {
             references: inputs.references,
@@ -500,6 +505,7 @@ impl<'a> ForwardPass<'a> {
                 acquired_sigma_deg: 0.0,
                 steps: 0,
                 step_segment: 0,
+                held: false,
             },
             filter,
             photodiode_time_s: vec![0.0; m],
@@ -777,6 +783,7 @@ impl<'a> ForwardPass<'a> {
         self.current.rows_used += 1;
         self.at.next = k + 1;
         self.at.last_t_s = t_s;
+        self.at.held = self.attitude_sigma_deg(k) <= self.config.segments.held_attitude_sigma_deg;
         self.end_segment_if_due(k);
         Ok(Some(k))
     }
@@ -899,6 +906,7 @@ impl<'a> ForwardPass<'a> {
             residual: r.residual,
             bound_3sigma: r.bound_3sigma,
             accepted: r.accepted,
+            attitude_held: self.at.held,
         })
     }
 

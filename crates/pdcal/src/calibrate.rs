@@ -98,6 +98,8 @@ pub struct Outcome {
     pub sun_vector: SunVectorMetrics,
     /// Photodiode residual statistics over every row.
     pub residuals: ResidualSummary,
+    /// Whether the residuals are consistent with the model ([`pdcal_filter::consistency`]).
+    pub consistency: pdcal_filter::Consistency,
     /// Wall-clock time of the filter run, s.
     pub runtime_s: f64,
     /// Physical-plausibility warnings on the input ([`crate::checks`]), one line each.
@@ -116,6 +118,8 @@ pub struct DatasetSummary {
     pub span: crate::joint::SetSpan,
     /// Its photodiode residuals.
     pub residuals: ResidualSummary,
+    /// The consistency verdict of its own residuals.
+    pub consistency: pdcal_filter::Consistency,
 }
 
 /// The reflectivity map the filter uses: the paper's TOMS map.
@@ -167,6 +171,12 @@ pub fn run_with_references(
     )?;
     Ok(Outcome {
         residuals: crate::files::residual_summary(&run.residuals),
+        consistency: pdcal_filter::consistency::judge(
+            &run.residuals,
+            meta.photodiodes.len(),
+            run.sensor_sigmas.photodiode_v,
+            run.sensor_sigmas.mag_nt,
+        ),
         run,
         sun_vector,
         runtime_s,
@@ -260,6 +270,7 @@ pub fn run_sets(
         meta.photodiodes.len(),
         telemetry.len(),
         config.filter.smoother,
+        &sigmas,
     )?
     .with_sets(&set_starts)
     .with_cancel(cancel);
@@ -294,6 +305,7 @@ pub fn run_sets(
         run,
         sun_vector,
         residuals: streamed.residual_summary,
+        consistency: streamed.consistency,
         runtime_s,
         warnings,
         // Listed for a joint calibration only: one set is the summary itself.
@@ -303,7 +315,12 @@ pub fn run_sets(
                 .sets
                 .into_iter()
                 .zip(streamed.set_residuals)
-                .map(|(span, residuals)| DatasetSummary { span, residuals })
+                .zip(streamed.set_consistency)
+                .map(|((span, residuals), consistency)| DatasetSummary {
+                    span,
+                    residuals,
+                    consistency,
+                })
                 .collect(),
         },
     };

@@ -654,6 +654,7 @@ pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
                     num(bias_sigma[2])?,
                 ],
                 parameters: Vec::new(),
+                status: Vec::new(),
             },
         });
     }

@@ -428,6 +428,7 @@ pub fn write_index(
     }
     let tables = [
         crate::tables::photodiode_table(summary),
+        crate::tables::consistency_table(&summary.consistency),
         crate::tables::segment_table(summary),
     ];
     pdcal_report::index_html_with_tables(

@@ -3,9 +3,10 @@
 
 use anyhow::{Context, Result};
 use pdcal_dataset::{DatasetMeta, Telemetry};
+use pdcal_filter::identifiability::{Evidence, Judged, PdIdentifiability, Status};
 use pdcal_filter::{
-    CalibrationRun, GapRules, ModeUsed, RepairKind, ResidualRecord, SegmentReport, Sensor,
-    StepEstimate,
+    Calibration, CalibrationRun, GapRules, ModeUsed, RepairKind, ResidualRecord, SegmentReport,
+    Sensor, StepEstimate,
 };
 use serde::Serialize;
 
@@ -36,14 +37,19 @@ pub struct Summary {
     pub scale_reference_distance_au: f64,
     /// Per photodiode, in pdNN order.
     pub photodiodes: Vec<PdSummary>,
-    /// Final gyro bias, rad/s, body.
+    /// Final gyro bias, rad/s, body (the prior's on an axis the data did not determine).
     pub gyro_bias_rad_s: [f64; 3],
+    /// How well the data determined each gyro-bias axis.
+    pub gyro_bias_status: [Judged; 3],
     /// Sun-vector magnitude with initial and calibrated parameters.
     pub sun_vector_magnitude: MagnitudeSummary,
     /// Mean angle between the initial and calibrated Sun directions.
     pub sun_direction_change_deg: MeanOnly,
     /// Photodiode residual statistics.
     pub residuals: ResidualSummary,
+    /// Whether the residuals are consistent with the model: the one verdict `calibrate`,
+    /// `diagnose` and the Python API share ([`pdcal_filter::consistency`]).
+    pub consistency: pdcal_filter::Consistency,
     /// Update counts (accepted, gated, ...) per sensor class.
     pub updates: serde_json::Value,
     /// Samples rejected per sensor (`gyro`, `mag`, `pd01`...): screened against their
@@ -65,6 +71,10 @@ pub struct Summary {
     /// time line and its own photodiode residual statistics.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub datasets: Vec<crate::calibrate::DatasetSummary>,
+    /// The calibration as reported (`calibration.ron`): every quantity the data did not
+    /// determine at its prior value, the statuses listed.
+    #[serde(skip)]
+    pub reported: Calibration,
 }
 
 /// One photodiode in `summary.json`.
@@ -87,6 +97,15 @@ pub struct PdSummary {
     pub elevation_sigma_deg: f64,
     /// Whether the photodiode took part (false: never lit).
     pub used: bool,
+    /// How well the data determined it: the weakest of its three quantities
+    /// (`calibrated`, `weakly-determined`, `not-determined`); a `not-determined` quantity
+    /// is reported at its nominal value.
+    pub status: Status,
+    /// Why, when not `calibrated`.
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub status_reason: String,
+    /// Per quantity (`scale`, `azimuth`, `elevation`), each with its reason.
+    pub determination: PdIdentifiability,
     /// The initial estimates.
     pub initial: PdInitial,
     /// Angle between the calibrated and the nominal (initial) normal, deg.
@@ -328,14 +347,33 @@ pub fn mode_name(mode: ModeUsed) -> &'static str {
 /// Builds `summary.json`'s content.
 pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
     let run = &outcome.run;
-    let photodiodes = run
-        .calibration
+    let evidence = Evidence {
+        initial: &run.initial,
+        calibration: &run.calibration,
+        used: &run.used_photodiodes,
+        time_used_s: &run.photodiode_time_used_s,
+        covariance: &run.final_covariance,
+        layout: &run.layout,
+        normals_estimated: !matches!(run.mode, ModeUsed::ScaleOnly { .. }),
+        verdict: outcome.consistency.verdict,
+    };
+    let determination = pdcal_filter::identifiability::judge_photodiodes(&evidence);
+    let bias_status = pdcal_filter::identifiability::judge_gyro_bias(&evidence);
+    let mut reported = pdcal_filter::identifiability::reported_calibration(
+        &run.initial,
+        &run.calibration,
+        &determination,
+        &bias_status,
+    );
+    reported.status = status_lines(&determination, &bias_status);
+    let photodiodes = reported
         .photodiodes
         .iter()
         .zip(&run.initial.photodiodes)
         .zip(&run.used_photodiodes)
+        .zip(determination)
         .enumerate()
-        .map(|(i, ((cal, init), used))| {
+        .map(|(i, (((cal, init), used), determination))| {
             let normal_change_deg = cal.n_body().angle(&init.n_body()).to_degrees();
             let time_used_min = run.photodiode_time_used_s.get(i).copied().unwrap_or(0.0) / 60.0;
             let change = (normal_change_deg, cal.scale_v - init.scale_v);
@@ -348,6 +386,9 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
                 elevation_deg: cal.elevation_deg,
                 elevation_sigma_deg: cal.elevation_sigma_deg,
                 used: *used,
+                status: determination.status,
+                status_reason: status_reason(&determination),
+                determination,
                 initial: PdInitial {
                     scale_V: init.scale_v,
                     azimuth_deg: init.azimuth_deg,
@@ -374,7 +415,8 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         ),
         scale_reference_distance_au: SCALE_REFERENCE_DISTANCE_AU,
         photodiodes,
-        gyro_bias_rad_s: run.calibration.gyro_bias_rad_s,
+        gyro_bias_rad_s: reported.gyro_bias_rad_s,
+        gyro_bias_status: bias_status,
         sun_vector_magnitude: MagnitudeSummary {
             initial: mean_std(&sv.magnitude_initial),
             calibrated: mean_std(&sv.magnitude_calibrated),
@@ -389,6 +431,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
             }
         },
         residuals: outcome.residuals,
+        consistency: outcome.consistency.clone(),
         updates: counts_json(run),
         rejected_samples: rejected_summary(run),
         covariance_repairs: repairs_summary(run),
@@ -397,7 +440,53 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         segment_rules: run.segment_rules,
         segments: run.segments.clone(),
         datasets: outcome.datasets.clone(),
+        reported,
     }
+}
+
+/// The photodiode's status reason: each quantity that is not `calibrated`, with its own.
+fn status_reason(d: &PdIdentifiability) -> String {
+    [
+        ("scale", &d.scale),
+        ("azimuth", &d.azimuth),
+        ("elevation", &d.elevation),
+    ]
+    .iter()
+    .filter(|(_, j)| j.status != Status::Calibrated)
+    .map(|(name, j)| format!("{name} {}: {}", j.status.as_str(), j.reason))
+    .collect::<Vec<_>>()
+    .join("; ")
+}
+
+/// `calibration.ron`'s `status` lines: every quantity that is not `calibrated`.
+fn status_lines(photodiodes: &[PdIdentifiability], bias: &[Judged; 3]) -> Vec<String> {
+    let mut lines = Vec::new();
+    for (i, d) in photodiodes.iter().enumerate() {
+        for (name, j) in [
+            ("scale_V", &d.scale),
+            ("azimuth_deg", &d.azimuth),
+            ("elevation_deg", &d.elevation),
+        ] {
+            if j.status != Status::Calibrated {
+                lines.push(format!(
+                    "pd{:02} {name}: {} ({})",
+                    i + 1,
+                    j.status.as_str(),
+                    j.reason
+                ));
+            }
+        }
+    }
+    for (axis, j) in ["x", "y", "z"].iter().zip(bias) {
+        if j.status != Status::Calibrated {
+            lines.push(format!(
+                "gyro_bias_{axis}: {} ({})",
+                j.status.as_str(),
+                j.reason
+            ));
+        }
+    }
+    lines
 }
 
 fn counts_json(run: &CalibrationRun) -> serde_json::Value {
@@ -580,7 +669,7 @@ pub fn write_summary_and_figures(
     )?;
     write_file(
         &dir.file("calibration.ron"),
-        outcome.run.calibration.to_ron_string()?.as_bytes(),
+        summary.reported.to_ron_string()?.as_bytes(),
     )?;
     let figures = crate::figures::calibration_figures(dir.path(), telemetry, outcome)?;
     let rows = evaluation.map(crate::evaluate::index_rows);
