@@ -184,11 +184,8 @@ pub struct Filter {
     records: Vec<UpdateRecord>,
     counts: UpdateCounts,
     last: Option<Propagation>,
-    /// With the Sun as the only vector: the variance held on the rotation about the Sun
-    /// line, rad^2 ([`Filter::set_sun_line_unobserved`]).
-    sun_line_var: Option<f64>,
-    /// The unit Sun direction of the current step, GCRF (for the Sun-line projection).
-    sun_gcrf: Vector3<f64>,
+    /// The Sun is the only vector ([`Filter::set_sun_only`]).
+    sun_only: bool,
     /// The unit Sun direction in the body at the current step's prior attitude.
     prior_sun_body: Vector3<f64>,
 }
@@ -216,8 +213,6 @@ struct Scratch {
     rows6: OMatrix<f64, U6, Dyn>,
     partials: Partials,
     cal_noise: DVector<f64>,
-    /// `P u` of the Sun-line decoupling ([`Filter::set_sun_line_unobserved`]).
-    sun_line_w: DVector<f64>,
     /// The step's scalar rows, linearised at the prior, and per row its sensor and
     /// measured value.
     rows: Rows,
@@ -328,7 +323,6 @@ impl Filter {
                 rows6: OMatrix::<f64, U6, Dyn>::zeros(n),
                 partials,
                 cal_noise: DVector::zeros(n),
-                sun_line_w: DVector::zeros(n),
                 rows: Rows::with_capacity(3 + m, 9 + m * layout.max_row_len()),
                 sources: Vec::with_capacity(3 + m),
                 outcome: Vec::with_capacity(3 + m),
@@ -359,8 +353,7 @@ impl Filter {
             records: Vec::with_capacity(3 + m),
             counts: UpdateCounts::default(),
             last: None,
-            sun_line_var: None,
-            sun_gcrf: Vector3::zeros(),
+            sun_only: false,
             prior_sun_body: Vector3::zeros(),
         })
     }
@@ -492,7 +485,6 @@ impl Filter {
         self.records.clear();
         self.scratch.rows.clear();
         self.scratch.sources.clear();
-        self.sun_gcrf = reference.sun_gcrf_unit;
         let attitude = self.q.attitude_matrix();
         if let Some(mag) = meas.mag_nt {
             self.mag_rows(&attitude, &mag, &reference.b_gcrf_nt);
@@ -508,62 +500,16 @@ impl Filter {
         if self.apply_rows() {
             self.reset()?;
         }
-        self.decouple_sun_line();
         Ok(())
     }
 
-    /// With the Sun as the only vector (no magnetometer), the rotation about the Sun line
-    /// is not observed: the direct Sun of Eq. (15) depends on `A s` only, and the albedo's
-    /// weak dependence on that rotation, linearised about an error that can be anywhere in
-    /// +-180 deg, would shrink its sigma without knowing it (the run's attitude errors about
-    /// the Sun line would fall outside their bounds). With `Some(sigma)`, that rotation is
-    /// treated as a nuisance: the photodiode rows lose their attitude partial along the Sun
-    /// line, the curvature variance counts only the attitude across it, and after every
-    /// update the covariance holds `sigma^2` on the axis, uncorrelated with every other
-    /// state. `None` (a second vector observes it) leaves the filter as it is.
-    pub fn set_sun_line_unobserved(&mut self, sigma_rad: Option<f64>) {
-        self.sun_line_var = sigma_rad.map(|s| s * s);
-    }
-
-    /// `P <- Pi P Pi + var u u^T` with `u` the Sun line in the attitude block and
-    /// `Pi = I - u u^T`: the Sun-line attitude error keeps its variance and loses every
-    /// correlation ([`Filter::set_sun_line_unobserved`]).
-    fn decouple_sun_line(&mut self) {
-        let Some(var) = self.sun_line_var else {
-            return;
-        };
-        let Some(u) = (self.q.attitude_matrix() * self.sun_gcrf).try_normalize(1e-12) else {
-            return;
-        };
-        let n = self.p.nrows();
-        // w = P u (u is non-zero on the attitude rows only), c = u^T P u.
-        let w = &mut self.scratch.sun_line_w;
-        w.fill(0.0);
-        for k in 0..3 {
-            w.axpy(u[k], &self.p.column(ATTITUDE + k), 1.0);
-        }
-        let c: f64 = (0..3).map(|k| u[k] * w[ATTITUDE + k]).sum();
-        let u_at = |i: usize| {
-            if (ATTITUDE..ATTITUDE + 3).contains(&i) {
-                u[i - ATTITUDE]
-            } else {
-                0.0
-            }
-        };
-        // Pi P Pi + var u u^T = P - w u^T - u w^T + (c + var) u u^T: only the attitude rows
-        // and columns change. The columns first (every row), then the rows outside the
-        // attitude block by symmetry.
-        for k in 0..3 {
-            let col = ATTITUDE + k;
-            let wk = w[col];
-            for i in 0..n {
-                let delta = (c + var) * u_at(i) * u[k] - w[i] * u[k] - u_at(i) * wk;
-                self.p[(i, col)] += delta;
-                if !(ATTITUDE..ATTITUDE + 3).contains(&i) {
-                    self.p[(col, i)] += delta;
-                }
-            }
-        }
+    /// Tells the filter the Sun is its only vector (no magnetometer): the curvature
+    /// variance of a photodiode row then counts the attitude uncertainty across the Sun
+    /// line only. The rotation about it is unobserved and its variance (tens of degrees)
+    /// would otherwise swamp every photodiode row's noise and keep the Sun from holding the
+    /// attitude.
+    pub fn set_sun_only(&mut self, sun_only: bool) {
+        self.sun_only = sun_only;
     }
 
     /// Checks the state and covariance after the step at telemetry row `index` (time
@@ -651,14 +597,14 @@ impl Filter {
             return 0.0;
         }
         let trace = self.p_diag(0) + self.p_diag(1) + self.p_diag(2);
-        // Without a second vector the incidence sees only the attitude across the Sun line.
-        let mut angle_var = match self.sun_line_var {
-            Some(_) => {
-                let u = self.prior_sun_body;
-                let p_aa = self.p.fixed_view::<3, 3>(ATTITUDE, ATTITUDE);
-                (trace - (u.transpose() * p_aa * u)[0]).max(0.0)
-            }
-            None => 2.0 * trace / 3.0,
+        let mut angle_var = if self.sun_only {
+            // The incidence sees only the attitude across the Sun line; the rotation about
+            // it, unobserved without a second vector, may carry any variance at all.
+            let u = self.prior_sun_body;
+            let p_aa = self.p.fixed_view::<3, 3>(ATTITUDE, ATTITUDE);
+            (trace - (u.transpose() * p_aa * u)[0]).max(0.0)
+        } else {
+            2.0 * trace / 3.0
         };
         if let Some(d) = self.layout.normal(i) {
             angle_var += self.p_diag(d) + self.p_diag(d + 1);
@@ -849,15 +795,10 @@ impl Filter {
     /// tangent basis for `(d1, d2)` (the singularity-free replacement of Eqs. 23-24), and the
     /// estimated parameters.
     fn fill_photodiode_row(&mut self, i: usize) {
-        let sun_line = self.sun_line_var.map(|_| self.prior_sun_body);
         let s = &mut self.scratch;
         let pa = &s.partials;
-        let mut d_attitude = pa.d_attitude;
-        if let Some(u) = sun_line {
-            d_attitude -= u * u.dot(&d_attitude);
-        }
         for k in 0..3 {
-            s.rows.entry(ATTITUDE + k, d_attitude[k]);
+            s.rows.entry(ATTITUDE + k, pa.d_attitude[k]);
         }
         s.rows.entry(self.layout.scale(i), pa.d_scale);
         if let Some(d) = self.layout.normal(i) {

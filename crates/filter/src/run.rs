@@ -1,6 +1,7 @@
 //! The offline run over a dataset: initialisation, forward filter, RTS smoother.
 
 use std::borrow::Cow;
+use std::f64::consts::PI;
 
 use nalgebra::{Matrix3, Vector3};
 use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView};
@@ -474,9 +475,7 @@ impl<'a> ForwardPass<'a> {
             used: used.clone(),
         };
         let mut filter = Filter::new(model, layout, init, noise, algebra)?;
-        if !use_mag {
-            filter.set_sun_line_unobserved(Some(config.unobserved_axis_sigma_deg.to_radians()));
-        }
+        filter.set_sun_only(!use_mag);
         let initial = filter.calibration(prior);
         let mut pass = ForwardPass {
             references: inputs.references,
@@ -1093,6 +1092,8 @@ pub(crate) fn step_estimate(
         segment,
         q,
         attitude_sigma_deg: [sig(0), sig(1), sig(2)],
+        attitude_cov_offdiag_deg2: [(0, 1), (0, 2), (1, 2)]
+            .map(|(i, j)| view.p[(ATTITUDE + i, ATTITUDE + j)] * (180.0 / PI).powi(2)),
         calibration: view.calibration(layout, fixed),
     }
 }

@@ -114,6 +114,114 @@ pub struct Consistency {
     /// Fraction of calibration estimates within 3 sigma of their final values after 10 min of
     /// sunlit data (scale, elevation and, where defined, azimuth of every used photodiode).
     pub converged_within_3sigma_of_final: f64,
+    /// Fraction of the attitude errors about the (true) Sun line inside their 3 sigma over
+    /// the same samples as `attitude_within_3sigma` (NaN without the whole covariance).
+    pub attitude_about_sun_within_3sigma: f64,
+    /// The same across the Sun line (the two directions a Sun vector observes), per
+    /// principal axis of the covariance across it.
+    pub attitude_across_sun_within_3sigma: f64,
+    /// The final calibration states by their reported status (calibration.ron `status`):
+    /// how many of each, and how many of those lie outside 3 sigma of the truth.
+    pub by_status: StatusTally,
+}
+
+/// Final states per status, and those outside 3 sigma of the truth.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct StatusTally {
+    /// `calibrated` states.
+    pub calibrated: usize,
+    /// Of which outside 3 sigma.
+    pub calibrated_outside_3sigma: usize,
+    /// `weakly-determined` states.
+    pub weakly_determined: usize,
+    /// Of which outside 3 sigma.
+    pub weakly_determined_outside_3sigma: usize,
+    /// `not-determined` states (reported at the prior).
+    pub not_determined: usize,
+    /// Of which outside 3 sigma.
+    pub not_determined_outside_3sigma: usize,
+}
+
+impl StatusTally {
+    fn add(&mut self, status: &str, inside: bool) {
+        let outside = usize::from(!inside);
+        match status {
+            "not-determined" => {
+                self.not_determined += 1;
+                self.not_determined_outside_3sigma += outside;
+            }
+            "weakly-determined" => {
+                self.weakly_determined += 1;
+                self.weakly_determined_outside_3sigma += outside;
+            }
+            _ => {
+                self.calibrated += 1;
+                self.calibrated_outside_3sigma += outside;
+            }
+        }
+    }
+}
+
+/// The status calibration.ron gives quantity `name` (`pd03 scale_V`, `gyro_bias_x`):
+/// `calibrated` unless a `status` line names it.
+fn status_of<'a>(cal: &'a Calibration, name: &str) -> &'a str {
+    cal.status
+        .iter()
+        .find_map(|line| {
+            let rest = line.strip_prefix(name)?.strip_prefix(": ")?;
+            rest.split_whitespace().next()
+        })
+        .unwrap_or("calibrated")
+}
+
+/// Whether the attitude error is inside 3 sigma about the Sun line and across it, given the
+/// true and estimated attitudes, the true Sun direction in the body and the estimate's
+/// attitude covariance `p` (deg^2); `None` without a whole covariance.
+///
+/// About the line: the rotation-vector error's component along the Sun. Across it: the
+/// error of the Sun direction itself (`s_est x s_true`, the direction and angle by which
+/// the estimate misplaces the Sun in the body), per principal axis of the covariance
+/// across the line: unlike the rotation vector's components, it stays the observed error
+/// whatever the (unobserved) rotation about the line.
+pub fn sun_line_inside(
+    q_true: &Quat,
+    q_est: &Quat,
+    sun_body_true: &Vector3<f64>,
+    p: &nalgebra::Matrix3<f64>,
+) -> Option<(bool, bool)> {
+    if !p.iter().all(|x| x.is_finite()) {
+        return None;
+    }
+    let s_true = sun_body_true.try_normalize(1e-12)?;
+    let s_inertial = q_true.attitude_matrix().transpose() * s_true;
+    let s_est = q_est.to_body(&s_inertial);
+    let a = error_vector(q_true, q_est).map(f64::to_degrees);
+    let about_var = (s_true.transpose() * p * s_true)[0];
+    let about = a.dot(&s_true).abs() <= 3.0 * about_var.max(0.0).sqrt();
+    let cross = s_est.cross(&s_true);
+    let angle_deg = cross.norm().atan2(s_est.dot(&s_true)).to_degrees();
+    let across_err = cross
+        .try_normalize(1e-15)
+        .map_or(Vector3::zeros(), |d| d * angle_deg);
+    let e1 = s_true
+        .cross(&Vector3::x())
+        .try_normalize(1e-6)
+        .or_else(|| s_true.cross(&Vector3::y()).try_normalize(1e-6))?;
+    let e2 = s_true.cross(&e1);
+    let basis = nalgebra::Matrix3x2::from_columns(&[e1, e2]);
+    let eig = nalgebra::SymmetricEigen::new(basis.transpose() * p * basis);
+    let across = (0..2).all(|k| {
+        let axis = basis * eig.eigenvectors.column(k);
+        across_err.dot(&axis).abs() <= 3.0 * eig.eigenvalues[k].max(0.0).sqrt()
+    });
+    Some((about, across))
+}
+
+/// The attitude covariance of an estimate, deg^2.
+pub fn attitude_cov_deg2(e: &StepEstimate) -> nalgebra::Matrix3<f64> {
+    let [sx, sy, sz] = e.attitude_sigma_deg;
+    let [xy, xz, yz] = e.attitude_cov_offdiag_deg2;
+    nalgebra::Matrix3::new(sx * sx, xy, xz, xy, sy * sy, yz, xz, yz, sz * sz)
 }
 
 fn quat_of(v: &nalgebra::Vector4<f64>) -> Option<Quat> {
@@ -451,17 +559,32 @@ fn consistency(
     converged: &[(usize, usize)],
 ) -> Consistency {
     let mut inside = Vec::new();
-    for (t, e) in constants.photodiodes.iter().zip(&final_cal.photodiodes) {
-        inside.push((t.scale_v - e.scale_v).abs() <= 3.0 * e.scale_sigma_v);
-        inside.push((t.elevation_deg - e.elevation_deg).abs() <= 3.0 * e.elevation_sigma_deg);
+    let mut by_status = StatusTally::default();
+    let mut tally = |inside: &mut Vec<bool>, name: String, ok: bool| {
+        inside.push(ok);
+        by_status.add(status_of(final_cal, &name), ok);
+    };
+    for (i, (t, e)) in constants
+        .photodiodes
+        .iter()
+        .zip(&final_cal.photodiodes)
+        .enumerate()
+    {
+        let pd = format!("pd{:02}", i + 1);
+        let ok = (t.scale_v - e.scale_v).abs() <= 3.0 * e.scale_sigma_v;
+        tally(&mut inside, format!("{pd} scale_V"), ok);
+        let ok = (t.elevation_deg - e.elevation_deg).abs() <= 3.0 * e.elevation_sigma_deg;
+        tally(&mut inside, format!("{pd} elevation_deg"), ok);
         if let Some(s) = e.azimuth_sigma_deg {
-            inside.push(wrap_deg(t.azimuth_deg - e.azimuth_deg).abs() <= 3.0 * s);
+            let ok = wrap_deg(t.azimuth_deg - e.azimuth_deg).abs() <= 3.0 * s;
+            tally(&mut inside, format!("{pd} azimuth_deg"), ok);
         }
     }
     if let Some(row) = estimates.last().and_then(|e| truth_row(e.t_s)) {
-        for axis in 0..3 {
+        for (axis, name) in ["x", "y", "z"].iter().enumerate() {
             let err = truth.gyro_bias_rad_s[row][axis] - final_cal.gyro_bias_rad_s[axis];
-            inside.push(err.abs() <= 3.0 * final_cal.gyro_bias_sigma_rad_s[axis]);
+            let ok = err.abs() <= 3.0 * final_cal.gyro_bias_sigma_rad_s[axis];
+            tally(&mut inside, format!("gyro_bias_{name}"), ok);
         }
     }
     let attitude_inside: Vec<bool> = converged
@@ -473,7 +596,20 @@ fn consistency(
         })
         .flatten()
         .collect();
+    let sun_line: Vec<(bool, bool)> = converged
+        .iter()
+        .filter_map(|&(k, row)| {
+            let q_true = quat_of(&truth.q[row])?;
+            let e = &estimates[k];
+            sun_line_inside(&q_true, &e.q, &truth.sun_body[row], &attitude_cov_deg2(e))
+        })
+        .collect();
+    let about: Vec<bool> = sun_line.iter().map(|s| s.0).collect();
+    let across: Vec<bool> = sun_line.iter().map(|s| s.1).collect();
     Consistency {
+        by_status,
+        attitude_about_sun_within_3sigma: fraction(&about),
+        attitude_across_sun_within_3sigma: fraction(&across),
         final_states_within_3sigma: fraction(&inside),
         final_states: inside.len(),
         attitude_within_3sigma: fraction(&attitude_inside),
@@ -579,6 +715,11 @@ pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
         .collect::<Result<_>>()?;
     // Files written before segments existed have no `segment` column: one segment.
     let segment_col = header.iter().position(|h| h == "segment");
+    // Files written before the attitude covariance was whole have no off-diagonal columns.
+    let cov_cols: Vec<Option<usize>> = crate::files::ATTITUDE_COV_COLUMNS
+        .iter()
+        .map(|n| header.iter().position(|h| h == *n))
+        .collect();
     let mut out = Vec::new();
     for (line, record) in reader.records().enumerate() {
         let record = record.with_context(|| format!("{}:{}", path.display(), line + 2))?;
@@ -644,6 +785,12 @@ pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
             segment,
             q,
             attitude_sigma_deg: [num(base[5])?, num(base[6])?, num(base[7])?],
+            attitude_cov_offdiag_deg2: [0, 1, 2].map(|k| {
+                cov_cols[k]
+                    .and_then(|c| record.get(c))
+                    .and_then(|t| t.parse::<f64>().ok())
+                    .unwrap_or(f64::NAN)
+            }),
             calibration: Calibration {
                 format_version: pdcal_filter::calibration::CALIBRATION_FORMAT_VERSION,
                 photodiodes,

@@ -541,8 +541,13 @@ pub fn estimate_header(m: usize, parameters: &[String]) -> Vec<String> {
         h.push(format!("{p}_sigma"));
     }
     h.push("segment".to_owned());
+    h.extend(ATTITUDE_COV_COLUMNS.map(String::from));
     h
 }
+
+/// The trailing columns of `estimates.csv`: the attitude covariance off the diagonal.
+pub const ATTITUDE_COV_COLUMNS: [&str; 3] =
+    ["att_cov_xy_deg2", "att_cov_xz_deg2", "att_cov_yz_deg2"];
 
 /// One `estimates.csv` row.
 pub fn estimate_row(e: &StepEstimate) -> Vec<String> {
@@ -561,6 +566,7 @@ pub fn estimate_row(e: &StepEstimate) -> Vec<String> {
         row.extend([f(p.value), f(p.sigma)]);
     }
     row.push(e.segment.to_string());
+    row.extend(e.attitude_cov_offdiag_deg2.iter().map(|&x| f(x)));
     row
 }
 
