@@ -9,8 +9,8 @@ use pdcal_albedo::AlbedoModel;
 use pdcal_dataset::{DatasetMeta, Effect, EffectId, Telemetry};
 use pdcal_effects::Sensor;
 use pdcal_filter::{
-    Algebra, Calibration, CalibrationRun, FilterConfig, Mode, RunInputs, StepReference,
-    calibrate_with_model,
+    Algebra, Calibration, CalibrationRun, Consistency, FilterConfig, Mode, RunInputs,
+    StepReference, Verdict, calibrate_with_model,
 };
 use pdcal_photodiode::Photodiode;
 use serde::Serialize;
@@ -225,6 +225,21 @@ pub struct Diagnosis {
     pub misfit: Misfit,
     /// The significance threshold used, nats.
     pub threshold: f64,
+    /// The shared consistency verdict ([`pdcal_filter::consistency`], the one `calibrate`
+    /// writes) of the first model's filter residuals.
+    pub base_consistency: Consistency,
+    /// The same of the final model's.
+    pub consistency: Consistency,
+}
+
+/// The shared consistency verdict of a filter run's residuals.
+pub fn run_consistency(run: &CalibrationRun) -> Consistency {
+    pdcal_filter::consistency::judge(
+        &run.residuals,
+        run.used_photodiodes.len(),
+        run.sensor_sigmas.photodiode_v,
+        run.sensor_sigmas.mag_nt,
+    )
 }
 
 impl Diagnosis {
@@ -245,7 +260,10 @@ impl Diagnosis {
                 parts.push(r.found.as_str());
             }
         }
-        if !self.misfit.explained {
+        // The filter's own residuals judged as `calibrate` judges them: a final model
+        // whose residuals that verdict calls inconsistent is not explained, whatever the
+        // whiteness checks say.
+        if !self.misfit.explained || self.consistency.verdict == Verdict::Inconsistent {
             parts.push(UNEXPLAINED);
         }
         if parts.is_empty() {
@@ -281,6 +299,8 @@ impl Diagnosis {
             final_parameters: self.final_spec.added.clone(),
             parameter_estimates: self.parameter_estimates().to_vec(),
             unexplained: self.misfit.clone(),
+            base_consistency: self.base_consistency.clone(),
+            consistency: self.consistency.clone(),
         }
     }
 }
@@ -314,6 +334,11 @@ pub struct DiagnosisSummary {
     pub parameter_estimates: Vec<pdcal_filter::ParameterEstimate>,
     /// The consistency check of the final residuals.
     pub unexplained: Misfit,
+    /// The shared verdict (as `calibrate`'s summary.json) on the first model's filter
+    /// residuals.
+    pub base_consistency: Consistency,
+    /// The same on the final model's.
+    pub consistency: Consistency,
 }
 
 /// One round in `diagnosis.json`.
@@ -400,6 +425,7 @@ pub fn diagnose_from(
     check_config(config)?;
     let base = spec.base;
     let (run, res) = calibrate_and_residuals(inputs, &mut spec, config)?;
+    let base_consistency = run_consistency(&run);
     let initial_residuals = res.clone();
     let mut state = State { spec, run, res };
     let initial_dropped = drop_unsupported(inputs, config, &mut state, None)?;
@@ -423,6 +449,7 @@ pub fn diagnose_from(
                 initial_residuals,
             );
             d.initial_dropped = initial_dropped;
+            d.base_consistency = base_consistency;
             return Ok(d);
         };
         let before = state;
@@ -495,7 +522,10 @@ fn finish(
     initial_residuals: Residuals,
 ) -> Diagnosis {
     let misfit = misfit(&state.res, inputs.references, albedo_gain(&state.spec));
+    let consistency = run_consistency(&state.run);
     Diagnosis {
+        base_consistency: consistency.clone(),
+        consistency,
         base_model: base,
         initial_dropped: Vec::new(),
         rounds,

@@ -4,12 +4,16 @@
 //! of code, so they cannot contradict each other.
 //!
 //! Three figures per sensor class and per photodiode, each answering its own question:
-//! - **RMS against the sensor noise alone**, over every accepted update. It does not read
-//!   the covariance at all, so a filter whose attitude sigma has grown to tens of degrees
-//!   cannot talk its way past it: residuals several times the noise mean the model and the
-//!   data disagree, whatever the bounds say. The filter's own state errors (attitude,
-//!   calibration) add to the residuals, which is why the bound is [`MAX_RMS_NOISE_RATIO`]
-//!   times the noise and not one.
+//! - **The residuals' spread against the sensor noise alone**, over every accepted update.
+//!   It does not read the covariance at all, so a filter whose attitude sigma has grown to
+//!   tens of degrees cannot talk its way past it: residuals several times the noise mean
+//!   the model and the data disagree, whatever the bounds say. The spread judged is the
+//!   robust one, the median absolute residual over its Gaussian value (`0.6745 sigma`): the
+//!   first minutes of a run, while the scale factors and normals converge from their prior,
+//!   give residuals far beyond the noise that say nothing about the model, and a median is
+//!   not moved by them as long as they are a minority. The RMS is reported beside it. The
+//!   filter's own state errors (attitude, calibration) add to the residuals, which is why
+//!   the bound is [`MAX_RMS_NOISE_RATIO`] times the noise and not one.
 //! - **Normalised innovation squared** (`nu^2 / S`, S the predicted variance of the
 //!   innovation) over the accepted updates of rows where the attitude is *held* (its sigma
 //!   in the observed directions below the bound of [`crate::SegmentConfig`]), against the
@@ -74,6 +78,10 @@ pub struct ChannelConsistency {
     /// That RMS over the noise.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub rms_over_noise: Option<f64>,
+    /// The robust spread over the noise: the median `|residual| / noise` over 0.6745 (1 for
+    /// Gaussian residuals at the noise); the figure the verdict judges.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub robust_over_noise: Option<f64>,
     /// Updates (accepted or gated) of rows where the attitude was held.
     pub held_updates: usize,
     /// Mean NIS of the held accepted updates.
@@ -102,9 +110,63 @@ pub struct Consistency {
     pub photodiodes: Vec<ChannelConsistency>,
 }
 
-#[derive(Debug, Clone, Copy, Default)]
+/// Bins per decade of the histogram of `|residual| / noise`.
+const BINS_PER_DECADE: f64 = 20.0;
+/// Its lowest edge, a decade exponent: 1e-4 of the noise.
+const LOWEST_DECADE: f64 = -4.0;
+/// Its bins: 1e-4 to 1e8 of the noise, 12 % wide each.
+const BINS: usize = 240;
+
+/// Counts of `|residual| / noise` on a log scale: the median of any number of updates in
+/// fixed memory (a streaming run never holds its residuals), to the bin's 12 %.
+#[derive(Debug, Clone)]
+struct LogHistogram {
+    counts: Vec<u64>,
+    total: u64,
+}
+
+impl Default for LogHistogram {
+    fn default() -> Self {
+        LogHistogram {
+            counts: vec![0; BINS],
+            total: 0,
+        }
+    }
+}
+
+impl LogHistogram {
+    fn push(&mut self, x: f64) {
+        if !x.is_finite() {
+            return;
+        }
+        let at = (x.max(1e-300).log10() - LOWEST_DECADE) * BINS_PER_DECADE;
+        let bin = (at.max(0.0) as usize).min(BINS - 1);
+        self.counts[bin] += 1;
+        self.total += 1;
+    }
+
+    /// The median, at the geometric centre of its bin.
+    fn median(&self) -> Option<f64> {
+        let half = self.total.div_ceil(2);
+        let mut seen = 0;
+        for (bin, &c) in self.counts.iter().enumerate() {
+            seen += c;
+            if c > 0 && seen >= half {
+                let exponent = LOWEST_DECADE + (bin as f64 + 0.5) / BINS_PER_DECADE;
+                return Some(10f64.powf(exponent));
+            }
+        }
+        None
+    }
+}
+
+/// The median of `|x|` for a standard Gaussian `x`.
+const GAUSSIAN_MEDIAN_ABS: f64 = 0.674_489_750_196_081_7;
+
+#[derive(Debug, Clone, Default)]
 struct Sums {
     updates: usize,
+    spread: LogHistogram,
     sum_sq: f64,
     held: usize,
     held_accepted: usize,
@@ -113,10 +175,13 @@ struct Sums {
 }
 
 impl Sums {
-    fn push(&mut self, r: &ResidualRecord) {
+    fn push(&mut self, r: &ResidualRecord, noise_sigma: f64) {
         if r.accepted {
             self.updates += 1;
             self.sum_sq += r.residual * r.residual;
+            if noise_sigma > 0.0 {
+                self.spread.push(r.residual.abs() / noise_sigma);
+            }
         }
         if !r.attitude_held {
             return;
@@ -141,6 +206,7 @@ impl Sums {
             updates: self.updates,
             residual_rms: rms,
             rms_over_noise: rms.filter(|_| noise_sigma > 0.0).map(|r| r / noise_sigma),
+            robust_over_noise: self.spread.median().map(|m| m / GAUSSIAN_MEDIAN_ABS),
             held_updates: self.held,
             nis_mean: nis,
             nis_band: nis.map(|_| nis_band(self.held_accepted)),
@@ -177,12 +243,12 @@ impl ConsistencyAccumulator {
     pub fn push(&mut self, r: &ResidualRecord) {
         match r.sensor {
             Sensor::Photodiode(i) => {
-                self.photodiode.push(r);
+                self.photodiode.push(r, self.photodiode_sigma_v);
                 if let Some(s) = self.per_photodiode.get_mut(i) {
-                    s.push(r);
+                    s.push(r, self.photodiode_sigma_v);
                 }
             }
-            Sensor::Magnetometer(_) => self.magnetometer.push(r),
+            Sensor::Magnetometer(_) => self.magnetometer.push(r, self.mag_sigma_nt),
         }
     }
 
@@ -248,15 +314,15 @@ pub fn judge<'a>(
 fn channel_problems(c: &ChannelConsistency) -> Vec<String> {
     let mut out = Vec::new();
     if c.updates >= MIN_JUDGED_UPDATES
-        && let Some(ratio) = c.rms_over_noise
+        && let Some(ratio) = c.robust_over_noise
         && ratio > MAX_RMS_NOISE_RATIO
     {
         out.push(format!(
-            "{}: residual RMS {:.3e} is {ratio:.1} times the noise {:.3e} (bound \
-             {MAX_RMS_NOISE_RATIO})",
+            "{}: residuals {ratio:.1} times the noise {:.3e} (robust spread; RMS {:.3e}; \
+             bound {MAX_RMS_NOISE_RATIO})",
             c.channel,
+            c.noise_sigma,
             c.residual_rms.unwrap_or(f64::NAN),
-            c.noise_sigma
         ));
     }
     if let (Some(nis), Some([_, high])) = (c.nis_mean, c.nis_band)
@@ -396,6 +462,7 @@ mod tests {
         assert_eq!(c.verdict, Verdict::Consistent, "{:?}", c.reasons);
         let pd = &c.sensors[0];
         assert!((pd.rms_over_noise.unwrap() - 1.0).abs() < 0.05);
+        assert!((pd.robust_over_noise.unwrap() - 1.0).abs() < 0.12);
         let [lo, hi] = pd.nis_band.unwrap();
         assert!(lo < pd.nis_mean.unwrap() && pd.nis_mean.unwrap() < hi);
     }
@@ -408,6 +475,11 @@ mod tests {
         let c = judge(&records, 3, 0.005, 300.0);
         assert_eq!(c.verdict, Verdict::Inconsistent);
         assert!(c.reasons[0].contains("times the noise"), "{:?}", c.reasons);
+        assert!(
+            c.photodiodes
+                .iter()
+                .all(|p| p.robust_over_noise.unwrap() > 50.0)
+        );
         assert!(
             c.photodiodes
                 .iter()
@@ -439,6 +511,19 @@ mod tests {
         let c = judge(&records, 3, 0.01, 300.0);
         assert_eq!(c.sensors[0].held_updates, 2000);
         assert_eq!(c.sensors[0].updates, 2010);
+        assert_eq!(c.verdict, Verdict::Consistent, "{:?}", c.reasons);
+    }
+
+    #[test]
+    fn a_convergence_transient_does_not_make_a_run_inconsistent() {
+        // A fifth of the updates at 20 times the noise (the first minutes, scale factors
+        // still at their prior), the rest at the noise: the robust spread stays near 1.
+        let mut records = gaussian_records(4000, 0.01, 1.0, 9);
+        for r in records.iter_mut().take(800) {
+            r.residual *= 20.0;
+        }
+        let c = judge(&records, 3, 0.01, 300.0);
+        assert!(c.sensors[0].rms_over_noise.unwrap() > 5.0);
         assert_eq!(c.verdict, Verdict::Consistent, "{:?}", c.reasons);
     }
 

@@ -385,5 +385,20 @@ pub fn console_summary(outcome: &DiagnoseOutcome) -> String {
         "  residuals: {}",
         misfit_text(&d.misfit).replace('\n', "\n  ")
     );
+    for (which, c) in [
+        ("first model", &d.base_consistency),
+        ("final model", &d.consistency),
+    ] {
+        let _ = writeln!(
+            s,
+            "  consistency of the {which}'s filter residuals (as calibrate judges it): {}{}",
+            c.verdict.as_str(),
+            if c.reasons.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", c.reasons.join("; "))
+            }
+        );
+    }
     s
 }

@@ -86,6 +86,7 @@ pub fn consistency_table(c: &Consistency) -> Table {
         "residual RMS",
         "noise",
         "RMS / noise",
+        "robust / noise",
         "mean NIS [99.9 % band]",
         "held updates",
         "inside 3 sigma (held)",
@@ -102,6 +103,7 @@ pub fn consistency_table(c: &Consistency) -> Table {
                 opt(ch.residual_rms, &|x| format!("{x:.4e}")),
                 format!("{:.4e}", ch.noise_sigma),
                 opt(ch.rms_over_noise, &|x| format!("{x:.2}")),
+                opt(ch.robust_over_noise, &|x| format!("{x:.2}")),
                 match (ch.nis_mean, ch.nis_band) {
                     (Some(m), Some([lo, hi])) => format!("{m:.3} [{lo:.3}, {hi:.3}]"),
                     _ => "-".to_owned(),
