@@ -12,8 +12,7 @@ use serde::Serialize;
 use crate::calibrate::Outcome;
 use crate::output::{OutputDir, write_file};
 
-/// Version of the output files' layout (cli-contract.md).
-pub const OUTPUT_FORMAT_VERSION: u32 = 1;
+pub use pdcal_evaluate::OUTPUT_FORMAT_VERSION;
 
 /// The Sun's distance, AU, at which `C` (`scale_V`) is defined: the model's direct-Sun term
 /// carries `(1 AU / r_sun)^2` (`pdcal_photodiode::DirectSun`).
