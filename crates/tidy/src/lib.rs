@@ -37,9 +37,10 @@ pub struct Rules {
 /// the two equal.
 pub const PDCAL: Rules = Rules {
     layering: &[
+        ("pdcal-text", &[]),
         ("pdcal-attitude", &[]),
-        ("pdcal-effects", &[]),
-        ("pdcal-ephem", &[]),
+        ("pdcal-effects", &["pdcal-text"]),
+        ("pdcal-ephem", &["pdcal-text"]),
         ("pdcal-albedo", &[]),
         ("pdcal-report", &[]),
         (
