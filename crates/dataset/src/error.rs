@@ -389,14 +389,3 @@ pub(crate) fn text_of(file: &Path, bytes: Vec<u8>) -> Result<String, DatasetErro
         TextFault::Empty => DatasetError::whole_file(file, ErrorKind::Empty),
     })
 }
-
-impl From<crate::ron_text::RonFaultKind> for ErrorKind {
-    fn from(kind: crate::ron_text::RonFaultKind) -> Self {
-        use crate::ron_text::RonFaultKind as K;
-        match kind {
-            K::Ron { message } => ErrorKind::Ron { message },
-            K::UnknownField { name, expected } => ErrorKind::UnknownField { name, expected },
-            K::MissingField { name } => ErrorKind::MissingField { name },
-        }
-    }
-}

@@ -75,6 +75,17 @@ pub fn parse_ron<T: DeserializeOwned>(text: &str) -> Result<T, RonFault> {
     })
 }
 
+impl From<RonFaultKind> for ErrorKind {
+    fn from(kind: RonFaultKind) -> Self {
+        use RonFaultKind as K;
+        match kind {
+            K::Ron { message } => ErrorKind::Ron { message },
+            K::UnknownField { name, expected } => ErrorKind::UnknownField { name, expected },
+            K::MissingField { name } => ErrorKind::MissingField { name },
+        }
+    }
+}
+
 /// Deserialises RON, mapping ron's 1-based span start to line:column.
 pub(crate) fn from_ron<T: DeserializeOwned>(file: &Path, text: &str) -> Result<T, DatasetError> {
     parse_ron(text).map_err(|f| DatasetError::at(file, f.line, Some(f.column), f.kind.into()))
