@@ -28,7 +28,7 @@ pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
     let m = (1..)
         .take_while(|i| header.iter().any(|h| h == format!("pd{i:02}_scale_V")))
         .count();
-    let base: Vec<usize> = crate::files::ESTIMATE_LEADING_COLUMNS
+    let base: Vec<usize> = crate::rows::ESTIMATE_LEADING_COLUMNS
         .iter()
         .map(|n| col(n))
         .collect::<Result<_>>()?;
