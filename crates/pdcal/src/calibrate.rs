@@ -2,7 +2,6 @@
 
 use std::path::{Path, PathBuf};
 
-use serde::Serialize;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
@@ -12,14 +11,11 @@ use pdcal_albedo::{AlbedoModel, MapChoice};
 pub type AlbedoModelType = AlbedoModel;
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_filter::screen::ScreenTolerances;
-use pdcal_filter::{
-    Algebra, Calibration, CalibrationRun, FilterConfig, Mode, References, Rejections, RunInputs,
-};
+use pdcal_filter::{Algebra, Calibration, FilterConfig, Mode, References, Rejections, RunInputs};
 
-use crate::files::ResidualSummary;
 use crate::output::OutputDir;
+pub use crate::schema::{DatasetSummary, Outcome};
 use crate::stream::StreamSink;
-use crate::sunvec::SunVectorMetrics;
 
 /// The resolved run configuration: filter tuning and mode.
 #[derive(Debug, Clone)]
@@ -90,34 +86,6 @@ fn other_kind_of_file(text: &str) -> Option<&'static str> {
     }
 }
 
-/// Everything a calibration produces, in memory.
-pub struct Outcome {
-    /// The filter run (forward, smoother, residuals, calibration).
-    pub run: CalibrationRun,
-    /// Sun-vector magnitude and direction metrics (Figs. 8-11).
-    pub sun_vector: SunVectorMetrics,
-    /// Photodiode residual statistics over every row.
-    pub residuals: ResidualSummary,
-    /// Wall-clock time of the filter run, s.
-    pub runtime_s: f64,
-    /// Physical-plausibility warnings on the input ([`crate::checks`]), one line each.
-    pub warnings: Vec<String>,
-    /// The data sets of a joint calibration with their own residual statistics (empty for
-    /// one data set).
-    pub datasets: Vec<DatasetSummary>,
-}
-
-/// One data set of a calibration and the statistics of its own photodiode residuals
-/// (`summary.json` `datasets`).
-#[derive(Debug, Clone, Serialize)]
-pub struct DatasetSummary {
-    /// Where it sits among the sets.
-    #[serde(flatten)]
-    pub span: crate::joint::SetSpan,
-    /// Its photodiode residuals.
-    pub residuals: ResidualSummary,
-}
-
 /// The reflectivity map the filter uses: the paper's TOMS map.
 pub const ALBEDO_MAP: MapChoice = MapChoice::TomsMean1p25x1;
 
@@ -166,7 +134,7 @@ pub fn run_with_references(
         &config.filter,
     )?;
     Ok(Outcome {
-        residuals: crate::files::residual_summary(&run.residuals),
+        residuals: crate::schema::residual_summary(&run.residuals),
         run,
         sun_vector,
         runtime_s,
@@ -199,7 +167,7 @@ pub fn run_dirs(
     datasets: &[PathBuf],
     out: &Path,
     config: &RunConfig,
-) -> Result<(Outcome, crate::files::Summary)> {
+) -> Result<(Outcome, crate::schema::Summary)> {
     let dir = OutputDir::create(out, "calibrate")?;
     // Only meta and telemetry: calibrate never reads truth.*.
     run_sets(crate::joint::read(datasets)?, dir, config, None)
@@ -218,7 +186,7 @@ pub fn run_sets(
     dir: OutputDir,
     config: &RunConfig,
     cancel: Option<CancelCheck>,
-) -> Result<(Outcome, crate::files::Summary)> {
+) -> Result<(Outcome, crate::schema::Summary)> {
     let joint = crate::joint::join(sets)?;
     let (meta, mut telemetry) = (joint.meta, joint.telemetry);
     let warnings = crate::checks::check_telemetry(&telemetry)?;
@@ -307,7 +275,7 @@ pub fn run_sets(
                 .collect(),
         },
     };
-    let summary = crate::files::summary(&meta, &outcome);
+    let summary = crate::schema::summary(&meta, &outcome);
     crate::files::write_summary_and_figures(dir, &telemetry, &outcome, &summary, None)?;
     Ok((outcome, summary))
 }

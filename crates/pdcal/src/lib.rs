@@ -18,6 +18,7 @@ pub mod import_fixture;
 pub mod joint;
 pub mod output;
 pub mod rows;
+pub mod schema;
 pub mod simulate;
 pub mod stream;
 pub mod sunvec;

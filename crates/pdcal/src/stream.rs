@@ -17,9 +17,9 @@ use anyhow::{Context, Result};
 use pdcal_attitude::Quat;
 use pdcal_filter::{ResidualRecord, RunSink, Sensor, StepEstimate};
 
-use crate::files::ResidualSummary;
 use crate::output::OutputDir;
 use crate::rows::{RESIDUAL_COLUMNS, estimate_header, estimate_row, residual_row};
+use crate::schema::ResidualSummary;
 
 /// Largest number of points a figure's time series keeps.
 pub const FIGURE_POINTS: usize = 4000;

@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 
 use pdcal_report::Table;
 
-use crate::files::Summary;
+use crate::schema::Summary;
 
 /// The photodiode table.
 pub fn photodiode_table(summary: &Summary) -> Table {
