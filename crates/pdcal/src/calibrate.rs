@@ -15,6 +15,7 @@ use pdcal_filter::{Algebra, Calibration, FilterConfig, Mode, References, Rejecti
 
 use crate::output::OutputDir;
 pub use crate::schema::{DatasetSummary, Outcome};
+pub use crate::stream::CancelCheck;
 use crate::stream::StreamSink;
 
 /// The resolved run configuration: filter tuning and mode.
@@ -172,11 +173,6 @@ pub fn run_dirs(
     // Only meta and telemetry: calibrate never reads truth.*.
     run_sets(crate::joint::read(datasets)?, dir, config, None)
 }
-
-/// Asked every [`pdcal_filter::CANCEL_POLL_ROWS`] rows of a calibration whether to stop
-/// (an interactive session's interrupt); the run then fails with
-/// [`pdcal_filter::FilterError::Cancelled`] and publishes nothing.
-pub type CancelCheck = Box<dyn FnMut() -> bool>;
 
 /// The calibration of [`run_dirs`] on data sets held in memory (each with the directory
 /// it stands for, named in `summary.json` `datasets`), its outputs written into `dir` and

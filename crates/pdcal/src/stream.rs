@@ -21,6 +21,11 @@ use crate::output::OutputDir;
 use crate::rows::{RESIDUAL_COLUMNS, estimate_header, estimate_row, residual_row};
 use crate::schema::ResidualSummary;
 
+/// Asked every [`pdcal_filter::CANCEL_POLL_ROWS`] rows of a calibration whether to stop
+/// (an interactive session's interrupt); the run then fails with
+/// [`pdcal_filter::FilterError::Cancelled`] and publishes nothing.
+pub type CancelCheck = Box<dyn FnMut() -> bool>;
+
 /// Largest number of points a figure's time series keeps.
 pub const FIGURE_POINTS: usize = 4000;
 
@@ -77,7 +82,7 @@ pub struct StreamSink {
     set_starts: Vec<usize>,
     set_sums: Vec<ResidualSums>,
     error: Option<anyhow::Error>,
-    cancel: Option<crate::calibrate::CancelCheck>,
+    cancel: Option<CancelCheck>,
 }
 
 fn create(path: &Path) -> Result<csv::Writer<BufWriter<File>>> {
@@ -127,7 +132,7 @@ impl StreamSink {
     }
 
     /// Lets `cancel` stop the run ([`RunSink::cancelled`]); `None` never stops it.
-    pub fn with_cancel(mut self, cancel: Option<crate::calibrate::CancelCheck>) -> Self {
+    pub fn with_cancel(mut self, cancel: Option<CancelCheck>) -> Self {
         self.cancel = cancel;
         self
     }
