@@ -14,7 +14,6 @@ pub mod evaluate;
 pub mod figures;
 pub mod files;
 pub mod import;
-pub mod import_fixture;
 pub mod joint;
 pub mod output;
 pub mod rows;
