@@ -65,7 +65,7 @@ mod telemetry;
 mod temperature;
 mod truth;
 
-pub use error::{DatasetError, ErrorKind, QUOTE_MAX_CHARS, clip, quote};
+pub use error::{DatasetError, ErrorKind, QUOTE_MAX_CHARS, TextFault, clip, decode_text, quote};
 pub use files::{
     Dataset, DatasetWriter, begin_dataset, read_dataset, read_meta, read_telemetry, read_truth,
     render_dataset, write_dataset,
@@ -75,6 +75,7 @@ pub use meta::{
     meta_from_fields, meta_from_str,
 };
 pub use pdcal_effects::{Effect, EffectId};
+pub use ron_text::{RonFault, RonFaultKind, parse_ron};
 pub use samples::Samples;
 pub use telemetry::{
     Telemetry, columns, photodiode_column, telemetry_from_columns, telemetry_from_str,

@@ -10,8 +10,8 @@ use crate::meta::{DatasetMeta, OrbitSpec};
 use crate::samples::Samples;
 use crate::table::{CsvRows, find, push_row, require, require3};
 use crate::temperature::{
-    TEMPERATURE_RANGE_C, TemperatureColumn, TemperatureKey, photodiode_temperature_column,
-    temperature_key,
+    HeldTemperatures, TEMPERATURE_RANGE_C, TemperatureColumn, TemperatureKey,
+    panel_temperature_column, photodiode_temperature_column, temperature_key,
 };
 
 /// Column names of telemetry.csv (and, for `t_s` and `r_*_km`, of truth.csv).
@@ -87,6 +87,41 @@ impl Telemetry {
                 })
                 .collect(),
         }
+    }
+}
+
+impl Telemetry {
+    /// The index into [`Telemetry::temperature_c`] of the column named `name`.
+    pub fn temperature_column(&self, name: &str) -> Option<usize> {
+        self.temperature_c.iter().position(|c| c.name == name)
+    }
+
+    /// For each photodiode of `meta`, in `pdNN` order, the index into
+    /// [`Telemetry::temperature_c`] of its temperature: its own `temp_pdNN_C` if present,
+    /// else its panel's `temp_<panel>_C`, else `None` (no temperature for it).
+    pub fn photodiode_temperatures(&self, meta: &DatasetMeta) -> Vec<Option<usize>> {
+        meta.photodiodes
+            .iter()
+            .enumerate()
+            .map(|(i, mount)| {
+                self.temperature_column(&photodiode_temperature_column(i + 1))
+                    .or_else(|| {
+                        let panel = mount.panel.as_deref()?;
+                        self.temperature_column(&panel_temperature_column(panel))
+                    })
+            })
+            .collect()
+    }
+
+    /// Per-photodiode temperatures held from the last sample, for reading row by row
+    /// ([`HeldTemperatures::at`]).
+    pub fn held_temperatures(&self, meta: &DatasetMeta) -> HeldTemperatures<'_> {
+        let of_photodiode = if self.temperature_c.is_empty() {
+            Vec::new()
+        } else {
+            self.photodiode_temperatures(meta)
+        };
+        HeldTemperatures::new(&self.temperature_c, of_photodiode, meta.photodiodes.len())
     }
 }
 

@@ -9,7 +9,7 @@
 //! The forward filter's innovations are the prediction-error decomposition of the data's
 //! likelihood under the model: with the offset as a state, the filter separates it from the
 //! normals as the body rate changes direction, and the log-likelihood gain is the test
-//! statistic the issue asks for ("a likelihood ratio from a refit with the term added").
+//! statistic: a likelihood ratio from a refit with the term added.
 //! It costs one forward calibration per round.
 
 use std::collections::HashMap;

@@ -154,24 +154,14 @@ impl fmt::Display for UnknownEffect {
         let known: Vec<&str> = EffectId::ALL.iter().map(|e| e.as_str()).collect();
         write!(
             f,
-            "unknown effect {:?} (known: {})",
-            clip(&self.0),
+            "unknown effect {} (known: {})",
+            pdcal_text::quote(&self.0),
             known.join(", ")
         )
     }
 }
 
 impl std::error::Error for UnknownEffect {}
-
-/// At most 80 characters of a user's string, for messages.
-fn clip(s: &str) -> String {
-    const MAX: usize = 80;
-    if s.chars().count() <= MAX {
-        s.to_owned()
-    } else {
-        s.chars().take(MAX).chain("...".chars()).collect()
-    }
-}
 
 impl FromStr for EffectId {
     type Err = UnknownEffect;

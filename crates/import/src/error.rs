@@ -321,20 +321,25 @@ impl std::error::Error for ImportError {}
 
 pub(crate) use pdcal_ephem::text::{clip, line_col};
 
-/// Checks the bytes are UTF-8 and not blank; strips a leading byte-order mark.
+/// The dataset reader's text check ([`pdcal_dataset::decode_text`]) with the fault as this
+/// crate's error.
 pub(crate) fn text_of(file: &Path, bytes: Vec<u8>) -> Result<String, ImportError> {
-    let text = String::from_utf8(bytes).map_err(|e| {
-        let valid = &e.as_bytes()[..e.utf8_error().valid_up_to()];
-        let before = String::from_utf8_lossy(valid);
-        let (line, column) = line_col(&before, before.len());
-        ImportError::at(file, line, Some(column), ErrorKind::NotUtf8)
-    })?;
-    let text = match text.strip_prefix('\u{feff}') {
-        Some(rest) => rest.to_owned(),
-        None => text,
-    };
-    if text.trim().is_empty() {
-        return Err(ImportError::whole_file(file, ErrorKind::Empty));
+    use pdcal_dataset::TextFault;
+    pdcal_dataset::decode_text(bytes).map_err(|fault| match fault {
+        TextFault::NotUtf8 { line, column } => {
+            ImportError::at(file, line, Some(column), ErrorKind::NotUtf8)
+        }
+        TextFault::Empty => ImportError::whole_file(file, ErrorKind::Empty),
+    })
+}
+
+impl From<pdcal_dataset::RonFaultKind> for ErrorKind {
+    fn from(kind: pdcal_dataset::RonFaultKind) -> Self {
+        use pdcal_dataset::RonFaultKind as K;
+        match kind {
+            K::Ron { message } => ErrorKind::Ron { message },
+            K::UnknownField { name, expected } => ErrorKind::UnknownField { name, expected },
+            K::MissingField { name } => ErrorKind::MissingField { name },
+        }
     }
-    Ok(text)
 }

@@ -3,7 +3,6 @@
 use std::path::{Path, PathBuf};
 
 use pdcal_dataset::{DatasetMeta, EpochUtc, NoiseHints, NominalMount, OrbitSpec};
-use ron::extensions::Extensions;
 use serde::Deserialize;
 
 use crate::error::{ErrorKind, ImportError, clip, line_col, text_of};
@@ -707,25 +706,8 @@ fn nesting(text: &str) -> usize {
     depth
 }
 
-/// Deserialises the map, mapping ron's span start to line:column.
+/// Deserialises the map with the dataset reader's RON options and error mapping.
 fn from_ron<T: serde::de::DeserializeOwned>(file: &Path, text: &str) -> Result<T, ImportError> {
-    let options = ron::Options::default().with_default_extension(Extensions::IMPLICIT_SOME);
-    options.from_str(text).map_err(|e| {
-        let kind = match e.code {
-            ron::Error::NoSuchStructField {
-                expected, found, ..
-            } => ErrorKind::UnknownField {
-                name: clip(&found),
-                expected: expected.join(", "),
-            },
-            ron::Error::MissingStructField { field, .. } => ErrorKind::MissingField {
-                name: field.to_owned(),
-            },
-            other => ErrorKind::Ron {
-                message: clip(&other.to_string()),
-            },
-        };
-        let (line, col) = pdcal_ephem::text::skip_blanks(text, e.span.start.line, e.span.start.col);
-        ImportError::at(file, line, Some(col), kind)
-    })
+    pdcal_dataset::parse_ron(text)
+        .map_err(|f| ImportError::at(file, f.line, Some(f.column), f.kind.into()))
 }

@@ -2,7 +2,6 @@
 
 use std::path::{Path, PathBuf};
 
-use serde::Serialize;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
@@ -12,14 +11,12 @@ use pdcal_albedo::{AlbedoModel, MapChoice};
 pub type AlbedoModelType = AlbedoModel;
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_filter::screen::ScreenTolerances;
-use pdcal_filter::{
-    Algebra, Calibration, CalibrationRun, FilterConfig, Mode, References, Rejections, RunInputs,
-};
+use pdcal_filter::{Algebra, Calibration, FilterConfig, Mode, References, Rejections, RunInputs};
 
-use crate::files::ResidualSummary;
 use crate::output::OutputDir;
+pub use crate::schema::{DatasetSummary, Outcome};
+pub use crate::stream::CancelCheck;
 use crate::stream::StreamSink;
-use crate::sunvec::SunVectorMetrics;
 
 /// The resolved run configuration: filter tuning and mode.
 #[derive(Debug, Clone)]
@@ -90,38 +87,6 @@ fn other_kind_of_file(text: &str) -> Option<&'static str> {
     }
 }
 
-/// Everything a calibration produces, in memory.
-pub struct Outcome {
-    /// The filter run (forward, smoother, residuals, calibration).
-    pub run: CalibrationRun,
-    /// Sun-vector magnitude and direction metrics (Figs. 8-11).
-    pub sun_vector: SunVectorMetrics,
-    /// Photodiode residual statistics over every row.
-    pub residuals: ResidualSummary,
-    /// Whether the residuals are consistent with the model ([`pdcal_filter::consistency`]).
-    pub consistency: pdcal_filter::Consistency,
-    /// Wall-clock time of the filter run, s.
-    pub runtime_s: f64,
-    /// Physical-plausibility warnings on the input ([`crate::checks`]), one line each.
-    pub warnings: Vec<String>,
-    /// The data sets of a joint calibration with their own residual statistics (empty for
-    /// one data set).
-    pub datasets: Vec<DatasetSummary>,
-}
-
-/// One data set of a calibration and the statistics of its own photodiode residuals
-/// (`summary.json` `datasets`).
-#[derive(Debug, Clone, Serialize)]
-pub struct DatasetSummary {
-    /// Where it sits among the sets.
-    #[serde(flatten)]
-    pub span: crate::joint::SetSpan,
-    /// Its photodiode residuals.
-    pub residuals: ResidualSummary,
-    /// The consistency verdict of its own residuals.
-    pub consistency: pdcal_filter::Consistency,
-}
-
 /// The reflectivity map the filter uses: the paper's TOMS map.
 pub const ALBEDO_MAP: MapChoice = MapChoice::TomsMean1p25x1;
 
@@ -170,7 +135,7 @@ pub fn run_with_references(
         &config.filter,
     )?;
     Ok(Outcome {
-        residuals: crate::files::residual_summary(&run.residuals),
+        residuals: crate::schema::residual_summary(&run.residuals),
         consistency: pdcal_filter::consistency::judge(
             &run.residuals,
             meta.photodiodes.len(),
@@ -209,16 +174,11 @@ pub fn run_dirs(
     datasets: &[PathBuf],
     out: &Path,
     config: &RunConfig,
-) -> Result<(Outcome, crate::files::Summary)> {
+) -> Result<(Outcome, crate::schema::Summary)> {
     let dir = OutputDir::create(out, "calibrate")?;
     // Only meta and telemetry: calibrate never reads truth.*.
     run_sets(crate::joint::read(datasets)?, dir, config, None)
 }
-
-/// Asked every [`pdcal_filter::CANCEL_POLL_ROWS`] rows of a calibration whether to stop
-/// (an interactive session's interrupt); the run then fails with
-/// [`pdcal_filter::FilterError::Cancelled`] and publishes nothing.
-pub type CancelCheck = Box<dyn FnMut() -> bool>;
 
 /// The calibration of [`run_dirs`] on data sets held in memory (each with the directory
 /// it stands for, named in `summary.json` `datasets`), its outputs written into `dir` and
@@ -228,7 +188,7 @@ pub fn run_sets(
     dir: OutputDir,
     config: &RunConfig,
     cancel: Option<CancelCheck>,
-) -> Result<(Outcome, crate::files::Summary)> {
+) -> Result<(Outcome, crate::schema::Summary)> {
     let joint = crate::joint::join(sets)?;
     let (meta, mut telemetry) = (joint.meta, joint.telemetry);
     let warnings = crate::checks::check_telemetry(&telemetry)?;
@@ -324,7 +284,7 @@ pub fn run_sets(
                 .collect(),
         },
     };
-    let summary = crate::files::summary(&meta, &outcome);
+    let summary = crate::schema::summary(&meta, &outcome);
     crate::files::write_summary_and_figures(dir, &telemetry, &outcome, &summary, None)?;
     Ok((outcome, summary))
 }

@@ -10,8 +10,7 @@ use pdcal_report::{
     histograms, lines, series_with_bounds, sphere_directions,
 };
 
-use crate::calibrate::Outcome;
-use crate::files::Summary;
+use crate::schema::{Outcome, Summary};
 use crate::stream::stride_for;
 
 /// A written figure: caption and file stem.

@@ -20,10 +20,14 @@ use pdcal_filter::{
     StepEstimate,
 };
 
-use crate::files::{
-    RESIDUAL_COLUMNS, ResidualSummary, estimate_header, estimate_row, residual_row,
-};
 use crate::output::OutputDir;
+use crate::rows::{RESIDUAL_COLUMNS, estimate_header, estimate_row, residual_row};
+use crate::schema::ResidualSummary;
+
+/// Asked every [`pdcal_filter::CANCEL_POLL_ROWS`] rows of a calibration whether to stop
+/// (an interactive session's interrupt); the run then fails with
+/// [`pdcal_filter::FilterError::Cancelled`] and publishes nothing.
+pub type CancelCheck = Box<dyn FnMut() -> bool>;
 
 /// Largest number of points a figure's time series keeps.
 pub const FIGURE_POINTS: usize = 4000;
@@ -87,7 +91,7 @@ pub struct StreamSink {
     consistency: ConsistencyAccumulator,
     set_consistency: Vec<ConsistencyAccumulator>,
     error: Option<anyhow::Error>,
-    cancel: Option<crate::calibrate::CancelCheck>,
+    cancel: Option<CancelCheck>,
 }
 
 fn create(path: &Path) -> Result<csv::Writer<BufWriter<File>>> {
@@ -148,7 +152,7 @@ impl StreamSink {
     }
 
     /// Lets `cancel` stop the run ([`RunSink::cancelled`]); `None` never stops it.
-    pub fn with_cancel(mut self, cancel: Option<crate::calibrate::CancelCheck>) -> Self {
+    pub fn with_cancel(mut self, cancel: Option<CancelCheck>) -> Self {
         self.cancel = cancel;
         self
     }

@@ -9,7 +9,7 @@ use pdcal_report::Table;
 use pdcal_filter::Consistency;
 use pdcal_filter::identifiability::Status;
 
-use crate::files::Summary;
+use crate::schema::Summary;
 
 /// The photodiode table.
 pub fn photodiode_table(summary: &Summary) -> Table {

@@ -5,11 +5,11 @@
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use pdcal::import_fixture::{self, ADC_GAIN_V, Fixture};
 use pdcal_dataset::Dataset;
+use xtask::import_fixture::{self, ADC_GAIN_V, Fixture};
 
 fn fixture_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/import")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/import")
 }
 
 fn fixture() -> &'static Fixture {
