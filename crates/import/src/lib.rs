@@ -48,14 +48,15 @@
 mod convert;
 mod error;
 mod map;
+mod source;
 mod timeform;
 mod units;
 
-pub use convert::{ImportReport, Imported, convert};
-pub use error::{ErrorKind, ImportError};
+pub use convert::{Converted, ImportReport, Imported, convert, convert_stream, layout};
+pub use error::{ErrorKind, ImportError, shown};
 pub use map::{
-    Column, Counts, ImportMap, MAP_FORMAT_VERSION, MapSpec, OrbitMap, PhotodiodeColumn,
-    PositionFrame, TimeColumn, VectorColumns, parse_map,
+    Column, Counts, Delimiter, DuplicateTimes, ImportMap, MAP_FORMAT_VERSION, MapSpec, OrbitMap,
+    PhotodiodeColumn, PositionFrame, TimeColumn, VectorColumns, parse_map,
 };
 pub use timeform::{PLAUSIBLE_UTC, TimeForm};
 pub use units::Quantity;
