@@ -128,8 +128,10 @@ fn layout<R: Read>(rows: &CsvRows<'_, R>, meta: &DatasetMeta) -> Result<Layout, 
     };
     // A repeated header is its own fault, found before anything counts columns (two
     // `pd01_V` would otherwise read as a photodiode count that does not match).
-    let mut seen = std::collections::HashSet::new();
-    if let Some(col) = (rows.header.iter()).position(|h| !seen.insert(h.as_str())) {
+    let mut seen = std::collections::HashMap::new();
+    if let Some(col) =
+        (rows.header.iter().enumerate()).position(|(i, h)| seen.insert(h.as_str(), i).is_some())
+    {
         let kind = ErrorKind::DuplicateColumn {
             name: rows.header[col].clone(),
         };
@@ -190,8 +192,17 @@ fn layout<R: Read>(rows: &CsvRows<'_, R>, meta: &DatasetMeta) -> Result<Layout, 
         t: require(rows, columns::T_S, "")?,
         gyro: require3(rows, columns::GYRO)?,
         mag,
+        // Looked up in the header's map, not scanned for: linear in the photodiode count.
         pd: (1..=n)
-            .map(|i| require(rows, &photodiode_column(i), ""))
+            .map(|i| {
+                let name = photodiode_column(i);
+                seen.get(name.as_str()).copied().ok_or_else(|| {
+                    rows.header_row_error(ErrorKind::MissingColumn {
+                        name,
+                        hint: String::new(),
+                    })
+                })
+            })
             .collect::<Result<_, _>>()?,
         r,
         temperature,

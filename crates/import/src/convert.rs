@@ -182,9 +182,9 @@ pub fn convert_stream<R: Read>(
     }
     let locate = map.locator();
     let find = |field: &str, name: &str| -> Result<usize, ImportError> {
-        let place = locate.column(name).map(|o| line_col(&map.text, o));
         match index.get(name) {
             None => {
+                let place = locate.column(name).map(|o| line_col(&map.text, o));
                 let kind = ErrorKind::UnknownColumn {
                     name: name.to_owned(),
                     csv: file_name(csv_file),
@@ -208,9 +208,7 @@ pub fn convert_stream<R: Read>(
         }
     };
     let time_index = find("time.column", &spec.time.column)?;
-    let time_map_line = locate
-        .column(&spec.time.column)
-        .map(|o| line_col(&map.text, o).0);
+    let time_map_line = locate.column(&spec.time.column).map(|o| map.line_of(o));
     let mut channels = Vec::new();
     for (path, column, quantity) in columns(spec) {
         let field = match column.columns {
@@ -227,7 +225,7 @@ pub fn convert_stream<R: Read>(
         channels.push(Channel {
             map_line: (column.first_name())
                 .and_then(|n| locate.column(n))
-                .map(|o| line_col(&map.text, o).0),
+                .map(|o| map.line_of(o)),
             label: column.label(),
             path,
             terms,

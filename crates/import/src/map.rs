@@ -382,6 +382,8 @@ pub struct ImportMap {
     pub(crate) file: PathBuf,
     pub(crate) text: String,
     pub(crate) names: HashMap<String, usize>,
+    /// Byte offsets of the map text's line ends, for [`ImportMap::line_of`].
+    newlines: Vec<usize>,
     pub(crate) time: TimeReader,
 }
 
@@ -438,6 +440,7 @@ pub fn parse_map(file: &Path, bytes: &[u8]) -> Result<ImportMap, ImportError> {
     Ok(ImportMap {
         spec,
         file: file.to_path_buf(),
+        newlines: text.match_indices('\n').map(|(i, _)| i).collect(),
         text,
         names,
         time,
@@ -448,6 +451,13 @@ impl ImportMap {
     /// The map's file as given.
     pub fn file(&self) -> &Path {
         &self.file
+    }
+
+    /// The 1-based line of byte offset `offset` of the map text (a binary search, where
+    /// `line_col` counts from the start: every column of a long map is placed in time
+    /// linear in its length).
+    pub(crate) fn line_of(&self, offset: usize) -> usize {
+        1 + self.newlines.partition_point(|&n| n < offset)
     }
 
     pub(crate) fn locator(&self) -> Locator<'_> {
