@@ -37,7 +37,9 @@ struct Utf8Check<R> {
 
 impl<R: Read> Utf8Check<R> {
     fn count(&mut self, text: &str) {
-        if !self.seen.text.get() && text.chars().any(|c| !c.is_whitespace()) {
+        // A byte-order mark is no content (a file of nothing else is empty).
+        let content = |c: char| !c.is_whitespace() && c != '\u{feff}';
+        if !self.seen.text.get() && text.chars().any(content) {
             self.seen.text.set(true);
         }
         match text.rfind('\n') {

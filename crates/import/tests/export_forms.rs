@@ -315,3 +315,34 @@ fn streaming_and_in_memory_give_the_same_rows() {
     .unwrap_err();
     assert!(matches!(e.kind(), ErrorKind::Empty), "{e}");
 }
+
+#[test]
+fn the_streamed_export_is_checked_as_text_like_the_map() {
+    // A byte-order mark alone, or blanks, are an empty file.
+    for text in ["\u{feff}", "\u{feff} \n\t\n", "\n\n"] {
+        assert_eq!(
+            error(&map_text(""), text),
+            "export.csv: file is empty",
+            "{text:?}"
+        );
+    }
+    // A byte-order mark before the header is dropped.
+    let with_bom = format!("\u{feff}{CSV}");
+    let plain = import(&map_text(""), CSV).unwrap();
+    assert_eq!(
+        import(&map_text(""), &with_bom).unwrap().dataset,
+        plain.dataset
+    );
+    // A byte that is not UTF-8 is placed by line and character column, also far into a
+    // long export (beyond the first read buffer) and after a cut multi-byte character.
+    let mut long = CSV.to_owned();
+    for k in 0..5000 {
+        long.push_str(&format!("{},1,2,3,2048,1024,1500\n", 1_320_431_389 + k));
+    }
+    let mut bytes = long.into_bytes();
+    bytes.extend_from_slice("1320436389,1,2,3,\u{e9}\u{e9}".as_bytes());
+    bytes.extend_from_slice(b"\xff,1024,1500\n");
+    let map = parse_map(Path::new("map.ron"), map_text("").as_bytes()).unwrap();
+    let e = convert(&map, Path::new("export.csv"), &bytes).unwrap_err();
+    assert_eq!(e.to_string(), "export.csv:5006:20: not UTF-8 text");
+}
