@@ -10,7 +10,7 @@ fn fixtures() -> PathBuf {
 }
 
 #[test]
-fn the_skcube_frames_import_to_a_photodiode_only_dataset_in_counts() {
+fn the_skcube_frames_import_to_a_photodiode_only_dataset() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("skcube");
     let converted = pdcal::import::skcube_dataset(&fixtures(), &out).unwrap();
@@ -50,11 +50,14 @@ fn the_skcube_frames_import_to_a_photodiode_only_dataset_in_counts() {
     // 4, 9, 7 counts on X+, X-, Y+, Y-, Z+; gyro -96, -153, 64 counts.
     assert_eq!(ds.meta.epoch_utc.as_str(), "2017-06-23T07:02:55Z");
     assert_eq!(tm.t_s[0], 0.0);
-    let row0: Vec<Option<f64>> = tm.pd_v.iter().map(|pd| pd.get(0)).collect();
-    assert_eq!(
-        row0,
-        [Some(50.0), Some(10.0), Some(4.0), Some(9.0), Some(7.0)]
-    );
+    // One count is written as 0.01 V.
+    for (pd, counts) in tm.pd_v.iter().zip([50.0, 10.0, 4.0, 9.0, 7.0]) {
+        let got = pd.get(0).unwrap();
+        assert!(
+            (got - counts * 0.01).abs() < 1e-15,
+            "{got} vs {counts} counts"
+        );
+    }
     let mdeg_s = 8.75e-3_f64.to_radians();
     let g = tm.gyro_rad_s[0].unwrap();
     for (got, counts) in [(g.x, -96.0), (g.y, -153.0), (g.z, 64.0)] {
@@ -67,11 +70,16 @@ fn the_skcube_frames_import_to_a_photodiode_only_dataset_in_counts() {
     // Z+ 51 counts, gyro z 138 counts. Unix time has no leap second between them.
     assert_eq!(tm.t_s[1], 42.0);
     assert_eq!(tm.t_s[314], f64::from(1_498_683_657 - 1_498_201_375));
-    assert_eq!(tm.pd_v[4].get(314), Some(51.0));
+    assert!((tm.pd_v[4].get(314).unwrap() - 0.51).abs() < 1e-15);
     assert!((tm.gyro_rad_s[314].unwrap().z - 138.0 * mdeg_s).abs() < 1e-15);
 
+    // Every output within 8 bits' 0 ..= 2.55 V as written, where calibrate's check of
+    // outputs against a photodiode's full scale lets them through.
+    for pd in &tm.pd_v {
+        assert!(pd.iter().flatten().all(|v| (0.0..=2.55).contains(&v)));
+    }
     // The noise hints are those of 8-bit counts and the guessed gyro.
     let noise = ds.meta.noise.unwrap();
-    assert_eq!(noise.photodiode_v, Some(1.0));
+    assert_eq!(noise.photodiode_v, Some(0.01));
     assert_eq!(noise.mag_nt, None);
 }
