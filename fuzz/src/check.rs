@@ -185,7 +185,9 @@ fn import_place(kind: &ImportKind, is_map: bool) -> Place {
         | ImportKind::UnknownField { .. }
         | ImportKind::MissingField { .. } => Place::LineAndColumn,
         _ if is_map => Place::LineOrField,
-        ImportKind::WrongCellCount { .. } | ImportKind::Csv { .. } => Place::Line,
+        ImportKind::WrongCellCount { .. }
+        | ImportKind::Csv { .. }
+        | ImportKind::AmbiguousDelimiter { .. } => Place::Line,
         _ => Place::LineAndColumn,
     }
 }

@@ -26,7 +26,7 @@ pub struct Dataset {
     pub truth: Option<(TruthSeries, TruthConstants)>,
 }
 
-fn io_error(file: &Path, action: &str, source: std::io::Error) -> DatasetError {
+pub(crate) fn io_error(file: &Path, action: &str, source: std::io::Error) -> DatasetError {
     DatasetError::whole_file(
         file,
         ErrorKind::Io {
@@ -249,6 +249,16 @@ impl DatasetWriter {
         for (name, text) in files {
             write_synced(&self.0.path().join(name), text)?;
         }
+        self.publish_staged()
+    }
+
+    /// The staging directory the files are written into before publication.
+    pub(crate) fn staging(&self) -> &Path {
+        self.0.path()
+    }
+
+    /// Publishes what the staging directory holds.
+    pub(crate) fn publish_staged(self) -> Result<(), DatasetError> {
         self.0.publish(&dataset_rule).map_err(publish_error)
     }
 }
@@ -270,7 +280,7 @@ fn publish_error(e: PublishError) -> DatasetError {
     DatasetError::whole_file(&e.path, kind)
 }
 
-fn write_synced(file: &Path, text: &str) -> Result<(), DatasetError> {
+pub(crate) fn write_synced(file: &Path, text: &str) -> Result<(), DatasetError> {
     let mut f = fs::File::create(file).map_err(|e| io_error(file, "cannot create", e))?;
     f.write_all(text.as_bytes())
         .and_then(|()| f.sync_all())

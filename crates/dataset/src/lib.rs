@@ -60,6 +60,7 @@ mod meta;
 pub mod publish;
 mod ron_text;
 mod samples;
+mod stream;
 mod table;
 mod telemetry;
 mod temperature;
@@ -77,8 +78,9 @@ pub use meta::{
 pub use pdcal_effects::{Effect, EffectId};
 pub use ron_text::{RonFault, RonFaultKind, parse_ron};
 pub use samples::Samples;
+pub use stream::{TelemetryLayout, TelemetryStream};
 pub use telemetry::{
-    Telemetry, columns, photodiode_column, telemetry_from_columns, telemetry_from_str,
+    Telemetry, TelemetryRow, columns, photodiode_column, telemetry_from_columns, telemetry_from_str,
 };
 pub use temperature::{
     HeldTemperatures, TEMPERATURE_RANGE_C, TemperatureColumn, is_panel_name,
