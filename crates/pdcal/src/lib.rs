@@ -17,6 +17,7 @@ pub mod import;
 pub mod import_fixture;
 pub mod joint;
 pub mod output;
+pub mod sim_calibrate;
 pub mod simulate;
 pub mod stream;
 pub mod sunvec;
