@@ -311,3 +311,22 @@ def test_ron_description(tmp_path):
     (tmp_path / "bad.ron").write_text("(name: \"x\",\n seeds: [1,, 2])")
     with pytest.raises(ValueError, match="bad.ron"):
         campaign.load(tmp_path / "bad.ron")
+
+
+def test_fleet_calibrates_each_dataset_alone(client, short_set, tmp_path):
+    # Two downlinks of one simulated spacecraft, each a dataset directory.
+    short_set.write(tmp_path / "sat-a" / "d1")
+    scenario = pdcal.scenario("rax2-like")
+    scenario["duration_s"] = 3000.0
+    other = pdcal.simulate(scenario, seed=3, downlink=1)
+    other.write(tmp_path / "sat-a" / "d2")
+    table = campaign.run({"fleet": str(tmp_path / "sat-a" / "d*")}, tmp_path / "out", client=client)
+    assert list(table["run_id"]) == ["d1", "d2"]
+    assert list(table["status"]) == ["ok", "ok"], list(table["error"])
+    for row, ds in zip(table.to_dict("records"), [short_set, other]):
+        cal = pdcal.calibrate(ds)
+        assert [row[f"pd{i:02d}_scale_V"] for i in range(1, 18)] == list(cal.scale_V)
+        assert row["worst_normal_deg"] == pdcal.evaluate(ds, cal)["worst_normal_error_deg"]
+        # Each run's output is pdcal calibrate's.
+        written = tmp_path / "out" / "runs" / row["run_id"]
+        assert (written / "summary.json").is_file() and (written / "calibration.ron").is_file()
