@@ -641,7 +641,7 @@ def _spec_json(spec: dict) -> str:
 
 
 def _client(client, workers: Optional[int]):
-    """(client, cluster to close or None)."""
+    """(client, what to close at the end: the client and cluster made here)."""
     from distributed import Client, LocalCluster
 
     if client is None:
@@ -649,10 +649,12 @@ def _client(client, workers: Optional[int]):
         cluster = LocalCluster(
             n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None
         )
-        return Client(cluster), cluster
+        made = Client(cluster)
+        return made, [made, cluster]
     if isinstance(client, str):
-        return Client(client), None
-    return client, None
+        made = Client(client)
+        return made, [made]
+    return client, []
 
 
 def run(
@@ -703,7 +705,7 @@ def run(
 
     if todo:
         writer = _Writer(lambda: write_table(_order(records.values(), spec), out))
-        dask_client, cluster = _client(client, workers)
+        dask_client, owned = _client(client, workers)
         futures = []
         try:
             # Keys name the campaign directory too, so two campaigns on one scheduler never
@@ -742,9 +744,8 @@ def run(
             writer.flush()
             raise
         finally:
-            if cluster is not None:
-                dask_client.close()
-                cluster.close()
+            for thing in owned:
+                thing.close()
     df = _order(records.values(), spec)
     if not todo and not (out / TABLE).exists():
         write_table(df, out)
@@ -845,6 +846,9 @@ def _figures(df, spec, out: pathlib.Path) -> list:
                             p90.append(np.percentile(sel, 90))
                     ax.plot(mids, p90, "-", color="C3", label="90th percentile per decile")
                     ax.legend(fontsize=8)
+            law = spec.get("dispersions", {}).get(name, {})
+            if "log_uniform" in law:
+                ax.set_xscale("log")
             ax.axhline(bound, color="k", lw=0.8, ls="--")
             ax.set_xlabel(name)
             ax.set_ylabel(label)
