@@ -121,6 +121,46 @@ def test_equals_xtask_sim_calibrate(client, tmp_path):
     assert (tmp_path / "campaign" / "index.html").is_file()
     assert (tmp_path / "campaign" / "results.csv").is_file()
 
+    # The options of a run: photodiode-only, passes, two downlinks calibrated jointly (and
+    # each alone: best_single).
+    done = subprocess.run(
+        [
+            str(xtask), "sim-calibrate", "--seeds", "1", "--scenario", "short.ron",
+            "--photodiode-only", "--cut", "passes:600/900", "--sets", "2",
+        ],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 0, done.stderr
+    (want,) = json.loads(
+        (
+            tmp_path / "out" / "sim-calibrate"
+            / "rax2-like-photodiode-only-passes-600-900-2-sets" / "results.json"
+        ).read_text()
+    )
+    spec = {
+        "scenario": str(tmp_path / "short.ron"),
+        "seeds": [1],
+        "photodiode_only": True,
+        "cut": "passes:600/900",
+        "sets": 2,
+    }
+    (row,) = campaign.run(spec, tmp_path / "options", client=client).to_dict("records")
+    assert row["status"] == "ok", row["error"]
+    assert [row["best_single_normal_deg"], row["best_single_scale_percent"]] == want["best_single"]
+    for key in [
+        "worst_normal_deg",
+        "worst_scale_percent",
+        "attitude_rms_deg",
+        "attitude_settled_rms_deg",
+        "residual_inside",
+        "converged",
+    ]:
+        assert row[key] == want[key], key
+    assert [row["final_inside"], row["final_states"]] == want["final_inside"]
+    assert [row["magnitude_mean"], row["magnitude_std"]] == want["magnitude"]
+
 
 def test_killed_worker_reschedules(client, six_seeds, undisturbed, tmp_path):
     pids = client.run(os.getpid)
