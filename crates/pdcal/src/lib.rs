@@ -17,6 +17,7 @@ pub mod joint;
 pub mod output;
 pub mod rows;
 pub mod schema;
+pub mod sim_calibrate;
 pub mod simulate;
 pub mod stream;
 pub mod sunvec;
