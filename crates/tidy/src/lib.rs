@@ -110,6 +110,7 @@ pub const PDCAL: Rules = Rules {
                 "pdcal",
                 "pdcal-dataset",
                 "pdcal-sim",
+                "pdcal-filter",
                 "pdcal-evaluate",
                 "pdcal-diagnose",
             ],
