@@ -195,12 +195,20 @@ pub(crate) fn albedo_map(res: &Residuals, lag: usize) -> CandidateFit {
             )
         })
     });
-    let fit = hac_wald(
+    let mut fit = hac_wald(
         &entries,
         ALBEDO_MAP_BANDS,
         lag,
         &vec![res.sigma_pd_v.powi(2); ALBEDO_MAP_BANDS],
     );
+    // The pattern beyond one common gain: the constant part is `albedo-gain`'s, so the
+    // evidence here is the nested increment `W(bands) - W(common gain)` on `bands - 1`
+    // parameters (for white noise of known sigma, exactly the chi-square drop from the one
+    // model to the other). Data that lack albedo altogether are then `albedo-gain`, not a
+    // map whose every band is dark.
+    let common: Vec<Entry> = entries.iter().map(|e| Entry { param: 0, ..*e }).collect();
+    let gain = hac_wald(&common, 1, lag, &[res.sigma_pd_v.powi(2)]);
+    fit.wald = (fit.wald - gain.wald).max(0.0);
     let latitude_gains: Vec<f64> = fit.amplitudes.iter().map(|a| (1.0 + a).max(0.0)).collect();
     let bands: Vec<String> = latitude_gains
         .iter()
@@ -215,10 +223,11 @@ pub(crate) fn albedo_map(res: &Residuals, lag: usize) -> CandidateFit {
         .collect();
     let evidence = format!(
         "photodiode residual vs C E_a/E_AM0 per latitude band below the spacecraft: map \
-         factors {}",
-        bands.join(", ")
+         factors {} (common gain {:.3}; Wald beyond it)",
+        bands.join(", "),
+        1.0 + gain.amplitudes[0]
     );
-    let k = fit.active;
+    let k = fit.active.saturating_sub(1).max(1);
     candidate_fit(
         Effect::AlbedoMap { latitude_gains },
         &fit,
