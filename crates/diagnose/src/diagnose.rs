@@ -202,7 +202,7 @@ pub struct Round {
     pub rejected: Vec<Rejected>,
     /// Effects of earlier rounds dropped after it.
     pub dropped: Vec<Dropped>,
-    /// Effects of earlier rounds changed to their other form after it.
+    /// Effects of earlier rounds refitted (form or shape) after it.
     pub reformed: Vec<Reformed>,
     /// The shrink its refit achieved.
     pub shrink: Shrink,
@@ -568,15 +568,32 @@ fn try_candidates(
     candidates: &[CandidateFit],
 ) -> Result<(Option<Accepted>, Vec<Rejected>), DiagnoseError> {
     let mut rejected = Vec::new();
-    let significant = candidates.iter().filter(|c| c.score > config.threshold);
-    for c in significant.take(config.max_tries) {
+    let mut significant: Vec<&CandidateFit> = candidates
+        .iter()
+        .filter(|c| c.score > config.threshold)
+        .collect();
+    // Nested terms, the simpler first: a significant `albedo-gain` is tried before
+    // `albedo-map` (a pattern beyond the common gain), which is otherwise scored on the
+    // residuals the gain leaves and is tried again on them in the next round.
+    if let (Some(gain), Some(map)) = (
+        significant
+            .iter()
+            .position(|c| c.id == EffectId::AlbedoGain),
+        significant.iter().position(|c| c.id == EffectId::AlbedoMap),
+    ) && map < gain
+    {
+        // After the removal the gain sits at `gain - 1`: the map goes right after it.
+        let m = significant.remove(map);
+        significant.insert(gain, m);
+    }
+    for &c in significant.iter().take(config.max_tries) {
         let (c, refit) = better_form(inputs, config, state, c);
         let c = &c;
         let reason = match refit {
             Ok(next) => {
                 let shrink = shrink(c, &state.res, &next.res, config);
                 let kept = next.spec.added(c.id).unwrap_or(&c.effect);
-                let sig = significance(c, kept, &next.run.calibration, albedo_gain(&state.spec));
+                let sig = significance(c, kept, &next.run, albedo_gain(&state.spec));
                 if shrink.significant && sig.agrees() {
                     return Ok((Some((c.clone(), shrink, sig, next)), rejected));
                 }
@@ -703,8 +720,8 @@ fn with_candidate(
 
 /// Drops every effect of the model but `newest` whose score on the residuals of the model
 /// without it no longer exceeds the threshold (the same evidence measure as for adding);
-/// an effect kept whose other form now scores above the threshold too is changed to it when
-/// the model with that form leaves the smaller photodiode residuals.
+/// an effect kept that has two forms is fitted again there (either form) and changed when
+/// the model with the new fit leaves the smaller photodiode residuals.
 fn drop_unsupported(
     inputs: &DiagnoseInputs<'_>,
     config: &DiagnoseConfig,
@@ -758,9 +775,9 @@ fn pd_rss(res: &Residuals) -> f64 {
     res.pd.iter().map(|p| p.residual_v * p.residual_v).sum()
 }
 
-/// The model `without` plus the form of `fit` (or of its alternative) that differs from the
-/// one `state` holds, when it scores above the threshold and leaves the smaller photodiode
-/// residuals.
+/// The model `without` plus the effect as fitted again now (`fit`, or its other form when
+/// `fit` equals the one `state` holds), when it scores above the threshold and leaves the
+/// smaller photodiode residuals than `state`.
 fn other_form(
     inputs: &DiagnoseInputs<'_>,
     config: &DiagnoseConfig,
@@ -769,10 +786,13 @@ fn other_form(
     fit: &CandidateFit,
 ) -> Option<(State, Reformed)> {
     let current = state.spec.added(fit.id)?.clone();
-    let same_form = |e: &Effect| std::mem::discriminant(e) == std::mem::discriminant(&current);
+    // Only effects with two forms: their shape parameters (the Kelly exponent, which the
+    // filter does not estimate, or a taper's ends) were fitted on the residuals of their
+    // round, which may have carried effects found later.
+    fit.alternative.as_ref()?;
     let form = std::iter::once(fit)
         .chain(fit.alternative.as_deref())
-        .find(|f| !same_form(&f.effect) && f.score > config.threshold)?;
+        .find(|f| f.effect != current && f.score > config.threshold)?;
     let next = with_candidate(inputs, config, without, form).ok()?;
     let (old, new) = (pd_rss(&state.res), pd_rss(&next.res));
     (new < old).then(|| {

@@ -195,20 +195,28 @@ pub(crate) fn albedo_map(res: &Residuals, lag: usize) -> CandidateFit {
             )
         })
     });
-    let mut fit = hac_wald(
-        &entries,
-        ALBEDO_MAP_BANDS,
-        lag,
-        &vec![res.sigma_pd_v.powi(2); ALBEDO_MAP_BANDS],
-    );
-    // The pattern beyond one common gain: the constant part is `albedo-gain`'s, so the
-    // evidence here is the nested increment `W(bands) - W(common gain)` on `bands - 1`
-    // parameters (for white noise of known sigma, exactly the chi-square drop from the one
-    // model to the other). Data that lack albedo altogether are then `albedo-gain`, not a
-    // map whose every band is dark.
+    // The pattern beyond one common gain (the constant part is `albedo-gain`'s): the bands
+    // are fitted, and their Wald statistic taken, on the residuals left by the common gain
+    // (the score test of the pattern given the gain); the effect carries the common gain
+    // plus each band's increment.
     let common: Vec<Entry> = entries.iter().map(|e| Entry { param: 0, ..*e }).collect();
     let gain = hac_wald(&common, 1, lag, &[res.sigma_pd_v.powi(2)]);
-    fit.wald = (fit.wald - gain.wald).max(0.0);
+    let beyond: Vec<Entry> = entries
+        .iter()
+        .map(|e| Entry {
+            r: e.r - gain.amplitudes[0] * e.s,
+            ..*e
+        })
+        .collect();
+    let mut fit = hac_wald(
+        &beyond,
+        ALBEDO_MAP_BANDS,
+        lag,
+        &[res.sigma_pd_v.powi(2); ALBEDO_MAP_BANDS],
+    );
+    for a in fit.amplitudes.iter_mut() {
+        *a += gain.amplitudes[0];
+    }
     let latitude_gains: Vec<f64> = fit.amplitudes.iter().map(|a| (1.0 + a).max(0.0)).collect();
     let bands: Vec<String> = latitude_gains
         .iter()

@@ -5,8 +5,9 @@
 //! parameter down once the calibration can absorb part of it. An effect is named only if
 //! both agree (docs/diagnose.md, "A verdict consistent with its sigmas").
 
+use nalgebra::{DMatrix, DVector};
 use pdcal_dataset::{Effect, EffectId};
-use pdcal_filter::{Calibration, ParameterEstimate};
+use pdcal_filter::{CalibrationRun, ParameterEstimate};
 use serde::Serialize;
 
 use crate::candidates::CandidateFit;
@@ -77,7 +78,9 @@ pub struct FilterSignificance {
     /// The value meaning "no effect" (0; the model's gain before the round for
     /// `albedo-gain`).
     pub null: f64,
-    /// `sum ((value - null)/sigma)^2` (the filter's marginal sigmas).
+    /// `d^T P^-1 d`, `d` the estimates minus the null and `P` their block of the filter's
+    /// final covariance (so the correlations between them are included; the marginal
+    /// `sum (d/sigma)^2` when the block cannot be inverted).
     pub chi_square: f64,
     /// As a normal deviate (`|value - null|/sigma` for one parameter).
     pub sigmas: f64,
@@ -129,13 +132,14 @@ fn normal_upper_tail(z: f64) -> f64 {
 }
 
 /// The significance of candidate `c`, named with `effect` as kept, from the calibration
-/// after its refit; `null_gain` is the model's albedo gain before the round.
+/// run after its refit; `null_gain` is the model's albedo gain before the round.
 pub fn significance(
     c: &CandidateFit,
     effect: &Effect,
-    calibration: &Calibration,
+    run: &CalibrationRun,
     null_gain: f64,
 ) -> Significance {
+    let calibration = &run.calibration;
     let score_sigmas = chi_square_sigmas(c.wald, c.parameters.max(1));
     let names = parameter_names(effect);
     let parameters: Vec<ParameterEstimate> = calibration
@@ -150,11 +154,12 @@ pub fn significance(
         } else {
             0.0
         };
-        let chi_square: f64 = parameters
+        let marginal: f64 = parameters
             .iter()
             .filter(|p| p.sigma > 0.0)
             .map(|p| ((p.value - null) / p.sigma).powi(2))
             .sum();
+        let chi_square = joint_chi_square(run, &parameters, null).unwrap_or(marginal);
         FilterSignificance {
             sigmas: chi_square_sigmas(chi_square, parameters.len()),
             parameters,
@@ -166,6 +171,30 @@ pub fn significance(
         score_sigmas,
         filter,
     }
+}
+
+/// `d^T P^-1 d` over the filter states of `parameters` (by name), `P` their block of the
+/// final covariance; `None` when a state is missing or the block is singular.
+fn joint_chi_square(
+    run: &CalibrationRun,
+    parameters: &[ParameterEstimate],
+    null: f64,
+) -> Option<f64> {
+    let extras = run.layout.extras();
+    let states: Vec<usize> = parameters
+        .iter()
+        .map(|p| extras.iter().find(|e| e.name == p.name).map(|e| e.state))
+        .collect::<Option<_>>()?;
+    let n = states.len();
+    let cov = &run.final_covariance;
+    if states.iter().any(|&s| s >= cov.nrows() || s >= cov.ncols()) {
+        return None;
+    }
+    let block = DMatrix::from_fn(n, n, |i, j| cov[(states[i], states[j])]);
+    let d = DVector::from_iterator(n, parameters.iter().map(|p| p.value - null));
+    let x = block.cholesky()?.solve(&d);
+    let chi = d.dot(&x);
+    chi.is_finite().then_some(chi)
 }
 
 #[cfg(test)]
