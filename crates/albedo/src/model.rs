@@ -133,6 +133,25 @@ impl AlbedoModel {
         }
     }
 
+    /// The same model with every cell's reflectivity multiplied by `factor(latitude_rad)`
+    /// of its row (negative factors count as 0): a map corrected in latitude, as the
+    /// diagnosis's `albedo-map` effect fits it. Padding stays padding.
+    pub fn with_latitude_factor(&self, factor: impl Fn(f64) -> f64) -> AlbedoModel {
+        let mut out = self.clone();
+        let per_row = self.n_pad / 4;
+        for (i, &lat) in self.lat_rad.iter().enumerate() {
+            let f = factor(lat).max(0.0);
+            for w in &mut out.weight_km2[i * self.n_lon..(i + 1) * self.n_lon] {
+                *w *= f;
+            }
+            for v in &mut out.weight4[i * per_row..(i + 1) * per_row] {
+                let lanes = v.to_array().map(|w| if w < 0.0 { w } else { w * f });
+                *v = f64x4::new(lanes);
+            }
+        }
+        out
+    }
+
     /// Radius of the sphere carrying the cells (Basilisk's authalic radius), km.
     pub fn radius_km(&self) -> f64 {
         self.radius_km

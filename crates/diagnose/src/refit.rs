@@ -84,6 +84,7 @@ pub(crate) fn time_offset_refit(
         id: pdcal_dataset::EffectId::TimeOffset,
         effect: Effect::TimeOffset { seconds },
         support: Vec::new(),
+        alternative: None,
         wald,
         parameters: 1,
         samples: common,

@@ -215,6 +215,7 @@ pub fn report_text(
         );
         let _ = writeln!(s, "- kept: {}", effect_text(&r.effect));
         let _ = writeln!(s, "- its refit: {}", shrink_line(&r.shrink));
+        let _ = writeln!(s, "- significance: {}", r.significance.text());
         for x in &r.rejected {
             let _ = writeln!(
                 s,
@@ -227,6 +228,17 @@ pub fn report_text(
                 s,
                 "- dropped again: {} (score {:.1} without it, at most the threshold)",
                 x.id, x.score
+            );
+        }
+        for x in &r.reformed {
+            let _ = writeln!(
+                s,
+                "- changed form: {} from {} to {} (photodiode residual sum of squares {:.4} -> {:.4} V^2)",
+                x.id,
+                effect_text(&x.from),
+                effect_text(&x.to),
+                x.photodiode_rss_v2[0],
+                x.photodiode_rss_v2[1]
             );
         }
         let _ = writeln!(s, "- before: {}", gap_line(&r.gap_before));
@@ -349,11 +361,15 @@ pub fn console_summary(outcome: &DiagnoseOutcome) -> String {
         let _ = writeln!(s, "  round {}: {} (score {:.1})", n + 1, r.found, r.score);
         let _ = writeln!(s, "    {}", r.evidence);
         let _ = writeln!(s, "    refit: {}", shrink_line(&r.shrink));
+        let _ = writeln!(s, "    significance: {}", r.significance.text());
         for x in &r.rejected {
             let _ = writeln!(s, "    not named: {} ({:.1}): {}", x.id, x.score, x.reason);
         }
         for x in &r.dropped {
             let _ = writeln!(s, "    dropped again: {} ({:.1} without it)", x.id, x.score);
+        }
+        for x in &r.reformed {
+            let _ = writeln!(s, "    changed form: {} to {}", x.id, effect_text(&x.to));
         }
         let _ = writeln!(s, "    before: {}", gap_line(&r.gap_before));
         let _ = writeln!(s, "    after:  {}", gap_line(&r.gap_after));
