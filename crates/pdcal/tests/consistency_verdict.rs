@@ -33,7 +33,8 @@ fn calibrate_and_diagnose_give_one_verdict_on_residuals_beyond_the_noise() {
     for (dataset, expected) in [(&clean, "consistent"), (&wrong, "inconsistent")] {
         let out = tmp.path().join(format!("cal-{expected}"));
         let (_, summary) =
-            pdcal::calibrate::run_dirs(&[dataset.clone()], &out, &RunConfig::default()).unwrap();
+            pdcal::calibrate::run_dirs(std::slice::from_ref(dataset), &out, &RunConfig::default())
+                .unwrap();
         let summary = serde_json::to_value(&summary).unwrap();
         assert_eq!(verdict(&summary), expected, "{}", summary["consistency"]);
         let photodiode = &summary["consistency"]["sensors"][0];

@@ -18,7 +18,8 @@ fn the_skcube_frames_are_judged_alike_and_nothing_undetermined_is_a_result() {
     pdcal::import::skcube_dataset(&fixtures(), &dataset).unwrap();
     let out = tmp.path().join("cal");
     let (_, summary) =
-        pdcal::calibrate::run_dirs(&[dataset.clone()], &out, &RunConfig::default()).unwrap();
+        pdcal::calibrate::run_dirs(std::slice::from_ref(&dataset), &out, &RunConfig::default())
+            .unwrap();
     let summary = serde_json::to_value(&summary).unwrap();
     let verdict = summary["consistency"]["verdict"]
         .as_str()
