@@ -235,16 +235,15 @@ fn by_sigma_ratio(post: f64, prior: f64, unit: &str) -> Judged {
     }
 }
 
+/// Caps `j` at `to` (never promotes it) and adds `why` to its reasons: every caveat found
+/// is said, also when an earlier one had already set the status.
 fn demote(j: &mut Judged, to: Status, why: String) {
-    let status = j.status.at_most(to);
-    if status != j.status || j.reason.is_empty() {
-        j.reason = if j.reason.is_empty() {
-            why
-        } else {
-            format!("{}; {why}", j.reason)
-        };
-    }
-    j.status = status;
+    j.status = j.status.at_most(to);
+    j.reason = if j.reason.is_empty() {
+        why
+    } else {
+        format!("{}; {why}", j.reason)
+    };
 }
 
 fn cap_by_correlation(j: &mut Judged, rho: Option<(f64, String)>) {
