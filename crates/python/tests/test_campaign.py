@@ -107,6 +107,17 @@ def test_equals_xtask_sim_calibrate(client, tmp_path):
             "residual_inside": row["residual_inside"],
             "magnitude": [row["magnitude_mean"], row["magnitude_std"]],
             "converged": row["converged"],
+            "verdict": row["verdict"],
+            "by_status": {
+                "calibrated": row["calibrated_states"],
+                "calibrated_outside_3sigma": row["calibrated_outside_3sigma"],
+                "weakly_determined": row["weakly_determined_states"],
+                "weakly_determined_outside_3sigma": row["weakly_determined_outside_3sigma"],
+                "not_determined": row["not_determined_states"],
+                "not_determined_outside_3sigma": row["not_determined_outside_3sigma"],
+            },
+            "attitude_about_sun_inside": row["attitude_about_sun_inside"],
+            "attitude_across_sun_inside": row["attitude_across_sun_inside"],
         }
         want = {k: v for k, v in want.items() if k not in ("seed", "runtime_s")}
         assert got == want, row["run_id"]

@@ -87,6 +87,15 @@ FIGURES = [
     "magnitude_std",
     "converged",
     "runtime_s",
+    "verdict",
+    "calibrated_states",
+    "calibrated_outside_3sigma",
+    "weakly_determined_states",
+    "weakly_determined_outside_3sigma",
+    "not_determined_states",
+    "not_determined_outside_3sigma",
+    "attitude_about_sun_inside",
+    "attitude_across_sun_inside",
 ]
 
 _DEG = math.pi / 180.0
@@ -430,6 +439,17 @@ def _flatten(result: dict) -> dict:
         "magnitude_std": result["magnitude"][1],
         "converged": result["converged"],
         "runtime_s": result["runtime_s"],
+        "verdict": result["verdict"],
+        "calibrated_states": int(result["by_status"]["calibrated"]),
+        "calibrated_outside_3sigma": int(result["by_status"]["calibrated_outside_3sigma"]),
+        "weakly_determined_states": int(result["by_status"]["weakly_determined"]),
+        "weakly_determined_outside_3sigma": int(
+            result["by_status"]["weakly_determined_outside_3sigma"]
+        ),
+        "not_determined_states": int(result["by_status"]["not_determined"]),
+        "not_determined_outside_3sigma": int(result["by_status"]["not_determined_outside_3sigma"]),
+        "attitude_about_sun_inside": result["attitude_about_sun_inside"],
+        "attitude_across_sun_inside": result["attitude_across_sun_inside"],
     }
     for pd in result["photodiodes"]:
         p = f"pd{pd['index']:02d}"
