@@ -433,12 +433,39 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         rejected_samples: rejected_summary(run),
         covariance_repairs: repairs_summary(run),
         runtime_s: outcome.runtime_s,
-        warnings: outcome.warnings.clone(),
+        warnings: outcome
+            .warnings
+            .iter()
+            .cloned()
+            .chain(bias_beyond_prior(&run.initial, &run.calibration))
+            .collect(),
         segment_rules: run.segment_rules,
         segments: run.segments.clone(),
         datasets: outcome.datasets.clone(),
         reported,
     }
+}
+
+/// A warning per gyro-bias axis whose estimate lies beyond 3 sigma of its prior: the prior
+/// (`initial_bias_sigma_deg_s`) was too narrow for this gyro, and the attitude and every
+/// number that leaned on it were held by a wrong model while the bias converged.
+fn bias_beyond_prior(initial: &Calibration, calibration: &Calibration) -> Vec<String> {
+    (0..3)
+        .filter_map(|k| {
+            let prior = initial.gyro_bias_sigma_rad_s[k];
+            let change = calibration.gyro_bias_rad_s[k] - initial.gyro_bias_rad_s[k];
+            (prior > 0.0 && change.abs() > 3.0 * prior).then(|| {
+                format!(
+                    "gyro bias {} = {:.3} deg/s is {:.1} sigma of its prior ({:.3} deg/s): \
+                     set a wider initial_bias_sigma_deg_s in --config for this gyro",
+                    ["x", "y", "z"][k],
+                    calibration.gyro_bias_rad_s[k].to_degrees(),
+                    change.abs() / prior,
+                    prior.to_degrees()
+                )
+            })
+        })
+        .collect()
 }
 
 /// The photodiode's status reason: each quantity that is not `calibrated`, with its own.
@@ -534,6 +561,30 @@ pub struct DatasetSummary {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_bias_beyond_three_prior_sigmas_is_a_warning() {
+        let cal = |bias: [f64; 3], sigma: f64| Calibration {
+            format_version: 1,
+            photodiodes: Vec::new(),
+            gyro_bias_rad_s: bias,
+            gyro_bias_sigma_rad_s: [sigma; 3],
+            parameters: Vec::new(),
+            status: Vec::new(),
+        };
+        let prior = cal([0.0; 3], 0.5f64.to_radians());
+        let within = cal([0.01, -0.02, 0.025], 1e-4);
+        assert!(bias_beyond_prior(&prior, &within).is_empty());
+        let beyond = cal([0.07, 0.0, -0.03], 1e-4);
+        let w = bias_beyond_prior(&prior, &beyond);
+        assert_eq!(w.len(), 2, "{w:?}");
+        assert!(
+            w[0].starts_with("gyro bias x = 4.011 deg/s is 8.0 sigma"),
+            "{}",
+            w[0]
+        );
+        assert!(w[1].starts_with("gyro bias z"), "{}", w[1]);
+    }
 
     #[test]
     fn flags_say_never_lit_too_little_and_implausible_change() {
