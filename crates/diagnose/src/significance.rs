@@ -112,23 +112,10 @@ pub fn chi_square_sigmas(x: f64, k: usize) -> f64 {
     0.5 * (lo + hi)
 }
 
-/// `P(N > z)` for a standard normal, from the complementary error function (Chebyshev
-/// fit of Numerical Recipes' `erfcc`, relative error below 1.2e-7).
+/// `P(N > z)` for a standard normal, from the filter's complementary error function
+/// (relative error below 1.2e-7).
 fn normal_upper_tail(z: f64) -> f64 {
-    let x = z / std::f64::consts::SQRT_2;
-    let a = x.abs();
-    let t = 1.0 / (1.0 + 0.5 * a);
-    let poly = -a * a - 1.265_512_23
-        + t * (1.000_023_68
-            + t * (0.374_091_96
-                + t * (0.096_784_18
-                    + t * (-0.186_288_06
-                        + t * (0.278_868_07
-                            + t * (-1.135_203_98
-                                + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
-    let erfc = t * poly.exp();
-    let erfc = if x >= 0.0 { erfc } else { 2.0 - erfc };
-    0.5 * erfc
+    0.5 * pdcal_filter::gate::erfc(z / std::f64::consts::SQRT_2)
 }
 
 /// The significance of candidate `c`, named with `effect` as kept, from the calibration
