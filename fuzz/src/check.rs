@@ -11,8 +11,8 @@ use pdcal_sim::ScenarioError;
 
 use crate::Verdict;
 
-/// The longest run of input characters a message may repeat. The issue asks for "at most
-/// ~80 characters of an offending value"; the margin lets a cut value keep the quote or
+/// The longest run of input characters a message may repeat. docs/dataset-format.md allows
+/// "at most 80 characters" of an offending value; the margin lets a cut value keep the quote or
 /// separator next to it that the input may share, without letting a whole cell through.
 pub const QUOTE_LIMIT: usize = 100;
 
@@ -185,7 +185,9 @@ fn import_place(kind: &ImportKind, is_map: bool) -> Place {
         | ImportKind::UnknownField { .. }
         | ImportKind::MissingField { .. } => Place::LineAndColumn,
         _ if is_map => Place::LineOrField,
-        ImportKind::WrongCellCount { .. } | ImportKind::Csv { .. } => Place::Line,
+        ImportKind::WrongCellCount { .. }
+        | ImportKind::Csv { .. }
+        | ImportKind::AmbiguousDelimiter { .. } => Place::Line,
         _ => Place::LineAndColumn,
     }
 }

@@ -96,6 +96,7 @@ impl Target {
             Target::ImportMap => vec![
                 include_bytes!("../seeds/import-map/map.ron"),
                 include_bytes!("../seeds/import-map/map-positions.ron"),
+                include_bytes!("../seeds/import-map/map-shapes.ron"),
             ],
         }
     }

@@ -7,7 +7,7 @@
 //!   it from the `cosine` base, prints the rounds and gaps; outputs in `out/diagnose-demo/`.
 //! - `bench`: runs the criterion benches that `docs/performance.md` quotes.
 //! - `make-import-fixture`: rewrites `fixtures/import/` (export.csv and its maps) from the
-//!   simulator, seeded (`pdcal::import_fixture`).
+//!   simulator, seeded (`xtask::import_fixture`).
 
 mod diagnose_demo;
 mod monte_carlo;
@@ -107,7 +107,7 @@ fn bench() -> anyhow::Result<()> {
 fn make_import_fixture() -> anyhow::Result<()> {
     // The workspace root, so the task writes the same place from any working directory.
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/import");
-    let fixture = pdcal::import_fixture::write(&dir)?;
+    let fixture = xtask::import_fixture::write(&dir)?;
     println!(
         "wrote {} ({} bytes export, {} data rows of {} simulated)",
         dir.display(),

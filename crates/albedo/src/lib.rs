@@ -76,15 +76,18 @@
 //! (runs of at most one tile width, and the compaction of lit cells, defeated it).
 
 mod approx;
+mod error;
+mod geometry;
 mod lanes;
 mod map;
 mod model;
+mod tile;
 mod view;
 
 pub use approx::{AlbedoExpansion, DEGREE};
+pub use error::AlbedoError;
+pub use geometry::{AU_KM, REQ_EARTH_KM, RP_EARTH_KM, authalic_latitude, authalic_radius_km};
 pub use map::{DEFAULT_UNIFORM_ALBEDO, MapChoice, MapError, ReflectivityMap};
-pub use model::{
-    AU_KM, AlbedoError, AlbedoModel, CellAreas, REQ_EARTH_KM, RP_EARTH_KM, TILE_COLS, TILE_ROWS,
-    authalic_latitude, authalic_radius_km,
-};
+pub use model::{AlbedoModel, CellAreas};
+pub use tile::{TILE_COLS, TILE_ROWS};
 pub use view::{AlbedoIrradiance, AlbedoView, LinearAlbedo};

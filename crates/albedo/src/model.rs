@@ -4,18 +4,13 @@
 use std::f64::consts::{FRAC_PI_2, PI};
 
 use nalgebra::{Matrix3, Vector3};
-use thiserror::Error;
 use wide::f64x4;
 
+use crate::error::AlbedoError;
+use crate::geometry::{AU_KM, authalic_latitude, authalic_radius_km};
 use crate::map::{MapChoice, MapError, ReflectivityMap};
+use crate::tile::{Cells4, Chunks, LANES_PER_CHUNK, TILE_COLS, TILE_ROWS, TileAcc};
 use crate::view::AlbedoView;
-
-/// Astronomical unit, km (the value Basilisk uses).
-pub const AU_KM: f64 = 149_597_870.693;
-/// Earth equatorial radius used by Basilisk (`REQ_EARTH`), km.
-pub const REQ_EARTH_KM: f64 = 6378.1366;
-/// Earth polar radius used by Basilisk (`RP_EARTH`), km.
-pub const RP_EARTH_KM: f64 = 6356.7519;
 
 /// How the area of a cell is computed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -27,51 +22,6 @@ pub enum CellAreas {
     /// Plain spherical zones on the same sphere. Used by the analytic test, where the sphere
     /// integral is exact.
     Spherical,
-}
-
-/// Errors from a per-step albedo computation.
-#[derive(Debug, Error, Clone, PartialEq)]
-pub enum AlbedoError {
-    /// An input vector or matrix has a NaN or infinite component.
-    #[error("{what} is not finite")]
-    NonFinite {
-        /// Which input.
-        what: &'static str,
-    },
-    /// The Sun position is (nearly) at the Earth centre.
-    #[error("Sun position has zero length")]
-    ZeroSun,
-    /// `gcrf_to_ecef` is not a rotation (|R^T R - I| too large).
-    #[error("gcrf_to_ecef is not orthonormal (max |R^T R - I| = {deviation:e})")]
-    NotRotation {
-        /// Largest deviation of R^T R from identity.
-        deviation: f64,
-    },
-}
-
-/// Authalic radius of the Basilisk Earth ellipsoid, km (6371.0068): the radius of the sphere
-/// with the ellipsoid's area.
-pub fn authalic_radius_km() -> f64 {
-    let e = eccentricity();
-    let t0 = REQ_EARTH_KM * REQ_EARTH_KM * 0.5;
-    let t1 = (1.0 - e * e) / 2.0 / e;
-    let t2 = ((1.0 + e) / (1.0 - e)).ln();
-    (t0 * (1.0 + t1 * t2)).sqrt()
-}
-
-fn eccentricity() -> f64 {
-    (1.0 - (RP_EARTH_KM / REQ_EARTH_KM).powi(2)).sqrt()
-}
-
-/// Authalic latitude beta(phi) of geodetic latitude `phi` (rad), Basilisk's truncated series:
-/// beta = phi - t0 sin 2phi + t1 sin 4phi - t2 sin 6phi.
-pub fn authalic_latitude(phi: f64) -> f64 {
-    let e2 = eccentricity().powi(2);
-    let (e4, e6) = (e2 * e2, e2 * e2 * e2);
-    let t0 = e2 / 3.0 + 31.0 * e4 / 180.0 + 59.0 * e6 / 560.0;
-    let t1 = 17.0 * e4 / 360.0 + 61.0 * e6 / 1260.0;
-    let t2 = 383.0 * e6 / 45360.0;
-    phi - (t0 * (2.0 * phi).sin() - t1 * (4.0 * phi).sin() + t2 * (6.0 * phi).sin())
 }
 
 /// A reflectivity map with its cell geometry precomputed (once per map).
@@ -181,6 +131,25 @@ impl AlbedoModel {
             lon_rad,
             weight_km2,
         }
+    }
+
+    /// The same model with every cell's reflectivity multiplied by `factor(latitude_rad)`
+    /// of its row (negative factors count as 0): a map corrected in latitude, as the
+    /// diagnosis's `albedo-map` effect fits it. Padding stays padding.
+    pub fn with_latitude_factor(&self, factor: impl Fn(f64) -> f64) -> AlbedoModel {
+        let mut out = self.clone();
+        let per_row = self.n_pad / 4;
+        for (i, &lat) in self.lat_rad.iter().enumerate() {
+            let f = factor(lat).max(0.0);
+            for w in &mut out.weight_km2[i * self.n_lon..(i + 1) * self.n_lon] {
+                *w *= f;
+            }
+            for v in &mut out.weight4[i * per_row..(i + 1) * per_row] {
+                let lanes = v.to_array().map(|w| if w < 0.0 { w } else { w * f });
+                *v = f64x4::new(lanes);
+            }
+        }
+        out
     }
 
     /// Radius of the sphere carrying the cells (Basilisk's authalic radius), km.
@@ -444,13 +413,6 @@ impl AlbedoModel {
     }
 }
 
-/// Cells per tile along latitude (see [`AlbedoModel::compute_into`]). 8 x 8 measured best
-/// for the benchmark scene among 4..16 x 4..16: smaller tiles cost more per-tile work in both
-/// passes, larger ones more cells in the tiles a sensor's gate boundary crosses.
-pub const TILE_ROWS: usize = 8;
-/// Cells per tile along longitude (a multiple of 4: rows are computed four cells at a time).
-pub const TILE_COLS: usize = 8;
-
 /// Per-step quantities shared by all cells.
 struct Step {
     r_sat_ecef: Vector3<f64>,
@@ -534,101 +496,6 @@ impl Step {
             sin_rho: (model.radius_km / r_sat_norm).min(1.0),
             au_sq: (AU_KM / r_sun_norm).powi(2),
         })
-    }
-}
-
-/// f64x4 vectors per chunk of [`TILE_COLS`] cells.
-pub(crate) const LANES_PER_CHUNK: usize = TILE_COLS / 4;
-const _: () = assert!(TILE_COLS.is_multiple_of(4) && TILE_COLS > 0);
-
-/// A set of chunk indices in a row: up to two inclusive intervals (an empty one is (1, 0)).
-#[derive(Debug, Clone, Copy)]
-struct Chunks([(i64, i64); 2]);
-
-impl Chunks {
-    const EMPTY: Self = Self([(1, 0), (1, 0)]);
-
-    fn all(last: i64) -> Self {
-        Self([(0, last), (1, 0)])
-    }
-
-    fn contains(&self, q: i64) -> bool {
-        self.0.iter().any(|&(a, b)| a <= q && q <= b)
-    }
-
-    fn is_empty(&self) -> bool {
-        self.0.iter().all(|&(a, b)| a > b)
-    }
-
-    /// Position of chunk `q` (which must be in the set) in [`Chunks::iter`] order.
-    fn index(&self, q: i64) -> usize {
-        let [(a0, b0), (a1, _)] = self.0;
-        if q <= b0 {
-            (q - a0) as usize
-        } else {
-            (b0 - a0 + 1).max(0) as usize + (q - a1) as usize
-        }
-    }
-
-    fn iter(&self) -> impl Iterator<Item = i64> {
-        let [(a0, b0), (a1, b1)] = self.0;
-        (a0..=b0).chain(a1..=b1)
-    }
-}
-
-/// Four cells' terms: unit vectors u (satellite to cell, ECEF) and weights c (0 for a cell
-/// that fails Basilisk's tests).
-pub(crate) struct Cells4 {
-    u: [f64x4; 3],
-    c: f64x4,
-}
-
-/// A tile's sums while its cells are computed, in f64x4 lanes (reduced in
-/// [`AlbedoView::end_group`]).
-#[derive(Debug, Clone)]
-pub(crate) struct TileAcc {
-    /// Axis of the tile's cone (splat x, y, z).
-    axis: [f64x4; 3],
-    /// The axis as a vector.
-    pub(crate) axis_ecef: Vector3<f64>,
-    /// First cell vector of the tile's block, relative to the group.
-    pub(crate) start: usize,
-    /// Next cell vector to write.
-    pub(crate) cursor: usize,
-    /// Sum of c u.
-    pub(crate) cu: [f64x4; 3],
-    /// Smallest axis . u over the tile's cells.
-    pub(crate) min_t: f64x4,
-}
-
-impl TileAcc {
-    fn new(axis: Vector3<f64>, start: usize) -> Self {
-        Self {
-            axis: [
-                f64x4::splat(axis.x),
-                f64x4::splat(axis.y),
-                f64x4::splat(axis.z),
-            ],
-            axis_ecef: axis,
-            start,
-            cursor: start,
-            cu: [f64x4::ZERO; 3],
-            min_t: f64x4::ONE,
-        }
-    }
-
-    #[inline(always)]
-    fn add(&mut self, cell: &Cells4) {
-        let [x, y, z] = cell.u;
-        let c = cell.c;
-        self.cu[0] = c.mul_add(x, self.cu[0]);
-        self.cu[1] = c.mul_add(y, self.cu[1]);
-        self.cu[2] = c.mul_add(z, self.cu[2]);
-        // All cells bound the cone (cheaper than masking; padding repeats a real cell, and
-        // cells failing the tests only widen the cones of tiles on the horizon or the
-        // terminator).
-        let t = self.axis[0].mul_add(x, self.axis[1].mul_add(y, self.axis[2] * z));
-        self.min_t = self.min_t.fast_min(t);
     }
 }
 

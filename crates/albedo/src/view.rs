@@ -4,7 +4,7 @@ use nalgebra::{Matrix3, Vector3};
 use wide::bytemuck::cast_slice;
 use wide::f64x4;
 
-use crate::model::TileAcc;
+use crate::tile::TileAcc;
 
 /// Albedo irradiance on a flat sensor, as a fraction of the 1-AU solar flux (E_a / E_AM0 of
 /// paper Eqs. 13 and 15).

@@ -306,3 +306,51 @@ fn linearised_albedo_follows_the_full_model() {
     assert!(worst_3 < 2e-5, "1e-3 rad: {worst_3:e}");
     assert!(worst_4 < 1.2e-6, "1e-4 rad: {worst_4:e}");
 }
+
+/// A latitude-corrected model equals the model of the map with each row's reflectivity
+/// multiplied by the factor at the row's latitude.
+#[test]
+fn latitude_factor_equals_the_rescaled_map() {
+    use pdcal_albedo::ReflectivityMap;
+    let (n_lat, n_lon) = (36, 72);
+    let base_value = |i: usize, j: usize| 0.1 + 0.004 * i as f64 + 0.001 * (j % 7) as f64;
+    let csv = |f: &dyn Fn(usize, usize) -> f64| -> String {
+        (0..n_lat)
+            .map(|i| {
+                (0..n_lon)
+                    .map(|j| format!("{}", f(i, j)))
+                    .collect::<Vec<_>>()
+                    .join(",")
+            })
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    let base_map = ReflectivityMap::parse_ceres_csv("base", &csv(&base_value)).unwrap();
+    let base = AlbedoModel::new(&base_map);
+    let factor = |lat: f64| 1.0 + 0.4 * lat.sin() - 0.2 * lat.cos();
+    let lat_of = |i: usize| base.cell_centre_rad(i, 0).unwrap().0;
+    let scaled_map = ReflectivityMap::parse_ceres_csv(
+        "scaled",
+        &csv(&|i, j| base_value(i, j) * factor(lat_of(i))),
+    )
+    .unwrap();
+    let expected = AlbedoModel::new(&scaled_map);
+    let corrected = base.with_latitude_factor(factor);
+    let mut rng = StdRng::seed_from_u64(31);
+    let (mut a, mut b) = (AlbedoView::new(), AlbedoView::new());
+    let mut checked = 0;
+    for k in 0..24 {
+        let (r_sat, r_sun, rot) = random_geometry(&mut rng, k);
+        corrected
+            .compute_into(&mut a, &r_sat, &r_sun, &rot)
+            .unwrap();
+        expected.compute_into(&mut b, &r_sat, &r_sun, &rot).unwrap();
+        for _ in 0..8 {
+            let n = random_unit(&mut rng);
+            let (x, y) = (a.ratio(&n, 0.0), b.ratio(&n, 0.0));
+            assert!((x - y).abs() <= 1e-12 * (1.0 + y.abs()), "{x} vs {y}");
+            checked += usize::from(y > 0.0);
+        }
+    }
+    assert!(checked > 20, "{checked} lit checks");
+}

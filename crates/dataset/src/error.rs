@@ -344,20 +344,45 @@ pub use pdcal_ephem::text::{QUOTE_MAX_CHARS, clip, quote};
 
 pub(crate) use pdcal_ephem::text::line_col;
 
+/// Why a user's file is not text to read: the one check of every reader of a user's text
+/// file (here and in `pdcal-import`), each of which turns it into its own error kind.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum TextFault {
+    /// Not UTF-8: the 1-based line and character column of the first invalid byte.
+    NotUtf8 {
+        /// Line of the first invalid byte.
+        line: usize,
+        /// Character column of the first invalid byte.
+        column: usize,
+    },
+    /// Blank (only whitespace at most).
+    Empty,
+}
+
 /// Checks the bytes are UTF-8 and not blank; strips a leading byte-order mark.
-pub(crate) fn text_of(file: &Path, bytes: Vec<u8>) -> Result<String, DatasetError> {
+pub fn decode_text(bytes: Vec<u8>) -> Result<String, TextFault> {
     let text = String::from_utf8(bytes).map_err(|e| {
         let valid = &e.as_bytes()[..e.utf8_error().valid_up_to()];
         let before = String::from_utf8_lossy(valid);
         let (line, column) = line_col(&before, before.len());
-        DatasetError::at(file, line, Some(column), ErrorKind::NotUtf8)
+        TextFault::NotUtf8 { line, column }
     })?;
     let text = match text.strip_prefix('\u{feff}') {
         Some(rest) => rest.to_owned(),
         None => text,
     };
     if text.trim().is_empty() {
-        return Err(DatasetError::whole_file(file, ErrorKind::Empty));
+        return Err(TextFault::Empty);
     }
     Ok(text)
+}
+
+/// [`decode_text`] with the fault as this crate's error.
+pub(crate) fn text_of(file: &Path, bytes: Vec<u8>) -> Result<String, DatasetError> {
+    decode_text(bytes).map_err(|fault| match fault {
+        TextFault::NotUtf8 { line, column } => {
+            DatasetError::at(file, line, Some(column), ErrorKind::NotUtf8)
+        }
+        TextFault::Empty => DatasetError::whole_file(file, ErrorKind::Empty),
+    })
 }

@@ -28,7 +28,7 @@ pub struct Dataset {
     pub truth: Option<(TruthSeries, TruthConstants)>,
 }
 
-fn io_error(file: &Path, action: &str, source: std::io::Error) -> DatasetError {
+pub(crate) fn io_error(file: &Path, action: &str, source: std::io::Error) -> DatasetError {
     DatasetError::whole_file(
         file,
         ErrorKind::Io {
@@ -285,6 +285,17 @@ impl DatasetWriter {
         for (name, text) in files {
             write_synced(&staging.join(name), text)?;
         }
+        self.publish_staged()
+    }
+
+    /// The staging directory the files are written into before publication.
+    pub(crate) fn staging(&self) -> &Path {
+        self.publication.path()
+    }
+
+    /// Writes the manifest of what the staging directory holds, then publishes it.
+    pub(crate) fn publish_staged(self) -> Result<(), DatasetError> {
+        let staging = self.publication.path();
         Manifest::of_dir(staging, &self.command)
             .and_then(|m| m.write(staging))
             .map_err(|e| {
@@ -312,7 +323,7 @@ fn publish_error(e: PublishError) -> DatasetError {
     DatasetError::whole_file(&e.path, kind)
 }
 
-fn write_synced(file: &Path, text: &str) -> Result<(), DatasetError> {
+pub(crate) fn write_synced(file: &Path, text: &str) -> Result<(), DatasetError> {
     let mut f = fs::File::create(file).map_err(|e| io_error(file, "cannot create", e))?;
     f.write_all(text.as_bytes())
         .and_then(|()| f.sync_all())

@@ -63,12 +63,13 @@ pub mod publish;
 mod ron_text;
 pub mod rules;
 mod samples;
+mod stream;
 mod table;
 mod telemetry;
 mod temperature;
 mod truth;
 
-pub use error::{DatasetError, ErrorKind, QUOTE_MAX_CHARS, clip, quote};
+pub use error::{DatasetError, ErrorKind, QUOTE_MAX_CHARS, TextFault, clip, decode_text, quote};
 pub use files::{
     Dataset, DatasetWriter, LIBRARY_WRITE_COMMAND, begin_dataset, begin_dataset_as, read_dataset,
     read_meta, read_telemetry, read_truth, render_dataset, write_dataset,
@@ -78,9 +79,11 @@ pub use meta::{
     meta_from_fields, meta_from_str,
 };
 pub use pdcal_effects::{Effect, EffectId};
+pub use ron_text::{RonFault, RonFaultKind, parse_ron};
 pub use samples::Samples;
+pub use stream::{TelemetryLayout, TelemetryStream};
 pub use telemetry::{
-    Telemetry, columns, photodiode_column, telemetry_from_columns, telemetry_from_str,
+    Telemetry, TelemetryRow, columns, photodiode_column, telemetry_from_columns, telemetry_from_str,
 };
 pub use temperature::{
     HeldTemperatures, TEMPERATURE_RANGE_C, TemperatureColumn, is_panel_name,

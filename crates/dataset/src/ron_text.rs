@@ -15,26 +15,80 @@ fn options() -> ron::Options {
     ron::Options::default().with_default_extension(Extensions::IMPLICIT_SOME)
 }
 
-/// Deserialises RON, mapping ron's 1-based span start to line:column.
-pub(crate) fn from_ron<T: DeserializeOwned>(file: &Path, text: &str) -> Result<T, DatasetError> {
+/// Why a user's RON text did not deserialise, and where: the one mapping of ron's errors
+/// for every reader of a user's RON file (dataset.ron and truth.ron here, the import map in
+/// `pdcal-import`), each of which turns the kind into its own error kind.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RonFault {
+    /// 1-based line of the offending token.
+    pub line: usize,
+    /// 1-based character column of the offending token.
+    pub column: usize,
+    /// What is wrong.
+    pub kind: RonFaultKind,
+}
+
+/// What is wrong with a RON text ([`RonFault`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum RonFaultKind {
+    /// A syntax or type error (wrong type, bad value, unclosed bracket, ...): ron's
+    /// description, clipped.
+    Ron {
+        /// ron's description.
+        message: String,
+    },
+    /// A field that the format does not define.
+    UnknownField {
+        /// The field found (clipped).
+        name: String,
+        /// The fields allowed there.
+        expected: String,
+    },
+    /// A required field is absent.
+    MissingField {
+        /// The field that is required.
+        name: String,
+    },
+}
+
+/// Deserialises a user's RON text with the readers' options, mapping ron's 1-based span
+/// start to the line and column of the offending token.
+pub fn parse_ron<T: DeserializeOwned>(text: &str) -> Result<T, RonFault> {
     options().from_str(text).map_err(|e| {
         let kind = match e.code {
             ron::Error::NoSuchStructField {
                 expected, found, ..
-            } => ErrorKind::UnknownField {
+            } => RonFaultKind::UnknownField {
                 name: crate::error::clip(&found),
                 expected: expected.join(", "),
             },
-            ron::Error::MissingStructField { field, .. } => ErrorKind::MissingField {
+            ron::Error::MissingStructField { field, .. } => RonFaultKind::MissingField {
                 name: field.to_owned(),
             },
-            other => ErrorKind::Ron {
+            other => RonFaultKind::Ron {
                 message: pdcal_ephem::text::parser_message(&other.to_string()),
             },
         };
-        let (line, col) = pdcal_ephem::text::skip_blanks(text, e.span.start.line, e.span.start.col);
-        DatasetError::at(file, line, Some(col), kind)
+        let (line, column) =
+            pdcal_ephem::text::skip_blanks(text, e.span.start.line, e.span.start.col);
+        RonFault { line, column, kind }
     })
+}
+
+impl From<RonFaultKind> for ErrorKind {
+    fn from(kind: RonFaultKind) -> Self {
+        use RonFaultKind as K;
+        match kind {
+            K::Ron { message } => ErrorKind::Ron { message },
+            K::UnknownField { name, expected } => ErrorKind::UnknownField { name, expected },
+            K::MissingField { name } => ErrorKind::MissingField { name },
+        }
+    }
+}
+
+/// Deserialises RON, mapping ron's 1-based span start to line:column.
+pub(crate) fn from_ron<T: DeserializeOwned>(file: &Path, text: &str) -> Result<T, DatasetError> {
+    parse_ron(text).map_err(|f| DatasetError::at(file, f.line, Some(f.column), f.kind.into()))
 }
 
 /// Pretty RON: four-space indent, one list entry per line with the entry itself on one line

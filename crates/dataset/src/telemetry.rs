@@ -10,8 +10,8 @@ use crate::meta::{DatasetMeta, OrbitSpec};
 use crate::samples::Samples;
 use crate::table::{CsvRows, find, push_row, require, require3};
 use crate::temperature::{
-    TEMPERATURE_RANGE_C, TemperatureColumn, TemperatureKey, photodiode_temperature_column,
-    temperature_key,
+    HeldTemperatures, TEMPERATURE_RANGE_C, TemperatureColumn, TemperatureKey,
+    panel_temperature_column, photodiode_temperature_column, temperature_key,
 };
 
 /// Column names of telemetry.csv (and, for `t_s` and `r_*_km`, of truth.csv).
@@ -90,6 +90,41 @@ impl Telemetry {
     }
 }
 
+impl Telemetry {
+    /// The index into [`Telemetry::temperature_c`] of the column named `name`.
+    pub fn temperature_column(&self, name: &str) -> Option<usize> {
+        self.temperature_c.iter().position(|c| c.name == name)
+    }
+
+    /// For each photodiode of `meta`, in `pdNN` order, the index into
+    /// [`Telemetry::temperature_c`] of its temperature: its own `temp_pdNN_C` if present,
+    /// else its panel's `temp_<panel>_C`, else `None` (no temperature for it).
+    pub fn photodiode_temperatures(&self, meta: &DatasetMeta) -> Vec<Option<usize>> {
+        meta.photodiodes
+            .iter()
+            .enumerate()
+            .map(|(i, mount)| {
+                self.temperature_column(&photodiode_temperature_column(i + 1))
+                    .or_else(|| {
+                        let panel = mount.panel.as_deref()?;
+                        self.temperature_column(&panel_temperature_column(panel))
+                    })
+            })
+            .collect()
+    }
+
+    /// Per-photodiode temperatures held from the last sample, for reading row by row
+    /// ([`HeldTemperatures::at`]).
+    pub fn held_temperatures(&self, meta: &DatasetMeta) -> HeldTemperatures<'_> {
+        let of_photodiode = if self.temperature_c.is_empty() {
+            Vec::new()
+        } else {
+            self.photodiode_temperatures(meta)
+        };
+        HeldTemperatures::new(&self.temperature_c, of_photodiode, meta.photodiodes.len())
+    }
+}
+
 /// Column indices of one telemetry.csv header.
 struct Layout {
     t: usize,
@@ -126,6 +161,17 @@ fn layout<R: Read>(rows: &CsvRows<'_, R>, meta: &DatasetMeta) -> Result<Layout, 
             photodiode_column(n)
         ),
     };
+    // A repeated header is its own fault, found before anything counts columns (two
+    // `pd01_V` would otherwise read as a photodiode count that does not match).
+    let mut seen = std::collections::HashMap::new();
+    if let Some(col) =
+        (rows.header.iter().enumerate()).position(|(i, h)| seen.insert(h.as_str(), i).is_some())
+    {
+        let kind = ErrorKind::DuplicateColumn {
+            name: rows.header[col].clone(),
+        };
+        return Err(rows.header_error(col, kind));
+    }
     let mut pd_count = 0;
     let mut temperature = Vec::new();
     for (col, h) in rows.header.iter().enumerate() {
@@ -181,8 +227,17 @@ fn layout<R: Read>(rows: &CsvRows<'_, R>, meta: &DatasetMeta) -> Result<Layout, 
         t: require(rows, columns::T_S, "")?,
         gyro: require3(rows, columns::GYRO)?,
         mag,
+        // Looked up in the header's map, not scanned for: linear in the photodiode count.
         pd: (1..=n)
-            .map(|i| require(rows, &photodiode_column(i), ""))
+            .map(|i| {
+                let name = photodiode_column(i);
+                seen.get(name.as_str()).copied().ok_or_else(|| {
+                    rows.header_row_error(ErrorKind::MissingColumn {
+                        name,
+                        hint: String::new(),
+                    })
+                })
+            })
             .collect::<Result<_, _>>()?,
         r,
         temperature,
@@ -310,21 +365,74 @@ pub(crate) fn telemetry_from_rows<R: Read>(
             .collect(),
         ..Telemetry::default()
     };
+    visit_rows(&mut rows, &lay, |row| {
+        tm.t_s.push(row.t_s);
+        tm.gyro_rad_s.push(row.gyro_rad_s);
+        if let Some(mag) = tm.mag_nt.as_mut() {
+            mag.push(row.mag_nt);
+        }
+        for (value, pd) in row.pd_v.iter().zip(tm.pd_v.iter_mut()) {
+            pd.push(*value);
+        }
+        if let Some(r) = tm.r_gcrf_km.as_mut() {
+            r.push(row.r_gcrf_km);
+        }
+        for (value, temp) in row.temperature_c.iter().zip(tm.temperature_c.iter_mut()) {
+            temp.values.push(*value);
+        }
+    })?;
+    if tm.is_empty() {
+        return Err(rows.no_rows());
+    }
+    Ok(tm)
+}
+
+/// Checks every row of `rows` as [`telemetry_from_rows`] does, keeping none of them (a file
+/// of any length in constant memory); the number of rows.
+pub(crate) fn check_rows<R: Read>(
+    mut rows: CsvRows<'_, R>,
+    meta: &DatasetMeta,
+) -> Result<usize, DatasetError> {
+    let lay = layout(&rows, meta)?;
+    let mut n = 0;
+    visit_rows(&mut rows, &lay, |_| n += 1)?;
+    if n == 0 {
+        return Err(rows.no_rows());
+    }
+    Ok(n)
+}
+
+/// Reads and checks each data row of `rows` into one reused [`TelemetryRow`] and hands it
+/// to `each`.
+fn visit_rows<R: Read>(
+    rows: &mut CsvRows<'_, R>,
+    lay: &Layout,
+    mut each: impl FnMut(&TelemetryRow),
+) -> Result<(), DatasetError> {
+    let mut row = TelemetryRow {
+        pd_v: vec![None; lay.pd.len()],
+        temperature_c: vec![None; lay.temperature.len()],
+        ..TelemetryRow::default()
+    };
+    let mut previous = None;
     while let Some(line) = rows.next_row()? {
         let t = rows.req(line, lay.t)?;
-        rows.increasing(line, lay.t, tm.t_s.last().copied(), t)?;
-        tm.t_s.push(t);
-        tm.gyro_rad_s.push(rows.vec3(line, lay.gyro)?);
-        if let (Some(cols), Some(mag)) = (lay.mag, tm.mag_nt.as_mut()) {
-            mag.push(rows.vec3(line, cols)?);
+        rows.increasing(line, lay.t, previous, t)?;
+        previous = Some(t);
+        row.t_s = t;
+        row.gyro_rad_s = rows.vec3(line, lay.gyro)?;
+        row.mag_nt = match lay.mag {
+            Some(cols) => rows.vec3(line, cols)?,
+            None => None,
+        };
+        for (&col, pd) in lay.pd.iter().zip(row.pd_v.iter_mut()) {
+            *pd = rows.opt(line, col)?;
         }
-        for (&col, pd) in lay.pd.iter().zip(tm.pd_v.iter_mut()) {
-            pd.push(rows.opt(line, col)?);
-        }
-        if let (Some(cols), Some(r)) = (lay.r, tm.r_gcrf_km.as_mut()) {
-            r.push(rows.vec3(line, cols)?);
-        }
-        for (&col, temp) in lay.temperature.iter().zip(tm.temperature_c.iter_mut()) {
+        row.r_gcrf_km = match lay.r {
+            Some(cols) => rows.vec3(line, cols)?,
+            None => None,
+        };
+        for (&col, temp) in lay.temperature.iter().zip(row.temperature_c.iter_mut()) {
             let value = rows.opt(line, col)?;
             if let Some(v) = value
                 && !(TEMPERATURE_RANGE_C.0..=TEMPERATURE_RANGE_C.1).contains(&v)
@@ -338,13 +446,61 @@ pub(crate) fn telemetry_from_rows<R: Read>(
                 };
                 return Err(rows.cell_error(line, col, kind));
             }
-            temp.values.push(value);
+            *temp = value;
         }
+        each(&row);
     }
-    if tm.is_empty() {
-        return Err(rows.no_rows());
+    Ok(())
+}
+
+/// One row of telemetry.csv, in the dataset's units (the unit of a streamed writer or
+/// reader: [`crate::TelemetryStream`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TelemetryRow {
+    /// Seconds since `epoch_utc`.
+    pub t_s: f64,
+    /// Gyro rate, body frame, rad/s; `None` when not sampled.
+    pub gyro_rad_s: Option<Vector3<f64>>,
+    /// Magnetometer, body frame, nT; `None` when not sampled or absent.
+    pub mag_nt: Option<Vector3<f64>>,
+    /// Photodiode outputs, V, one per photodiode.
+    pub pd_v: Vec<Option<f64>>,
+    /// Position, GCRF, km; `None` when not sampled or absent.
+    pub r_gcrf_km: Option<Vector3<f64>>,
+    /// The temperature columns' values, degrees Celsius, in column order.
+    pub temperature_c: Vec<Option<f64>>,
+}
+
+/// telemetry.csv's header: `t_s`, gyro, magnetometer (if any), `pd01_V`.., position (if
+/// any), the temperature columns in their order.
+pub(crate) fn header(mag: bool, photodiodes: usize, r: bool, temperatures: &[String]) -> String {
+    let mut header: Vec<String> = vec![columns::T_S.into()];
+    header.extend(columns::GYRO.map(String::from));
+    if mag {
+        header.extend(columns::MAG.map(String::from));
     }
-    Ok(tm)
+    header.extend((1..=photodiodes).map(photodiode_column));
+    if r {
+        header.extend(columns::R.map(String::from));
+    }
+    header.extend(temperatures.iter().cloned());
+    header.join(",")
+}
+
+/// Appends `row` as one telemetry.csv line (the cells of `header`'s columns).
+pub(crate) fn push_telemetry_row(out: &mut String, row: &TelemetryRow, mag: bool, r: bool) {
+    let split = |v: Option<Vector3<f64>>| [v.map(|v| v.x), v.map(|v| v.y), v.map(|v| v.z)];
+    let mut cells = vec![Some(row.t_s)];
+    cells.extend(split(row.gyro_rad_s));
+    if mag {
+        cells.extend(split(row.mag_nt));
+    }
+    cells.extend(row.pd_v.iter().copied());
+    if r {
+        cells.extend(split(row.r_gcrf_km));
+    }
+    cells.extend(row.temperature_c.iter().copied());
+    push_row(out, cells);
 }
 
 /// Checks that every column has one entry per row and the photodiode and position columns
@@ -400,38 +556,28 @@ pub(crate) fn check_shape(tm: &Telemetry, meta: &DatasetMeta) -> Result<(), Data
     Ok(())
 }
 
-/// telemetry.csv text: `t_s`, gyro, magnetometer (if any), `pd01_V`.., position (if any),
-/// temperatures (in their stored order).
+/// telemetry.csv text: [`header`], then one line per row.
 /// Call [`check_shape`] first.
 pub(crate) fn render_telemetry(tm: &Telemetry) -> String {
-    let mut header: Vec<String> = vec![columns::T_S.into()];
-    header.extend(columns::GYRO.map(String::from));
-    if tm.mag_nt.is_some() {
-        header.extend(columns::MAG.map(String::from));
-    }
-    header.extend((1..=tm.pd_v.len()).map(photodiode_column));
-    if tm.r_gcrf_km.is_some() {
-        header.extend(columns::R.map(String::from));
-    }
-    header.extend(tm.temperature_c.iter().map(|c| c.name.clone()));
-    let mut out = header.join(",");
+    let names: Vec<String> = tm.temperature_c.iter().map(|c| c.name.clone()).collect();
+    let (mag, r) = (tm.mag_nt.is_some(), tm.r_gcrf_km.is_some());
+    let mut out = header(mag, tm.pd_v.len(), r, &names);
     out.push('\n');
-    let split = |v: Option<Vector3<f64>>| [v.map(|v| v.x), v.map(|v| v.y), v.map(|v| v.z)];
-    let column = |c: &Option<Vec<Option<Vector3<f64>>>>, k: usize| {
-        c.as_ref().map(|c| split(c.get(k).copied().flatten()))
-    };
+    let mut row = TelemetryRow::default();
     for k in 0..tm.len() {
-        let mut cells = vec![tm.t_s.get(k).copied()];
-        cells.extend(split(tm.gyro_rad_s.get(k).copied().flatten()));
-        cells.extend(column(&tm.mag_nt, k).into_iter().flatten());
-        cells.extend(tm.pd_v.iter().map(|pd| pd.get(k)));
-        cells.extend(column(&tm.r_gcrf_km, k).into_iter().flatten());
-        cells.extend(
+        row.t_s = tm.t_s[k];
+        row.gyro_rad_s = tm.gyro_rad_s.get(k).copied().flatten();
+        row.mag_nt = (tm.mag_nt.as_ref()).and_then(|c| c.get(k).copied().flatten());
+        row.pd_v.clear();
+        row.pd_v.extend(tm.pd_v.iter().map(|pd| pd.get(k)));
+        row.r_gcrf_km = (tm.r_gcrf_km.as_ref()).and_then(|c| c.get(k).copied().flatten());
+        row.temperature_c.clear();
+        row.temperature_c.extend(
             tm.temperature_c
                 .iter()
                 .map(|c| c.values.get(k).copied().flatten()),
         );
-        push_row(&mut out, cells);
+        push_telemetry_row(&mut out, &row, mag, r);
     }
     out
 }

@@ -2,9 +2,6 @@
 //! for every photodiode whose dataset.ron entry says `panel: "<panel>"`; and the
 //! per-photodiode temperatures a measurement model reads from them, row by row.
 
-use crate::meta::DatasetMeta;
-use crate::telemetry::Telemetry;
-
 /// Plausible temperatures of a spacecraft photodiode, degrees Celsius (inclusive). Wider than
 /// any survivable range, so a cell outside is a unit or sign mistake (kelvin, Fahrenheit),
 /// not a hot sensor.
@@ -79,52 +76,6 @@ pub(crate) fn temperature_key(name: &str) -> Option<TemperatureKey<'_>> {
     })
 }
 
-impl Telemetry {
-    /// The index into [`Telemetry::temperature_c`] of the column named `name`.
-    pub fn temperature_column(&self, name: &str) -> Option<usize> {
-        self.temperature_c.iter().position(|c| c.name == name)
-    }
-
-    /// For each photodiode of `meta`, in `pdNN` order, the index into
-    /// [`Telemetry::temperature_c`] of its temperature: its own `temp_pdNN_C` if present,
-    /// else its panel's `temp_<panel>_C`, else `None` (no temperature for it).
-    pub fn photodiode_temperatures(&self, meta: &DatasetMeta) -> Vec<Option<usize>> {
-        meta.photodiodes
-            .iter()
-            .enumerate()
-            .map(|(i, mount)| {
-                self.temperature_column(&photodiode_temperature_column(i + 1))
-                    .or_else(|| {
-                        let panel = mount.panel.as_deref()?;
-                        self.temperature_column(&panel_temperature_column(panel))
-                    })
-            })
-            .collect()
-    }
-
-    /// Per-photodiode temperatures held from the last sample, for reading row by row
-    /// ([`HeldTemperatures::at`]).
-    pub fn held_temperatures(&self, meta: &DatasetMeta) -> HeldTemperatures<'_> {
-        let with_columns = !self.temperature_c.is_empty();
-        let n_columns = self.temperature_c.len();
-        HeldTemperatures {
-            columns: &self.temperature_c,
-            of_photodiode: if with_columns {
-                self.photodiode_temperatures(meta)
-            } else {
-                Vec::new()
-            },
-            held_c: vec![f64::NAN; n_columns],
-            row_c: if with_columns {
-                vec![f64::NAN; meta.photodiodes.len()]
-            } else {
-                Vec::new()
-            },
-            next_row: 0,
-        }
-    }
-}
-
 /// Each photodiode's temperature at a row, degrees Celsius, held from the latest sample at
 /// or before that row: temperatures change over minutes, so an empty cell means "unchanged
 /// since the last sample", not "unknown". NaN before a column's first sample and for a
@@ -141,7 +92,29 @@ pub struct HeldTemperatures<'a> {
     next_row: usize,
 }
 
-impl HeldTemperatures<'_> {
+impl<'a> HeldTemperatures<'a> {
+    /// Held temperatures of `photodiodes` photodiodes over `columns`, photodiode `i` reading
+    /// column `of_photodiode[i]` (empty when there are no columns).
+    pub(crate) fn new(
+        columns: &'a [TemperatureColumn],
+        of_photodiode: Vec<Option<usize>>,
+        photodiodes: usize,
+    ) -> Self {
+        let with_columns = !columns.is_empty();
+        let n_columns = columns.len();
+        HeldTemperatures {
+            columns,
+            of_photodiode,
+            held_c: vec![f64::NAN; n_columns],
+            row_c: if with_columns {
+                vec![f64::NAN; photodiodes]
+            } else {
+                Vec::new()
+            },
+            next_row: 0,
+        }
+    }
+
     /// The temperatures at row `row`, one per photodiode; empty when the telemetry has no
     /// temperature columns. A row past the end holds the last samples.
     pub fn at(&mut self, row: usize) -> &[f64] {

@@ -491,6 +491,24 @@ fn other_classes() {
         shown(&e),
         "telemetry.csv:1:7 (mag_x_nT): column \"mag_x_nT\" appears twice"
     );
+    // A photodiode column twice is the same fault, not a photodiode count mismatch.
+    let text = TELEMETRY.replacen("pd03_V", "pd01_V", 1);
+    let e = fail("telemetry.csv", &text);
+    assert_eq!(
+        shown(&e),
+        "telemetry.csv:1:10 (pd01_V): column \"pd01_V\" appears twice"
+    );
+    // And one added: four pdNN_V headers for three photodiodes.
+    let text = TELEMETRY
+        .lines()
+        .enumerate()
+        .map(|(i, l)| format!("{l},{}\n", if i == 0 { "pd01_V" } else { "1" }))
+        .collect::<String>();
+    let e = fail("telemetry.csv", &text);
+    assert_eq!(
+        shown(&e),
+        "telemetry.csv:1:11 (pd01_V): column \"pd01_V\" appears twice"
+    );
     // Epoch and version.
     let text = dataset_ron().replace("18:29:45Z", "18:29:45+02:00");
     let e = fail("dataset.ron", &text);

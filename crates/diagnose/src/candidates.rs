@@ -9,6 +9,7 @@ use pdcal_effects::REFERENCE_TEMPERATURE_C;
 use pdcal_photodiode::{FovRolloff, ShadowMode};
 use serde::Serialize;
 
+use crate::forms::{self, MIN_CLIPPED_SAMPLES};
 use crate::model::ModelSpec;
 use crate::residuals::{PdSample, Residuals, in_umbra};
 use crate::stats::{Entry, WaldFit, hac_wald};
@@ -35,6 +36,11 @@ pub struct CandidateFit {
     /// magnetometer and gyro candidates (all of that sensor's samples).
     #[serde(skip)]
     pub support: Vec<(usize, usize)>,
+    /// The effect's other form (`fov-rolloff`: Kelly or start/cutoff; `saturation`: per
+    /// photodiode or common), with its own fit and score; the diagnosis refits both when
+    /// both are significant and keeps the one whose refit leaves the smaller residuals.
+    #[serde(skip)]
+    pub alternative: Option<Box<CandidateFit>>,
 }
 
 /// Residual against a candidate's regressor, for the figures.
@@ -98,7 +104,7 @@ pub fn candidate_ids(spec: &ModelSpec, res: &Residuals) -> Vec<EffectId> {
         .into_iter()
         .filter(|&id| !spec.contains(id))
         .filter(|&id| match id {
-            EffectId::AlbedoGain => spec.contains(EffectId::Albedo),
+            EffectId::AlbedoGain | EffectId::AlbedoMap => spec.contains(EffectId::Albedo),
             EffectId::Temperature => res.pd.iter().any(|p| p.temperature_c.is_finite()),
             _ => true,
         })
@@ -143,9 +149,22 @@ pub(crate) fn scored(mut f: CandidateFit, res: &Residuals) -> CandidateFit {
 fn fit_candidate(id: EffectId, res: &Residuals, n_pd: usize, lag: usize) -> Option<CandidateFit> {
     match id {
         EffectId::Albedo => Some(albedo(res, lag)),
-        EffectId::FovRolloff => Some(fov_rolloff(res, lag)),
+        EffectId::FovRolloff => Some(better(
+            scored(fov_rolloff(res, lag), res),
+            forms::kelly_rolloff(res, n_pd, lag),
+        )),
         EffectId::DarkOffset => Some(dark_offset(res, n_pd, lag)),
-        EffectId::Saturation => Some(saturation(res, lag)),
+        EffectId::Saturation => {
+            let shared = scored(saturation(res, lag), res);
+            let level = match shared.effect {
+                Effect::Saturation { volts } => volts,
+                _ => f64::INFINITY,
+            };
+            Some(better(
+                shared,
+                forms::saturation_per_photodiode(res, n_pd, level, lag),
+            ))
+        }
         EffectId::Penumbra => Some(penumbra(res, lag)),
         EffectId::TimeOffset => Some(time_offset(res, lag)),
         EffectId::ScaleDrift => Some(scale_drift(res, n_pd, lag)),
@@ -153,6 +172,24 @@ fn fit_candidate(id: EffectId, res: &Residuals, n_pd: usize, lag: usize) -> Opti
         EffectId::GyroScale => (!res.gyro.is_empty()).then(|| gyro_scale(res, lag)),
         EffectId::AlbedoGain => Some(albedo_gain(res, lag)),
         EffectId::Temperature => Some(temperature(res, n_pd, lag)),
+        EffectId::AlbedoMap => Some(forms::albedo_map(res, lag)),
+    }
+}
+
+/// The better-supported of two forms of one effect: the higher score (`W/2 - k ln(N)/2`,
+/// the same evidence that names an effect), the first on a tie.
+/// The other is kept as [`CandidateFit::alternative`] of the one returned.
+fn better(first: CandidateFit, other: Option<CandidateFit>) -> CandidateFit {
+    match other {
+        Some(mut o) if o.score > first.score => {
+            o.alternative = Some(Box::new(first));
+            o
+        }
+        Some(o) => CandidateFit {
+            alternative: Some(Box::new(o)),
+            ..first
+        },
+        None => first,
     }
 }
 
@@ -165,7 +202,7 @@ fn signed(mut fit: WaldFit) -> WaldFit {
     fit
 }
 
-fn candidate(
+pub(crate) fn candidate_fit(
     effect: Effect,
     fit: &WaldFit,
     parameters: usize,
@@ -176,6 +213,7 @@ fn candidate(
         id: effect.id(),
         effect,
         support,
+        alternative: None,
         wald: fit.wald,
         parameters,
         samples: fit.samples,
@@ -192,7 +230,7 @@ fn pd_var(res: &Residuals) -> f64 {
 }
 
 /// The regression entries of a photodiode signature and the samples carrying it.
-fn pd_entries(
+pub(crate) fn pd_entries_of(
     res: &Residuals,
     signature: impl Fn(&PdSample) -> Option<(usize, f64)>,
 ) -> (Vec<Entry>, Vec<(usize, usize)>) {
@@ -214,7 +252,7 @@ fn pd_entries(
 
 /// `albedo`: one gain on `C E_a/E_AM0` at the estimated normal (1 when albedo is missing).
 fn albedo(res: &Residuals, lag: usize) -> CandidateFit {
-    let (entries, support) = pd_entries(res, |p| Some((0, p.albedo_v)));
+    let (entries, support) = pd_entries_of(res, |p| Some((0, p.albedo_v)));
     let fit = signed(hac_wald(&entries, 1, lag, &[pd_var(res)]));
     let evidence = format!(
         "photodiode residual vs C E_a/E_AM0 (albedo regressor): gain {:.3}",
@@ -223,7 +261,7 @@ fn albedo(res: &Residuals, lag: usize) -> CandidateFit {
     let effect = Effect::Albedo {
         map: res.albedo_map.clone(),
     };
-    candidate(effect, &fit, 1, evidence, support)
+    candidate_fit(effect, &fit, 1, evidence, support)
 }
 
 /// Width of the incidence-angle bins of the roll-off search, deg.
@@ -272,7 +310,7 @@ fn fov_rolloff(res: &Residuals, lag: usize) -> CandidateFit {
     }
     let (_, start, cutoff) = best;
     let law = FovRolloff::from_deg(start, cutoff).ok();
-    let (entries, support) = pd_entries(res, |p| {
+    let (entries, support) = pd_entries_of(res, |p| {
         let law = law.as_ref()?;
         (p.direct_v > 0.0).then(|| (0, p.direct_v * (law.factor(p.cos_incidence) - 1.0)))
     });
@@ -286,7 +324,7 @@ fn fov_rolloff(res: &Residuals, lag: usize) -> CandidateFit {
         start_rad: start.to_radians(),
         cutoff_rad: cutoff.to_radians(),
     };
-    candidate(effect, &fit, 2, evidence, support)
+    candidate_fit(effect, &fit, 2, evidence, support)
 }
 
 /// `albedo-gain`: the same regressor as `albedo`, on a model that holds the term: the
@@ -294,7 +332,7 @@ fn fov_rolloff(res: &Residuals, lag: usize) -> CandidateFit {
 /// the data lack gives a slope near -1). The effect carries `1 + slope`, the gain that
 /// explains the residuals when composed with the model's ([`Effect::compose`]).
 fn albedo_gain(res: &Residuals, lag: usize) -> CandidateFit {
-    let (entries, support) = pd_entries(res, |p| (p.albedo_v != 0.0).then_some((0, p.albedo_v)));
+    let (entries, support) = pd_entries_of(res, |p| (p.albedo_v != 0.0).then_some((0, p.albedo_v)));
     let fit = hac_wald(&entries, 1, lag, &[pd_var(res)]);
     let gain = 1.0 + fit.amplitudes[0];
     let evidence = format!(
@@ -302,7 +340,7 @@ fn albedo_gain(res: &Residuals, lag: usize) -> CandidateFit {
          gain {gain:.3}",
         fit.amplitudes[0]
     );
-    candidate(Effect::AlbedoGain { gain }, &fit, 1, evidence, support)
+    candidate_fit(Effect::AlbedoGain { gain }, &fit, 1, evidence, support)
 }
 
 /// `temperature`: per photodiode, the residual against `C dI/dC (T - mean T)` (the mean is
@@ -323,7 +361,7 @@ fn temperature(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
         coefficient_per_k: fit.amplitudes.clone(),
         reference_c: REFERENCE_TEMPERATURE_C,
     };
-    candidate(effect, &fit, k, evidence, support)
+    candidate_fit(effect, &fit, k, evidence, support)
 }
 
 /// Smallest and largest of `values` (infinities when empty), for the evidence lines.
@@ -337,7 +375,7 @@ fn min_max(values: &[f64]) -> (f64, f64) {
 
 /// `dark-offset`: per-photodiode mean residual in umbra (no direct Sun, no albedo).
 fn dark_offset(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
-    let (entries, support) = pd_entries(res, |p| in_umbra(p).then_some((p.pd, 1.0)));
+    let (entries, support) = pd_entries_of(res, |p| in_umbra(p).then_some((p.pd, 1.0)));
     let fit = hac_wald(&entries, n_pd, lag, &vec![pd_var(res); n_pd]);
     let (lo, hi) = min_max(&fit.amplitudes);
     let evidence = format!(
@@ -348,11 +386,8 @@ fn dark_offset(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
         volts: fit.amplitudes.clone(),
     };
     let k = fit.active;
-    candidate(effect, &fit, k, evidence, support)
+    candidate_fit(effect, &fit, k, evidence, support)
 }
-
-/// Fewest samples exactly at the largest output that make it a clip level.
-const MIN_CLIPPED_SAMPLES: usize = 3;
 
 /// `saturation`: the clip level is the largest measured output (a real sensor clips after
 /// noise, so clipped samples sit exactly on it); signature `min(y, L) - y` of the model's
@@ -364,7 +399,7 @@ fn saturation(res: &Residuals, lag: usize) -> CandidateFit {
         .map(|p| p.measured_v)
         .fold(f64::NEG_INFINITY, f64::max);
     let at_level = res.pd.iter().filter(|p| p.measured_v >= level).count();
-    let (entries, support) = pd_entries(res, |p| {
+    let (entries, support) = pd_entries_of(res, |p| {
         (p.pre_stage_v > level).then_some((0, level - p.pre_stage_v))
     });
     let mut fit = signed(hac_wald(&entries, 1, lag, &[pd_var(res)]));
@@ -379,12 +414,12 @@ fn saturation(res: &Residuals, lag: usize) -> CandidateFit {
         fit.amplitudes[0]
     );
     let effect = Effect::Saturation { volts: level };
-    candidate(effect, &fit, 1, evidence, support)
+    candidate_fit(effect, &fit, 1, evidence, support)
 }
 
 /// `penumbra`: gain on `(nu - hard(nu)) C n^T s` while the Sun is partly hidden.
 fn penumbra(res: &Residuals, lag: usize) -> CandidateFit {
-    let (entries, support) = pd_entries(res, |p| {
+    let (entries, support) = pd_entries_of(res, |p| {
         let nu = p.sun_fraction;
         (nu > 0.0 && nu < 1.0 && p.unshadowed_v > 0.0)
             .then(|| (0, (nu - ShadowMode::Hard.factor(nu)) * p.unshadowed_v))
@@ -394,7 +429,7 @@ fn penumbra(res: &Residuals, lag: usize) -> CandidateFit {
         "photodiode residual vs (nu - hard(nu)) C n^T s in penumbra: gain {:.2}",
         fit.amplitudes[0]
     );
-    candidate(Effect::Penumbra, &fit, 1, evidence, support)
+    candidate_fit(Effect::Penumbra, &fit, 1, evidence, support)
 }
 
 /// `time-offset`: photodiodes sampled `delta` late see `s + delta (w x s)`. The filter's
@@ -402,7 +437,7 @@ fn penumbra(res: &Residuals, lag: usize) -> CandidateFit {
 /// of the signature into the magnetometer (`-g delta w x b`); both amplitudes are fitted
 /// (`a_pd = (1 - g) delta`, `a_mag = -g delta`, so `delta = a_pd - a_mag`), two parameters.
 fn time_offset(res: &Residuals, lag: usize) -> CandidateFit {
-    let (mut entries, support) = pd_entries(res, |p| {
+    let (mut entries, support) = pd_entries_of(res, |p| {
         (p.time_offset_v_s != 0.0).then_some((0, p.time_offset_v_s))
     });
     for m in &res.mag {
@@ -424,7 +459,7 @@ fn time_offset(res: &Residuals, lag: usize) -> CandidateFit {
         -a_mag
     );
     let k = fit.active;
-    candidate(Effect::TimeOffset { seconds }, &fit, k, evidence, support)
+    candidate_fit(Effect::TimeOffset { seconds }, &fit, k, evidence, support)
 }
 
 /// A relative scale change linear in `x` per photodiode (`scale-drift`: time in hours;
@@ -452,7 +487,7 @@ fn scale_gain_fit(
         .zip(&weight)
         .map(|(s, w)| if *w > 0.0 { s / w } else { 0.0 })
         .collect();
-    let (entries, support) = pd_entries(res, |p| {
+    let (entries, support) = pd_entries_of(res, |p| {
         usable(p).map(|v| (p.pd, p.scale_v * (v - mean[p.pd])))
     });
     let fit = hac_wald(&entries, n_pd, lag, &vec![pd_var(res); n_pd]);
@@ -473,7 +508,7 @@ fn scale_drift(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
     let effect = Effect::ScaleDrift {
         fraction_per_hour: fit.amplitudes.clone(),
     };
-    candidate(effect, &fit, k, evidence, support)
+    candidate_fit(effect, &fit, k, evidence, support)
 }
 
 /// `mag-bias`: body-frame mean of the magnetometer residuals.
@@ -496,7 +531,7 @@ fn mag_bias(res: &Residuals, lag: usize) -> CandidateFit {
         "magnetometer residual mean, body frame: [{:.0}, {:.0}, {:.0}] nT",
         b[0], b[1], b[2]
     );
-    candidate(
+    candidate_fit(
         Effect::MagBias { bias_nt: b },
         &fit,
         3,
@@ -570,7 +605,7 @@ fn gyro_scale(res: &Residuals, lag: usize) -> CandidateFit {
         e[0], e[1], e[2]
     );
     let effect = Effect::GyroScale { scale_error: e };
-    candidate(effect, &fit, k, evidence, Vec::new())
+    candidate_fit(effect, &fit, k, evidence, Vec::new())
 }
 
 /// The residual signature that tells effect `id` apart: its regressor against the
@@ -646,6 +681,15 @@ pub fn signature(id: EffectId, res: &Residuals) -> Signature {
                 x,
                 y,
             }
+        }
+        EffectId::AlbedoMap => {
+            let mut sig = pd("latitude below the spacecraft (deg)", &|p| {
+                // Samples with albedo well above the noise: the ratio is noise elsewhere.
+                (p.albedo_v > 3.0 * res.sigma_pd_v)
+                    .then(|| (p.nadir_lat_rad.to_degrees(), p.residual_v / p.albedo_v))
+            });
+            sig.y_label = "photodiode residual / C E_a/E_AM0 (map factor - 1)".to_owned();
+            sig
         }
         EffectId::Temperature => {
             let mut sig = pd("photodiode temperature (C)", &|p| {

@@ -9,8 +9,8 @@ use pdcal_albedo::AlbedoModel;
 use pdcal_dataset::{DatasetMeta, Effect, EffectId, Telemetry};
 use pdcal_effects::Sensor;
 use pdcal_filter::{
-    Algebra, Calibration, CalibrationRun, FilterConfig, Mode, RunInputs, StepReference,
-    calibrate_with_model,
+    Algebra, Calibration, CalibrationRun, Consistency, FilterConfig, Mode, RunInputs,
+    StepReference, Verdict, calibrate_with_model,
 };
 use pdcal_photodiode::Photodiode;
 use serde::Serialize;
@@ -21,10 +21,13 @@ use crate::consistency::{MAX_RMS_RATIO, Misfit, misfit};
 use crate::model::{BaseModel, ModelSpec, changes_filter};
 use crate::refit::time_offset_refit;
 use crate::residuals::{ResidualInputs, Residuals, mean_std, residuals, rms};
+use crate::significance::{MIN_PARAMETER_SIGMAS, Significance, significance};
 
 /// Version of `diagnosis.json`: 2 added `unexplained`, the rejected and dropped candidates,
-/// the shrink of each round and the parameters in the files' spelling.
-pub const DIAGNOSIS_FORMAT_VERSION: u32 = 2;
+/// the shrink of each round and the parameters in the files' spelling; 3 the significance
+/// of each round (fast score and the filter's estimate, in sigmas) and the effects' other
+/// forms (`KellyRolloff`, `SaturationPerPhotodiode`).
+pub const DIAGNOSIS_FORMAT_VERSION: u32 = 3;
 
 /// What a diagnosis reads: the dataset's metadata and telemetry (never its truth), the
 /// references, and the albedo model.
@@ -162,6 +165,24 @@ pub struct Dropped {
     pub gap_after: Gap,
 }
 
+/// An effect added earlier whose other form fits better once later effects are in the
+/// model (a roll-off found before albedo, from the `cosine` base, is fitted to residuals
+/// that also carry the missing albedo).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Reformed {
+    /// Effect id.
+    pub id: EffectId,
+    /// The form it had (truth.ron's spelling).
+    pub from: Effect,
+    /// The form it has now.
+    pub to: Effect,
+    /// Photodiode residual sum of squares with the old form and with the new, V^2.
+    #[serde(rename = "photodiode_rss_V2")]
+    pub photodiode_rss_v2: [f64; 2],
+    /// The gap once changed.
+    pub gap_after: Gap,
+}
+
 /// One round that named an effect.
 #[derive(Debug, Clone)]
 pub struct Round {
@@ -181,8 +202,12 @@ pub struct Round {
     pub rejected: Vec<Rejected>,
     /// Effects of earlier rounds dropped after it.
     pub dropped: Vec<Dropped>,
+    /// Effects of earlier rounds refitted (form or shape) after it.
+    pub reformed: Vec<Reformed>,
     /// The shrink its refit achieved.
     pub shrink: Shrink,
+    /// Its fast score and the filter's estimate of its parameters, as sigmas from the null.
+    pub significance: Significance,
     /// Gap before the round.
     pub gap_before: Gap,
     /// Gap after it (and after any drop).
@@ -225,6 +250,21 @@ pub struct Diagnosis {
     pub misfit: Misfit,
     /// The significance threshold used, nats.
     pub threshold: f64,
+    /// The shared consistency verdict ([`pdcal_filter::consistency`], the one `calibrate`
+    /// writes) of the first model's filter residuals.
+    pub base_consistency: Consistency,
+    /// The same of the final model's.
+    pub consistency: Consistency,
+}
+
+/// The shared consistency verdict of a filter run's residuals.
+pub fn run_consistency(run: &CalibrationRun) -> Consistency {
+    pdcal_filter::consistency::judge(
+        &run.residuals,
+        run.used_photodiodes.len(),
+        run.sensor_sigmas.photodiode_v,
+        run.sensor_sigmas.mag_nt,
+    )
 }
 
 impl Diagnosis {
@@ -245,7 +285,10 @@ impl Diagnosis {
                 parts.push(r.found.as_str());
             }
         }
-        if !self.misfit.explained {
+        // The filter's own residuals judged as `calibrate` judges them: a final model
+        // whose residuals that verdict calls inconsistent is not explained, whatever the
+        // whiteness checks say.
+        if !self.misfit.explained || self.consistency.verdict == Verdict::Inconsistent {
             parts.push(UNEXPLAINED);
         }
         if parts.is_empty() {
@@ -281,6 +324,8 @@ impl Diagnosis {
             final_parameters: self.final_spec.added.clone(),
             parameter_estimates: self.parameter_estimates().to_vec(),
             unexplained: self.misfit.clone(),
+            base_consistency: self.base_consistency.clone(),
+            consistency: self.consistency.clone(),
         }
     }
 }
@@ -314,6 +359,11 @@ pub struct DiagnosisSummary {
     pub parameter_estimates: Vec<pdcal_filter::ParameterEstimate>,
     /// The consistency check of the final residuals.
     pub unexplained: Misfit,
+    /// The shared verdict (as `calibrate`'s summary.json) on the first model's filter
+    /// residuals.
+    pub base_consistency: Consistency,
+    /// The same on the final model's.
+    pub consistency: Consistency,
 }
 
 /// One round in `diagnosis.json`.
@@ -333,6 +383,8 @@ pub struct RoundSummary {
     pub gap_after: Gap,
     /// How much the refit shrank the residuals it targets.
     pub shrink: Shrink,
+    /// The fast score's sigmas and the filter's estimate of the effect's parameters.
+    pub significance: Significance,
     /// The effect's values as kept (truth.ron's spelling).
     pub parameters: Effect,
     /// The second-best candidate and its score.
@@ -341,6 +393,8 @@ pub struct RoundSummary {
     pub rejected: Vec<Rejected>,
     /// Earlier effects dropped after this round.
     pub dropped: Vec<Dropped>,
+    /// Earlier effects changed to their other form after this round.
+    pub reformed: Vec<Reformed>,
 }
 
 impl RoundSummary {
@@ -353,10 +407,12 @@ impl RoundSummary {
             gap_before: r.gap_before,
             gap_after: r.gap_after,
             shrink: r.shrink.clone(),
+            significance: r.significance.clone(),
             parameters: r.effect.clone(),
             runner_up: r.candidates.get(1).map(|c| (c.id, c.score)),
             rejected: r.rejected.clone(),
             dropped: r.dropped.clone(),
+            reformed: r.reformed.clone(),
         }
     }
 }
@@ -400,9 +456,10 @@ pub fn diagnose_from(
     check_config(config)?;
     let base = spec.base;
     let (run, res) = calibrate_and_residuals(inputs, &mut spec, config)?;
+    let base_consistency = run_consistency(&run);
     let initial_residuals = res.clone();
     let mut state = State { spec, run, res };
-    let initial_dropped = drop_unsupported(inputs, config, &mut state, None)?;
+    let (initial_dropped, _) = drop_unsupported(inputs, config, &mut state, None)?;
     let mut rounds = Vec::new();
     loop {
         let candidates = candidates_of(inputs, config, &state)?;
@@ -411,7 +468,7 @@ pub fn diagnose_from(
         } else {
             (None, Vec::new())
         };
-        let Some((best, shrink, next)) = accepted else {
+        let Some((best, shrink, significance, next)) = accepted else {
             let mut d = finish(
                 inputs,
                 base,
@@ -423,11 +480,12 @@ pub fn diagnose_from(
                 initial_residuals,
             );
             d.initial_dropped = initial_dropped;
+            d.base_consistency = base_consistency;
             return Ok(d);
         };
         let before = state;
         state = next;
-        let dropped = drop_unsupported(inputs, config, &mut state, Some(best.id))?;
+        let (dropped, reformed) = drop_unsupported(inputs, config, &mut state, Some(best.id))?;
         rounds.push(Round {
             found: best.id,
             action: if before.spec.contains(EffectId::Albedo) && best.id == EffectId::AlbedoGain {
@@ -445,7 +503,9 @@ pub fn diagnose_from(
             candidates,
             rejected,
             dropped,
+            reformed,
             shrink,
+            significance,
             gap_before: gap(&before.res),
             gap_after: gap(&state.res),
             signature_before: signature(best.id, &before.res),
@@ -495,7 +555,10 @@ fn finish(
     initial_residuals: Residuals,
 ) -> Diagnosis {
     let misfit = misfit(&state.res, inputs.references, albedo_gain(&state.spec));
+    let consistency = run_consistency(&state.run);
     Diagnosis {
+        base_consistency: consistency.clone(),
+        consistency,
         base_model: base,
         initial_dropped: Vec::new(),
         rounds,
@@ -522,8 +585,8 @@ fn candidates_of(
     rescored_by_refit(inputs, &state.spec, config, &state.run, &state.res, scored)
 }
 
-/// A candidate that passed, the shrink it achieved and the state with it.
-type Accepted = (CandidateFit, Shrink, State);
+/// A candidate that passed, the shrink it achieved, its significance and the state with it.
+type Accepted = (CandidateFit, Shrink, Significance, State);
 
 /// Tries the significant candidates best first (at most [`DiagnoseConfig::max_tries`]):
 /// the first whose refit succeeds and shrinks the gap it targets is accepted; the others
@@ -535,25 +598,54 @@ fn try_candidates(
     candidates: &[CandidateFit],
 ) -> Result<(Option<Accepted>, Vec<Rejected>), DiagnoseError> {
     let mut rejected = Vec::new();
-    let significant = candidates.iter().filter(|c| c.score > config.threshold);
-    for c in significant.take(config.max_tries) {
-        let reason = match with_candidate(inputs, config, state, c) {
+    let mut significant: Vec<&CandidateFit> = candidates
+        .iter()
+        .filter(|c| c.score > config.threshold)
+        .collect();
+    // Nested terms, the simpler first: a significant `albedo-gain` is tried before
+    // `albedo-map` (a pattern beyond the common gain), which is otherwise scored on the
+    // residuals the gain leaves and is tried again on them in the next round.
+    if let (Some(gain), Some(map)) = (
+        significant
+            .iter()
+            .position(|c| c.id == EffectId::AlbedoGain),
+        significant.iter().position(|c| c.id == EffectId::AlbedoMap),
+    ) && map < gain
+    {
+        // After the removal the gain sits at `gain - 1`: the map goes right after it.
+        let m = significant.remove(map);
+        significant.insert(gain, m);
+    }
+    for &c in significant.iter().take(config.max_tries) {
+        let (c, refit) = better_form(inputs, config, state, c);
+        let c = &c;
+        let reason = match refit {
             Ok(next) => {
                 let shrink = shrink(c, &state.res, &next.res, config);
-                if shrink.significant {
-                    return Ok((Some((c.clone(), shrink, next)), rejected));
+                let kept = next.spec.added(c.id).unwrap_or(&c.effect);
+                let sig = significance(c, kept, &next.run, albedo_gain(&state.spec));
+                if shrink.significant && sig.agrees() {
+                    return Ok((Some((c.clone(), shrink, sig, next)), rejected));
                 }
-                format!(
-                    "its refit does not shrink the gap it targets: {} RMS {:.4} -> {:.4} over {} \
+                if shrink.significant {
+                    format!(
+                        "its refitted parameter is within {MIN_PARAMETER_SIGMAS} sigma of its \
+                         null in the filter's own estimate: {}",
+                        sig.text()
+                    )
+                } else {
+                    format!(
+                        "its refit does not shrink the gap it targets: {} RMS {:.4} -> {:.4} over {} \
                      samples, {:.0} % of the excess removed (at least {:.0} % needed), {:.1} nats",
-                    shrink.sensor,
-                    shrink.rms_before,
-                    shrink.rms_after,
-                    shrink.samples,
-                    100.0 * shrink.fraction_removed,
-                    100.0 * config.min_shrink,
-                    shrink.nats
-                )
+                        shrink.sensor,
+                        shrink.rms_before,
+                        shrink.rms_after,
+                        shrink.samples,
+                        100.0 * shrink.fraction_removed,
+                        100.0 * config.min_shrink,
+                        shrink.nats
+                    )
+                }
             }
             Err(e) => format!("its refit failed: {e}"),
         };
@@ -564,6 +656,66 @@ fn try_candidates(
         });
     }
     Ok((None, rejected))
+}
+
+/// Candidate `c`, or its other form when that one is significant too and its refit leaves
+/// the smaller photodiode residuals (sum of squares over every sample): the fast fits of
+/// two similar shapes (a Kelly roll-off and a raised-cosine taper from 57 to 90 deg differ
+/// by a few percent of the output) cannot tell them apart as well as a calibration with
+/// each can. With the refit of the one kept.
+fn better_form(
+    inputs: &DiagnoseInputs<'_>,
+    config: &DiagnoseConfig,
+    state: &State,
+    c: &CandidateFit,
+) -> (CandidateFit, Result<State, DiagnoseError>) {
+    let first = with_candidate(inputs, config, state, c);
+    let Some(other) = c
+        .alternative
+        .as_deref()
+        .filter(|o| o.score > config.threshold)
+    else {
+        return (c.clone(), first);
+    };
+    let second = with_candidate(inputs, config, state, other);
+    let rss =
+        |r: &Result<State, DiagnoseError>| r.as_ref().map_or(f64::INFINITY, |s| pd_rss(&s.res));
+    let (rss_first, rss_second) = (rss(&first), rss(&second));
+    let note = |kept: &CandidateFit, lost: &CandidateFit, kept_rss: f64, lost_rss: f64| {
+        format!(
+            "; this form kept over {} by the refits' photodiode residual sums of squares \
+             ({kept_rss:.4} V^2 against {lost_rss:.4})",
+            effect_form(&lost.effect)
+        ) + if kept.score < lost.score {
+            " although its fast score is lower"
+        } else {
+            ""
+        }
+    };
+    if rss_second < rss_first {
+        let mut kept = other.clone();
+        kept.evidence += &note(other, c, rss_second, rss_first);
+        kept.alternative = Some(Box::new(CandidateFit {
+            alternative: None,
+            ..c.clone()
+        }));
+        (kept, second)
+    } else {
+        let mut kept = c.clone();
+        kept.evidence += &note(c, other, rss_first, rss_second);
+        (kept, first)
+    }
+}
+
+/// The form of an effect in words, for evidence lines.
+fn effect_form(effect: &Effect) -> &'static str {
+    match effect {
+        Effect::KellyRolloff { .. } => "the Kelly form",
+        Effect::FovRolloff { .. } => "the start/cutoff taper",
+        Effect::Saturation { .. } => "one common level",
+        Effect::SaturationPerPhotodiode { .. } => "a level per photodiode",
+        _ => "the other form",
+    }
 }
 
 /// The state with candidate `c` in the model: calibrated again (unless it does not change
@@ -581,6 +733,11 @@ fn with_candidate(
         refine(inputs, &mut spec, config, c.id, run, res)?
     } else {
         let telemetry = spec.corrected_telemetry(inputs.telemetry);
+        let corrected = spec.albedo_model(inputs.albedo);
+        let inputs = &DiagnoseInputs {
+            albedo: corrected.as_ref().unwrap_or(inputs.albedo),
+            ..*inputs
+        };
         let res = residuals(
             &residual_inputs(inputs, &telemetry, config),
             &spec,
@@ -592,13 +749,15 @@ fn with_candidate(
 }
 
 /// Drops every effect of the model but `newest` whose score on the residuals of the model
-/// without it no longer exceeds the threshold (the same evidence measure as for adding).
+/// without it no longer exceeds the threshold (the same evidence measure as for adding);
+/// an effect kept that has two forms is fitted again there (either form) and changed when
+/// the model with the new fit leaves the smaller photodiode residuals.
 fn drop_unsupported(
     inputs: &DiagnoseInputs<'_>,
     config: &DiagnoseConfig,
     state: &mut State,
     newest: Option<EffectId>,
-) -> Result<Vec<Dropped>, DiagnoseError> {
+) -> Result<(Vec<Dropped>, Vec<Reformed>), DiagnoseError> {
     let n_pd = inputs.meta.photodiodes.len();
     let earlier: Vec<EffectId> = state
         .spec
@@ -608,6 +767,7 @@ fn drop_unsupported(
         .filter(|&id| Some(id) != newest)
         .collect();
     let mut dropped = Vec::new();
+    let mut reformed = Vec::new();
     for id in earlier {
         let mut spec = state.spec.without(id);
         // A model that cannot be calibrated without the effect keeps it.
@@ -629,9 +789,57 @@ fn drop_unsupported(
                 gap_after: gap(&res),
             });
             *state = State { spec, run, res };
+            continue;
+        }
+        let without = State { spec, run, res };
+        if let Some((next, change)) = other_form(inputs, config, state, &without, &fit) {
+            reformed.push(change);
+            *state = next;
         }
     }
-    Ok(dropped)
+    Ok((dropped, reformed))
+}
+
+/// Photodiode residual sum of squares over every sample, V^2.
+fn pd_rss(res: &Residuals) -> f64 {
+    res.pd.iter().map(|p| p.residual_v * p.residual_v).sum()
+}
+
+/// The model `without` plus the effect as fitted again now (`fit`, or its other form when
+/// `fit` equals the one `state` holds), when it scores above the threshold and leaves the
+/// smaller photodiode residuals than `state`.
+fn other_form(
+    inputs: &DiagnoseInputs<'_>,
+    config: &DiagnoseConfig,
+    state: &State,
+    without: &State,
+    fit: &CandidateFit,
+) -> Option<(State, Reformed)> {
+    let current = state.spec.added(fit.id)?.clone();
+    // Only effects with two forms: their shape parameters (the Kelly exponent, which the
+    // filter does not estimate, or a taper's ends) were fitted on the residuals of their
+    // round, which may have carried effects found later.
+    fit.alternative.as_ref()?;
+    let form = std::iter::once(fit)
+        .chain(fit.alternative.as_deref())
+        .find(|f| f.effect != current && f.score > config.threshold)?;
+    let next = with_candidate(inputs, config, without, form).ok()?;
+    let (old, new) = (pd_rss(&state.res), pd_rss(&next.res));
+    (new < old).then(|| {
+        let to = next
+            .spec
+            .added(fit.id)
+            .cloned()
+            .unwrap_or(form.effect.clone());
+        let change = Reformed {
+            id: fit.id,
+            from: current,
+            to,
+            photodiode_rss_v2: [old, new],
+            gap_after: gap(&next.res),
+        };
+        (next, change)
+    })
 }
 
 /// The shrink of the residuals candidate `c` targets from `before` to `after`: its
@@ -850,6 +1058,11 @@ pub fn calibrate_and_residuals(
     let telemetry = spec.corrected_telemetry(inputs.telemetry);
     let run = filter_run(inputs, spec, &config.filter, &telemetry)?;
     spec.adopt_estimates(&run.calibration);
+    let corrected = spec.albedo_model(inputs.albedo);
+    let inputs = &DiagnoseInputs {
+        albedo: corrected.as_ref().unwrap_or(inputs.albedo),
+        ..*inputs
+    };
     let res = residuals(&residual_inputs(inputs, &telemetry, config), spec, &run)?;
     Ok((run, res))
 }
@@ -863,9 +1076,17 @@ fn filter_run(
 ) -> Result<CalibrationRun, DiagnoseError> {
     let nominal: Vec<Photodiode> = pdcal_filter::nominal_photodiodes(inputs.meta);
     let model = spec.measurement_model(nominal, filter)?;
+    let mut filter = filter.clone();
+    filter
+        .parameter_sigmas
+        .splice(0..0, spec.parameter_sigmas());
+    let filter = &filter;
     // Without albedo in the model, the filter's start (photodiode Sun vector) must not
     // remove it either.
-    let albedo = spec.contains(EffectId::Albedo).then_some(inputs.albedo);
+    let corrected = spec.albedo_model(inputs.albedo);
+    let albedo = spec
+        .contains(EffectId::Albedo)
+        .then_some(corrected.as_ref().unwrap_or(inputs.albedo));
     let run_inputs = RunInputs {
         meta: inputs.meta,
         telemetry,

@@ -50,9 +50,11 @@ pub mod candidates;
 pub mod consistency;
 mod diagnose;
 mod error;
+mod forms;
 pub mod model;
 pub mod refit;
 pub mod residuals;
+pub mod significance;
 pub mod stats;
 
 pub use candidates::{
@@ -62,10 +64,11 @@ pub use consistency::{Misfit, misfit};
 pub use diagnose::{
     Action, DEFAULT_MAX_LAG, DEFAULT_MIN_SHRINK, DEFAULT_THRESHOLD, DIAGNOSIS_FORMAT_VERSION,
     DiagnoseConfig, DiagnoseInputs, Diagnosis, DiagnosisSummary, Dropped, FinalCheck, Gap,
-    Rejected, Round, RoundSummary, Shrink, UNEXPLAINED, calibrate_and_residuals, diagnose,
-    diagnose_from, gap, shrink,
+    Reformed, Rejected, Round, RoundSummary, Shrink, UNEXPLAINED, calibrate_and_residuals,
+    diagnose, diagnose_from, gap, shrink,
 };
 pub use error::DiagnoseError;
 pub use model::{BaseModel, ModelSpec, changes_filter};
 pub use refit::innovation_log_likelihood_gain;
 pub use residuals::{Residuals, residuals};
+pub use significance::{MIN_PARAMETER_SIGMAS, Significance, chi_square_sigmas};

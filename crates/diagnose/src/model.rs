@@ -4,8 +4,10 @@
 
 use std::str::FromStr;
 
+use pdcal_albedo::AlbedoModel;
 use pdcal_dataset::{Effect, EffectId, Telemetry};
-use pdcal_filter::{Calibration, FilterConfig};
+use pdcal_effects::albedo_map_factor;
+use pdcal_filter::{Calibration, FilterConfig, ParameterSigma};
 use pdcal_photodiode::{
     Albedo, DirectSun, EffectModelOptions, MeasurementModel, ParameterRole, Photodiode, add_effect,
     estimated_values_mut,
@@ -128,6 +130,35 @@ impl ModelSpec {
         Ok(model)
     }
 
+    /// The albedo model with the `albedo-map` correction applied, if the model holds one
+    /// (else `None`: the map as given).
+    pub fn albedo_model(&self, base: &AlbedoModel) -> Option<AlbedoModel> {
+        match self.added(EffectId::AlbedoMap) {
+            Some(Effect::AlbedoMap { latitude_gains }) => {
+                Some(base.with_latitude_factor(|lat| albedo_map_factor(latitude_gains, lat)))
+            }
+            _ => None,
+        }
+    }
+
+    /// Initial sigmas of the estimated parameters whose scale is the fitted value's own
+    /// rather than their unit's: the Kelly roll-off's `kappa` (0.001 to 10 between data
+    /// sets) starts at the fit with half its value as 1 sigma, so that the filter's first
+    /// steps keep it positive. Put before the configured sigmas (names win over units).
+    pub fn parameter_sigmas(&self) -> Vec<ParameterSigma> {
+        self.added
+            .iter()
+            .filter_map(|e| match e {
+                Effect::KellyRolloff { kappa, .. } => Some(ParameterSigma {
+                    name_or_unit: "fov_rolloff_kappa".to_owned(),
+                    sigma: 0.5 * kappa,
+                    walk_per_sqrt_h: 0.0,
+                }),
+                _ => None,
+            })
+            .collect()
+    }
+
     /// The telemetry with the added sensor corrections applied (`mag-bias` subtracted,
     /// the gyro divided by `1 + e` per axis).
     pub fn corrected_telemetry(&self, telemetry: &Telemetry) -> Telemetry {
@@ -161,7 +192,7 @@ impl ModelSpec {
 }
 
 /// The names of the parameters of `effect`'s model component, in order.
-fn parameter_names(effect: &Effect) -> Vec<String> {
+pub(crate) fn parameter_names(effect: &Effect) -> Vec<String> {
     let n = effect.per_photodiode().map_or(0, |(_, v)| v.len());
     let mut model = MeasurementModel::new(vec![Photodiode::from_az_el_deg(1.0, 0.0, 0.0, 0.0); n]);
     let options = EffectModelOptions {

@@ -9,7 +9,7 @@
 //! The forward filter's innovations are the prediction-error decomposition of the data's
 //! likelihood under the model: with the offset as a state, the filter separates it from the
 //! normals as the body rate changes direction, and the log-likelihood gain is the test
-//! statistic the issue asks for ("a likelihood ratio from a refit with the term added").
+//! statistic: a likelihood ratio from a refit with the term added.
 //! It costs one forward calibration per round.
 
 use std::collections::HashMap;
@@ -84,6 +84,7 @@ pub(crate) fn time_offset_refit(
         id: pdcal_dataset::EffectId::TimeOffset,
         effect: Effect::TimeOffset { seconds },
         support: Vec::new(),
+        alternative: None,
         wald,
         parameters: 1,
         samples: common,
@@ -108,6 +109,7 @@ mod tests {
             residual,
             bound_3sigma: 3.0 * sigma,
             accepted: true,
+            attitude_held: true,
         }
     }
 

@@ -62,6 +62,9 @@ pub struct PdSample {
     /// 1-sigma of the prediction from the uncertainty the filter itself reports for the
     /// final scale factor and normal, V.
     pub prediction_sigma_v: f64,
+    /// Geocentric latitude of the point below the spacecraft (Earth-fixed), rad: where the
+    /// albedo a photodiode sees comes from, for the `albedo-map` candidate.
+    pub nadir_lat_rad: f64,
 }
 
 /// One magnetometer sample, body frame.
@@ -410,6 +413,10 @@ fn row_samples(
     let hard = ShadowMode::Hard.factor(sun_fraction) * sun_distance_factor;
     let a_t = attitude.transpose();
     let w_cross_s = rate.cross(&sun_body);
+    let r_itrf = reference.gcrf_to_itrf * reference.r_gcrf_km;
+    let nadir_lat_rad = (r_itrf.z / r_itrf.norm().max(f64::MIN_POSITIVE))
+        .clamp(-1.0, 1.0)
+        .asin();
     let mut known = vec![0.0; photodiodes.len()];
     let mut outputs = vec![0.0; photodiodes.len()];
     let mut complete = true;
@@ -450,6 +457,7 @@ fn row_samples(
                 let scale_part = partials.d_scale * pd.scale_v;
                 prediction_sigma(u, pd.scale_v, scale_part, cos)
             }),
+            nadir_lat_rad,
         });
     }
     if complete && sun_fraction >= FULL_SUN {

@@ -69,11 +69,13 @@ pub enum EffectId {
     AlbedoGain,
     /// `temperature`: scale factors depending on the photodiode's temperature.
     Temperature,
+    /// `albedo-map`: the reflectivity map corrected by a factor varying with latitude.
+    AlbedoMap,
 }
 
 impl EffectId {
     /// Every effect, in the contract's order (the original nine, then the later ones).
-    pub const ALL: [EffectId; 11] = [
+    pub const ALL: [EffectId; 12] = [
         EffectId::Albedo,
         EffectId::FovRolloff,
         EffectId::DarkOffset,
@@ -85,6 +87,7 @@ impl EffectId {
         EffectId::GyroScale,
         EffectId::AlbedoGain,
         EffectId::Temperature,
+        EffectId::AlbedoMap,
     ];
 
     /// The fixed string id (`fov-rolloff`, ...).
@@ -101,6 +104,7 @@ impl EffectId {
             EffectId::GyroScale => "gyro-scale",
             EffectId::AlbedoGain => "albedo-gain",
             EffectId::Temperature => "temperature",
+            EffectId::AlbedoMap => "albedo-map",
         }
     }
 
@@ -126,6 +130,9 @@ impl EffectId {
                 "the albedo term rescaled: 1 as modelled, 0 absent (a model term the data lack)"
             }
             EffectId::Temperature => "scale factors depending on temperature, per photodiode",
+            EffectId::AlbedoMap => {
+                "the albedo map's pattern off: the reflectivity scaled by a smooth factor of latitude"
+            }
         }
     }
 
@@ -154,24 +161,14 @@ impl fmt::Display for UnknownEffect {
         let known: Vec<&str> = EffectId::ALL.iter().map(|e| e.as_str()).collect();
         write!(
             f,
-            "unknown effect {:?} (known: {})",
-            clip(&self.0),
+            "unknown effect {} (known: {})",
+            pdcal_text::quote(&self.0),
             known.join(", ")
         )
     }
 }
 
 impl std::error::Error for UnknownEffect {}
-
-/// At most 80 characters of a user's string, for messages.
-fn clip(s: &str) -> String {
-    const MAX: usize = 80;
-    if s.chars().count() <= MAX {
-        s.to_owned()
-    } else {
-        s.chars().take(MAX).chain("...".chars()).collect()
-    }
-}
 
 impl FromStr for EffectId {
     type Err = UnknownEffect;
@@ -216,6 +213,16 @@ pub enum Effect {
         /// Incidence angle where the output reaches zero, rad.
         cutoff_rad: f64,
     },
+    /// `fov-rolloff` in the Kelly form of the coarse-sun-sensor models of other simulators
+    /// (Basilisk's `kellyFactor`, with the exponent free): the cosine law `c` times
+    /// `K(c) = 1 - exp(-c^exponent / kappa)`, `c` the cosine of incidence. Basilisk's form
+    /// is `exponent = 2`; `kappa = 0.1` loses 0.7 % at 45 deg, 8 % at 60 and 31 % at 70.
+    KellyRolloff {
+        /// `kappa > 0`: the larger, the earlier the response falls.
+        kappa: f64,
+        /// `k > 0`, the power of the cosine in the exponent.
+        exponent: f64,
+    },
     /// `dark-offset`: a constant added to each output, present in eclipse too.
     DarkOffset {
         /// Offset per photodiode, V.
@@ -225,6 +232,12 @@ pub enum Effect {
     Saturation {
         /// Largest output, V.
         volts: f64,
+    },
+    /// `saturation` with one clip level per photodiode (each channel's own amplifier or ADC
+    /// range, e.g. a fixed fraction of its scale factor): `min(output_i, volts_i)`.
+    SaturationPerPhotodiode {
+        /// Largest output per photodiode, V.
+        volts: Vec<f64>,
     },
     /// `penumbra`: the direct Sun scaled by the illuminated fraction of the solar disc.
     Penumbra,
@@ -263,6 +276,40 @@ pub enum Effect {
         /// Temperature at which the scale factor is `C_i`, degrees Celsius.
         reference_c: f64,
     },
+    /// `albedo-map`: every cell's reflectivity times `f(latitude)`, `f` piecewise linear
+    /// between `latitude_gains[j]` at the centres `-90 + 180 (j + 1/2) / n` deg of `n` equal
+    /// latitude bands (6 gains: -75, -45, -15, 15, 45, 75 deg), constant beyond the outer
+    /// centres. All gains 1 is the map as it is; a constant field is `albedo-gain`.
+    AlbedoMap {
+        /// Factor at each band centre, south to north.
+        latitude_gains: Vec<f64>,
+    },
+}
+
+/// The factor of an `albedo-map` correction with `latitude_gains` at latitude `lat_rad`:
+/// linear between the band centres `-90 + 180 (j + 1/2) / n` deg, constant beyond the outer
+/// ones, never below 0; 1 without gains.
+pub fn albedo_map_factor(latitude_gains: &[f64], lat_rad: f64) -> f64 {
+    match latitude_gains {
+        [] => 1.0,
+        [g] => g.max(0.0),
+        gains => {
+            let n = gains.len();
+            // Position in units of bands, 0 at the first centre.
+            let x =
+                ((lat_rad.to_degrees() + 90.0) / 180.0 * n as f64 - 0.5).clamp(0.0, (n - 1) as f64);
+            let j = (x.floor() as usize).min(n - 2);
+            let w = x - j as f64;
+            (gains[j] * (1.0 - w) + gains[j + 1] * w).max(0.0)
+        }
+    }
+}
+
+/// The latitude band, of `n` equal bands from the south pole, holding `lat_rad`: the
+/// `albedo-map` gain it is fitted to.
+pub fn albedo_map_band(n: usize, lat_rad: f64) -> usize {
+    let x = (lat_rad.to_degrees() + 90.0) / 180.0 * n as f64;
+    (x.max(0.0) as usize).min(n.saturating_sub(1))
 }
 
 /// Default reference temperature of the `temperature` effect, degrees Celsius.
@@ -290,9 +337,11 @@ impl Effect {
     pub fn id(&self) -> EffectId {
         match self {
             Effect::Albedo { .. } => EffectId::Albedo,
-            Effect::FovRolloff { .. } => EffectId::FovRolloff,
+            Effect::FovRolloff { .. } | Effect::KellyRolloff { .. } => EffectId::FovRolloff,
             Effect::DarkOffset { .. } => EffectId::DarkOffset,
-            Effect::Saturation { .. } => EffectId::Saturation,
+            Effect::Saturation { .. } | Effect::SaturationPerPhotodiode { .. } => {
+                EffectId::Saturation
+            }
             Effect::Penumbra => EffectId::Penumbra,
             Effect::TimeOffset { .. } => EffectId::TimeOffset,
             Effect::ScaleDrift { .. } => EffectId::ScaleDrift,
@@ -300,13 +349,16 @@ impl Effect {
             Effect::GyroScale { .. } => EffectId::GyroScale,
             Effect::AlbedoGain { .. } => EffectId::AlbedoGain,
             Effect::Temperature { .. } => EffectId::Temperature,
+            Effect::AlbedoMap { .. } => EffectId::AlbedoMap,
         }
     }
 
     /// The per-photodiode list, if the effect has one: its field name and values.
     pub fn per_photodiode(&self) -> Option<(&'static str, &[f64])> {
         match self {
-            Effect::DarkOffset { volts } => Some(("volts", volts)),
+            Effect::DarkOffset { volts } | Effect::SaturationPerPhotodiode { volts } => {
+                Some(("volts", volts))
+            }
             Effect::ScaleDrift { fraction_per_hour } => {
                 Some(("fraction_per_hour", fraction_per_hour))
             }
@@ -356,6 +408,19 @@ impl Effect {
             Effect::Saturation { volts } if *volts <= 0.0 => {
                 return Err(invalid("volts", *volts, "must be positive"));
             }
+            Effect::SaturationPerPhotodiode { volts } => {
+                if let Some((i, v)) = volts.iter().enumerate().find(|(_, v)| **v <= 0.0) {
+                    return Err(invalid(&format!("volts[{i}]"), *v, "must be positive"));
+                }
+            }
+            Effect::KellyRolloff { kappa, exponent } => {
+                if !(*kappa > 0.0 && *kappa <= 100.0) {
+                    return Err(invalid("kappa", *kappa, "must be in 0 <.. 100"));
+                }
+                if !(*exponent > 0.0 && *exponent <= 20.0) {
+                    return Err(invalid("exponent", *exponent, "must be in 0 <.. 20"));
+                }
+            }
             Effect::TimeOffset { seconds } if seconds.abs() > 60.0 => {
                 return Err(invalid("seconds", *seconds, "must be at most 60 in size"));
             }
@@ -366,6 +431,26 @@ impl Effect {
             }
             Effect::AlbedoGain { gain } if !(0.0..=5.0).contains(gain) => {
                 return Err(invalid("gain", *gain, "must be in 0 ..= 5"));
+            }
+            Effect::AlbedoMap { latitude_gains } => {
+                if latitude_gains.len() < 2 {
+                    return Err(invalid(
+                        "latitude_gains",
+                        latitude_gains.len() as f64,
+                        "needs at least 2 gains (the poles)",
+                    ));
+                }
+                if let Some((i, g)) = latitude_gains
+                    .iter()
+                    .enumerate()
+                    .find(|(_, g)| !(0.0..=5.0).contains(*g))
+                {
+                    return Err(invalid(
+                        &format!("latitude_gains[{i}]"),
+                        *g,
+                        "must be in 0 ..= 5",
+                    ));
+                }
             }
             Effect::Temperature {
                 coefficient_per_k,
@@ -415,6 +500,19 @@ impl Effect {
             // The increment is fitted on the unscaled albedo regressor, so gains add.
             (Effect::AlbedoGain { gain }, Effect::AlbedoGain { gain: more }) => {
                 *gain += more - 1.0;
+                true
+            }
+            // Fitted the same way, on the map as corrected: the factors multiply.
+            (
+                Effect::AlbedoMap { latitude_gains },
+                Effect::AlbedoMap {
+                    latitude_gains: more,
+                },
+            ) if latitude_gains.len() == more.len() => {
+                latitude_gains
+                    .iter_mut()
+                    .zip(more)
+                    .for_each(|(g, m)| *g = (*g * m).max(0.0));
                 true
             }
             _ => false,
@@ -500,6 +598,9 @@ mod tests {
                 coefficient_per_k: vec![0.002; n_pd],
                 reference_c: REFERENCE_TEMPERATURE_C,
             },
+            Effect::AlbedoMap {
+                latitude_gains: vec![1.2, 1.0, 0.9, 1.1, 1.0, 0.8],
+            },
         ]
     }
 
@@ -532,6 +633,80 @@ mod tests {
             panic!("{rolloff:?}");
         };
         assert_eq!(cutoff_rad, std::f64::consts::FRAC_PI_2);
+    }
+
+    #[test]
+    fn other_forms_keep_their_id_and_survive_the_files() {
+        let forms = [
+            Effect::KellyRolloff {
+                kappa: 0.1,
+                exponent: 2.0,
+            },
+            Effect::SaturationPerPhotodiode {
+                volts: vec![3.2, 3.4, 3.6],
+            },
+        ];
+        let ids = [EffectId::FovRolloff, EffectId::Saturation];
+        for (effect, id) in forms.into_iter().zip(ids) {
+            assert_eq!(effect.id(), id);
+            effect.check(3).unwrap();
+            let ron_text = ron::to_string(&effect).unwrap();
+            assert_eq!(
+                ron::from_str::<Effect>(&ron_text).unwrap(),
+                effect,
+                "{ron_text}"
+            );
+            let json = serde_json::to_string(&effect).unwrap();
+            assert_eq!(serde_json::from_str::<Effect>(&json).unwrap(), effect);
+        }
+        let kelly: Effect = ron::from_str("KellyRolloff(kappa: 0.3, exponent: 2)").unwrap();
+        assert_eq!(
+            kelly,
+            Effect::KellyRolloff {
+                kappa: 0.3,
+                exponent: 2.0
+            }
+        );
+        let bad = Effect::SaturationPerPhotodiode {
+            volts: vec![3.0, -1.0],
+        };
+        assert_eq!(bad.check(2).unwrap_err().field, "volts[1]");
+        assert_eq!(bad.check(3).unwrap_err().field, "volts");
+        let bad = Effect::KellyRolloff {
+            kappa: 0.0,
+            exponent: 2.0,
+        };
+        assert_eq!(bad.check(1).unwrap_err().field, "kappa");
+    }
+
+    #[test]
+    fn albedo_map_factor_is_linear_between_its_knots() {
+        // Band centres -75, -45, -15, 15, 45, 75 deg.
+        let gains = [1.2, 1.0, 0.9, 1.1, 1.0, 0.8];
+        let at = |deg: f64| albedo_map_factor(&gains, deg.to_radians());
+        assert!((at(-90.0) - 1.2).abs() < 1e-12);
+        assert!((at(-75.0) - 1.2).abs() < 1e-12);
+        assert!((at(-60.0) - 1.1).abs() < 1e-12);
+        assert!((at(0.0) - 1.0).abs() < 1e-12);
+        assert!((at(15.0) - 1.1).abs() < 1e-12);
+        assert!((at(60.0) - 0.9).abs() < 1e-12);
+        assert!((at(90.0) - 0.8).abs() < 1e-12);
+        assert_eq!(albedo_map_factor(&[], 0.3), 1.0);
+        assert_eq!(albedo_map_band(6, (-90f64).to_radians()), 0);
+        assert_eq!(albedo_map_band(6, 0.01), 3);
+        assert_eq!(albedo_map_band(6, (90f64).to_radians()), 5);
+        let mut map = Effect::AlbedoMap {
+            latitude_gains: vec![1.0, 1.2],
+        };
+        assert!(map.compose(&Effect::AlbedoMap {
+            latitude_gains: vec![0.5, 1.0]
+        }));
+        assert_eq!(
+            map,
+            Effect::AlbedoMap {
+                latitude_gains: vec![0.5, 1.2]
+            }
+        );
     }
 
     #[test]

@@ -25,6 +25,13 @@ pub enum EffectRecord {
         /// Zero output from here, deg (> `start_deg`, <= 90).
         cutoff_deg: f64,
     },
+    /// `fov-rolloff`, Kelly form.
+    KellyRolloff {
+        /// `kappa` of `1 - exp(-c^exponent / kappa)`.
+        kappa: f64,
+        /// The power of the cosine.
+        exponent: f64,
+    },
     /// `dark-offset`.
     DarkOffset {
         /// Offset per photodiode, V.
@@ -34,6 +41,11 @@ pub enum EffectRecord {
     Saturation {
         /// Clip level, V.
         volts: f64,
+    },
+    /// `saturation`, one level per photodiode.
+    SaturationPerPhotodiode {
+        /// Clip level per photodiode, V.
+        volts: Vec<f64>,
     },
     /// `penumbra`.
     Penumbra,
@@ -73,6 +85,11 @@ pub enum EffectRecord {
         #[serde(rename = "reference_C", default = "reference_c")]
         reference_c: f64,
     },
+    /// `albedo-map`.
+    AlbedoMap {
+        /// Factor at each latitude knot, south to north, knots evenly from -90 to 90 deg.
+        latitude_gains: Vec<f64>,
+    },
 }
 
 fn reference_c() -> f64 {
@@ -98,7 +115,12 @@ impl EffectRecord {
                 ("start_deg".into(), *start_deg),
                 ("cutoff_deg".into(), *cutoff_deg),
             ],
-            Self::DarkOffset { volts } => indexed("volts", volts),
+            Self::KellyRolloff { kappa, exponent } => {
+                vec![("kappa".into(), *kappa), ("exponent".into(), *exponent)]
+            }
+            Self::DarkOffset { volts } | Self::SaturationPerPhotodiode { volts } => {
+                indexed("volts", volts)
+            }
             Self::Saturation { volts } => vec![("volts".into(), *volts)],
             Self::TimeOffset { seconds } => vec![("seconds".into(), *seconds)],
             Self::ScaleDrift { fraction_per_hour } => {
@@ -107,6 +129,7 @@ impl EffectRecord {
             Self::MagBias { bias_nt } => indexed("nT", bias_nt),
             Self::GyroScale { scale_error } => indexed("scale_error", scale_error),
             Self::AlbedoGain { gain } => vec![("gain".into(), *gain)],
+            Self::AlbedoMap { latitude_gains } => indexed("latitude_gains", latitude_gains),
             Self::Temperature {
                 percent_per_k,
                 reference_c,
@@ -130,7 +153,13 @@ impl From<EffectRecord> for Effect {
                 start_rad: start_deg.to_radians(),
                 cutoff_rad: cutoff_deg.to_radians(),
             },
+            EffectRecord::KellyRolloff { kappa, exponent } => {
+                Effect::KellyRolloff { kappa, exponent }
+            }
             EffectRecord::DarkOffset { volts } => Effect::DarkOffset { volts },
+            EffectRecord::SaturationPerPhotodiode { volts } => {
+                Effect::SaturationPerPhotodiode { volts }
+            }
             EffectRecord::Saturation { volts } => Effect::Saturation { volts },
             EffectRecord::Penumbra => Effect::Penumbra,
             EffectRecord::TimeOffset { seconds } => Effect::TimeOffset { seconds },
@@ -140,6 +169,7 @@ impl From<EffectRecord> for Effect {
             EffectRecord::MagBias { bias_nt } => Effect::MagBias { bias_nt },
             EffectRecord::GyroScale { scale_error } => Effect::GyroScale { scale_error },
             EffectRecord::AlbedoGain { gain } => Effect::AlbedoGain { gain },
+            EffectRecord::AlbedoMap { latitude_gains } => Effect::AlbedoMap { latitude_gains },
             EffectRecord::Temperature {
                 percent_per_k,
                 reference_c,
@@ -162,7 +192,13 @@ impl From<Effect> for EffectRecord {
                 start_deg: start_rad.to_degrees(),
                 cutoff_deg: cutoff_rad.to_degrees(),
             },
+            Effect::KellyRolloff { kappa, exponent } => {
+                EffectRecord::KellyRolloff { kappa, exponent }
+            }
             Effect::DarkOffset { volts } => EffectRecord::DarkOffset { volts },
+            Effect::SaturationPerPhotodiode { volts } => {
+                EffectRecord::SaturationPerPhotodiode { volts }
+            }
             Effect::Saturation { volts } => EffectRecord::Saturation { volts },
             Effect::Penumbra => EffectRecord::Penumbra,
             Effect::TimeOffset { seconds } => EffectRecord::TimeOffset { seconds },
@@ -172,6 +208,7 @@ impl From<Effect> for EffectRecord {
             Effect::MagBias { bias_nt } => EffectRecord::MagBias { bias_nt },
             Effect::GyroScale { scale_error } => EffectRecord::GyroScale { scale_error },
             Effect::AlbedoGain { gain } => EffectRecord::AlbedoGain { gain },
+            Effect::AlbedoMap { latitude_gains } => EffectRecord::AlbedoMap { latitude_gains },
             Effect::Temperature {
                 coefficient_per_k,
                 reference_c,

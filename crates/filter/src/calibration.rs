@@ -144,6 +144,11 @@ pub struct Calibration {
     /// Estimated model parameters, if any.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub parameters: Vec<ParameterEstimate>,
+    /// The quantities the data did not determine or determined weakly, one line each
+    /// (`pd03 scale_V: not-determined (why)`): a `not-determined` one holds its prior value
+    /// (`crate::identifiability`). Empty when every quantity is calibrated.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub status: Vec<String>,
 }
 
 impl Calibration {

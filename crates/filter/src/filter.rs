@@ -184,6 +184,10 @@ pub struct Filter {
     records: Vec<UpdateRecord>,
     counts: UpdateCounts,
     last: Option<Propagation>,
+    /// The Sun is the only vector ([`Filter::set_sun_only`]).
+    sun_only: bool,
+    /// The unit Sun direction in the body at the current step's prior attitude.
+    prior_sun_body: Vector3<f64>,
 }
 
 /// What the next step of a [`Filter`] reads of its past: a restart point
@@ -349,6 +353,8 @@ impl Filter {
             records: Vec::with_capacity(3 + m),
             counts: UpdateCounts::default(),
             last: None,
+            sun_only: false,
+            prior_sun_body: Vector3::zeros(),
         })
     }
 
@@ -497,6 +503,15 @@ impl Filter {
         Ok(())
     }
 
+    /// Tells the filter the Sun is its only vector (no magnetometer): the curvature
+    /// variance of a photodiode row then counts the attitude uncertainty across the Sun
+    /// line only. The rotation about it is unobserved and its variance (tens of degrees)
+    /// would otherwise swamp every photodiode row's noise and keep the Sun from holding the
+    /// attitude.
+    pub fn set_sun_only(&mut self, sun_only: bool) {
+        self.sun_only = sun_only;
+    }
+
     /// Checks the state and covariance after the step at telemetry row `index` (time
     /// `t_s`) and repairs the covariance if it stopped being positive definite
     /// ([`crate::guard`]). Every call tests the diagonal (`O(n)`); with `full` the whole
@@ -581,7 +596,16 @@ impl Filter {
         if !self.noise.second_order {
             return 0.0;
         }
-        let mut angle_var = 2.0 * (self.p_diag(0) + self.p_diag(1) + self.p_diag(2)) / 3.0;
+        let trace = self.p_diag(0) + self.p_diag(1) + self.p_diag(2);
+        let mut angle_var = if self.sun_only {
+            // The incidence sees only the attitude across the Sun line; the rotation about
+            // it, unobserved without a second vector, may carry any variance at all.
+            let u = self.prior_sun_body;
+            let p_aa = self.p.fixed_view::<3, 3>(ATTITUDE, ATTITUDE);
+            (trace - (u.transpose() * p_aa * u)[0]).max(0.0)
+        } else {
+            2.0 * trace / 3.0
+        };
         if let Some(d) = self.layout.normal(i) {
             angle_var += self.p_diag(d) + self.p_diag(d + 1);
         }
@@ -608,6 +632,7 @@ impl Filter {
         albedo: Option<&dyn AlbedoIrradiance>,
     ) -> Result<(), FilterError> {
         let sun_body = attitude * reference.sun_gcrf_unit;
+        self.prior_sun_body = sun_body.try_normalize(1e-12).unwrap_or_default();
         let sun_distance_factor = reference.sun_distance_factor();
         self.select_photodiodes(pd_v, reference, &sun_body);
         let albedo_used = albedo.filter(|_| !self.scratch.selected.is_empty());
@@ -809,8 +834,8 @@ impl Filter {
 
     /// The reset of the scales and normals, in three passes over the photodiodes: scales and
     /// normals, then the tangent bases of the normals that moved, then the model's copies.
-    /// Each pass's iterations are independent, so the processor overlaps them; one loop
-    /// doing all three took twice as long (0.97 against 0.47 us for 17 photodiodes).
+    /// Each pass's iterations are independent, so the processor overlaps them, which one
+    /// loop doing all three prevents (docs/performance.md).
     fn reset_photodiodes(&mut self) {
         let Scratch { dx, moved, .. } = &mut self.scratch;
         moved.clear();
@@ -1035,6 +1060,7 @@ impl StateView<'_> {
                     sigma: sig(e.state),
                 })
                 .collect(),
+            status: Vec::new(),
         }
     }
 }

@@ -11,8 +11,8 @@
 
 /// `erfc(x)` with a relative error below 1.2e-7 for every `x` (Numerical Recipes' `erfcc`, a
 /// Chebyshev fit of `erfc(x) exp(x^2)`): ample for a gate threshold, whose tail probability
-/// it changes by that fraction.
-fn erfc(x: f64) -> f64 {
+/// it changes by that fraction. Also the normal tail of the diagnosis's significance.
+pub fn erfc(x: f64) -> f64 {
     let z = x.abs();
     let t = 1.0 / (1.0 + 0.5 * z);
     let poly = -z * z - 1.265_512_23

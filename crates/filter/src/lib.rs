@@ -22,9 +22,9 @@
 //! `n <- rotate_normal_in(n, basis, d1, d2)` after each update, then `d = 0`, exactly like the
 //! multiplicative attitude reset. Azimuth, elevation and their sigmas are reported by mapping
 //! the 2x2 tangent covariance ([`calibration::az_el_sigmas_in`]); the azimuth sigma is `None`
-//! where it is undefined. (A single global basis breaks somewhere: the first version used one
-//! with its break on the cube corner -(1,1,1)/sqrt(3), where the sso-6u scenario mounts
-//! photodiode 9, and that sensor ended up to 14 sigma off.)
+//! where it is undefined. (A single global basis breaks somewhere: one with its break on
+//! the cube corner -(1,1,1)/sqrt(3), where the sso-6u scenario mounts photodiode 9, leaves
+//! that sensor up to 14 sigma off.)
 //!
 //! # Filter
 //!
@@ -41,9 +41,9 @@
 //!   deferred within a step: `P H^T` of a later update is `P_0 H^T - W (W^T H^T)`, and at the
 //!   end of the step one rank-k downdate of the lower triangle, mirrored so that `P` stays
 //!   exactly symmetric (the kernels in `algebra`: run-time dispatched AVX2/AVX-512 through
-//!   `pulp`, since the workspace builds for the SSE2 baseline). The attitude is not
-//!   relinearised between the updates of one step (docs/validation.md measures the
-//!   difference). The
+//!   `pulp`, so a processor with AVX-512 uses it under the workspace's x86-64-v3 build).
+//!   The attitude is not relinearised between the updates of one step
+//!   (docs/performance.md measures the difference). The
 //!   measurement variance adds the second-order (curvature) term of the measurement
 //!   function under the prior covariance (see [`FilterConfig::second_order_noise`]). Photodiode rows (Eq. 15 with
 //!   albedo; Eqs. 20-24 through the photodiode crate's partials, albedo partials as
@@ -89,11 +89,13 @@
 mod algebra;
 pub mod calibration;
 pub mod config;
+pub mod consistency;
 pub mod dense;
 mod error;
 pub mod filter;
 pub mod gate;
 pub mod guard;
+pub mod identifiability;
 pub mod init;
 pub mod layout;
 pub mod mounting;
@@ -107,6 +109,7 @@ pub mod smoother;
 
 pub use calibration::{Calibration, ParameterEstimate, PdCalibration};
 pub use config::{FilterConfig, Mode, ParameterSigma, SensorSigmas};
+pub use consistency::{Consistency, ConsistencyAccumulator, Verdict};
 pub use error::FilterError;
 pub use filter::{
     Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Propagation, Sensor,

@@ -26,6 +26,10 @@ pub struct StepEstimate {
     pub q: Quat,
     /// 1-sigma attitude error about the body x, y, z axes, deg.
     pub attitude_sigma_deg: [f64; 3],
+    /// The off-diagonal attitude covariances xy, xz, yz, deg^2: with the sigmas, the whole
+    /// attitude covariance, so that its sigma about any direction (the Sun line) can be
+    /// read back.
+    pub attitude_cov_offdiag_deg2: [f64; 3],
     /// Gyro bias, scales, normals (az/el) and parameters with their sigmas.
     pub calibration: Calibration,
 }
@@ -47,6 +51,10 @@ pub struct ResidualRecord {
     pub bound_3sigma: f64,
     /// Applied (true) or rejected by the gate.
     pub accepted: bool,
+    /// Whether the attitude was held at the row (its sigma in the observed directions at
+    /// most `segments.held_attitude_sigma_deg`): the rows whose bounds the consistency
+    /// verdict judges ([`crate::consistency`]).
+    pub attitude_held: bool,
 }
 
 /// The mode a run actually used.

@@ -1,6 +1,7 @@
 //! The offline run over a dataset: initialisation, forward filter, RTS smoother.
 
 use std::borrow::Cow;
+use std::f64::consts::PI;
 
 use nalgebra::{Matrix3, Vector3};
 use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView};
@@ -274,6 +275,8 @@ struct Cursor {
     steps: usize,
     /// The segment of the last step's row.
     step_segment: usize,
+    /// Whether the attitude was held after the last step (`segments.held_attitude_sigma_deg`).
+    held: bool,
 }
 
 /// Rows between two full factorisations of the covariance by the guard
@@ -471,7 +474,8 @@ impl<'a> ForwardPass<'a> {
             extra_sigma,
             used: used.clone(),
         };
-        let filter = Filter::new(model, layout, init, noise, algebra)?;
+        let mut filter = Filter::new(model, layout, init, noise, algebra)?;
+        filter.set_sun_only(!use_mag);
         let initial = filter.calibration(prior);
         let mut pass = ForwardPass {
             references: inputs.references,
@@ -500,6 +504,7 @@ impl<'a> ForwardPass<'a> {
                 acquired_sigma_deg: 0.0,
                 steps: 0,
                 step_segment: 0,
+                held: false,
             },
             filter,
             photodiode_time_s: vec![0.0; m],
@@ -777,6 +782,7 @@ impl<'a> ForwardPass<'a> {
         self.current.rows_used += 1;
         self.at.next = k + 1;
         self.at.last_t_s = t_s;
+        self.at.held = self.attitude_sigma_deg(k) <= self.config.segments.held_attitude_sigma_deg;
         self.end_segment_if_due(k);
         Ok(Some(k))
     }
@@ -899,6 +905,7 @@ impl<'a> ForwardPass<'a> {
             residual: r.residual,
             bound_3sigma: r.bound_3sigma,
             accepted: r.accepted,
+            attitude_held: self.at.held,
         })
     }
 
@@ -1085,6 +1092,8 @@ pub(crate) fn step_estimate(
         segment,
         q,
         attitude_sigma_deg: [sig(0), sig(1), sig(2)],
+        attitude_cov_offdiag_deg2: [(0, 1), (0, 2), (1, 2)]
+            .map(|(i, j)| view.p[(ATTITUDE + i, ATTITUDE + j)] * (180.0 / PI).powi(2)),
         calibration: view.calibration(layout, fixed),
     }
 }

@@ -47,6 +47,11 @@ pub struct SegmentConfig {
     /// magnetometer, only the axes across the Sun line count: the rotation about it is
     /// unobserved by design). Default 20: twice the initial Sun-vector sigma.
     pub lost_attitude_sigma_deg: f64,
+    /// The attitude is *held* at a row when its 1-sigma error in the observed directions
+    /// (as for the lost test) is at most this, deg. The consistency verdict judges the
+    /// residuals' bounds on held rows only (`crate::consistency`): a bound inflated by a
+    /// loose attitude says nothing about the model. Default 5.
+    pub held_attitude_sigma_deg: f64,
     /// The innovation test looks at this many of the latest scalar updates. Default 50
     /// (about ten rows with a few photodiodes lit and the magnetometer).
     pub lost_window_updates: usize,
@@ -64,6 +69,7 @@ impl Default for SegmentConfig {
             gyro_hold_s: None,
             pairing_tolerance_s: 10.0,
             lost_attitude_sigma_deg: 20.0,
+            held_attitude_sigma_deg: 5.0,
             lost_window_updates: 50,
             lost_gated_fraction: 0.5,
         }
@@ -89,6 +95,10 @@ impl SegmentConfig {
             (
                 "segments.lost_attitude_sigma_deg",
                 self.lost_attitude_sigma_deg,
+            ),
+            (
+                "segments.held_attitude_sigma_deg",
+                self.held_attitude_sigma_deg,
             ),
         ] {
             if !(value >= 0.0 && value.is_finite()) {

@@ -1,17 +1,22 @@
 //! The export through a checked map: columns found, cells converted, rows kept or dropped,
 //! the dataset built.
 
+use std::collections::HashMap;
+use std::io::Read;
 use std::path::Path;
 
+use csv::StringRecord;
 use hifitime::Epoch;
 use nalgebra::Vector3;
-use pdcal_dataset::{Dataset, DatasetMeta, EpochUtc, Telemetry};
+use pdcal_dataset::{Dataset, DatasetMeta, EpochUtc, Telemetry, TelemetryLayout, TelemetryRow};
 use pdcal_ephem::{frames, time};
 
-use crate::error::{ErrorKind, ImportError, clip, line_col, text_of};
+use crate::error::{ErrorKind, ImportError, clip, line_col, quote};
 use crate::map::{
-    ImportMap, MapSpec, OrbitMap, PositionFrame, Sentinels, columns, linear, mounts, orbit_spec,
+    Delimiter, DuplicateTimes, ImportMap, MapSpec, OrbitMap, PositionFrame, Sentinels, columns,
+    linear, mounts, orbit_spec,
 };
+use crate::source::Records;
 use crate::timeform::TimeFault;
 use crate::units::Quantity;
 
@@ -44,14 +49,24 @@ pub struct ImportReport {
     pub epoch_utc: String,
     /// Time from the first to the last kept row, s.
     pub span_s: f64,
+    /// The delimiter read with, and whether it was detected from the header (not given).
+    pub delimiter: Option<(Delimiter, bool)>,
+    /// The map's rule for rows of one time.
+    pub duplicate_times: DuplicateTimes,
+    /// Rows whose time equals the previous kept row's: dropped (`KeepFirst`) or averaged
+    /// into it (`Average`).
+    pub duplicate_rows: usize,
 }
 
 /// One map column resolved against the export's header.
 struct Channel {
     /// Map field path (`photodiodes[2]`).
     path: String,
-    /// 0-based cell index.
-    index: usize,
+    /// How the output names it: the header, or the combination written out.
+    label: String,
+    /// 0-based cell index and coefficient of each term (one term of coefficient 1 for a
+    /// plain column).
+    terms: Vec<(usize, f64)>,
     scale: f64,
     offset: f64,
     quantity: Quantity,
@@ -61,72 +76,159 @@ struct Channel {
     sentinel_hits: usize,
 }
 
-/// Converts the export `bytes` (named `csv_file` in errors) with `map`: every column the map
-/// names must be in the header; every cell of those columns must be empty, a number (a time
-/// in the map's form) or a sentinel. Rows with an empty or sentinel time are dropped; the
-/// kept rows must be in strictly increasing time order. The result has been through the
-/// dataset reader.
+/// The dataset made by a [`convert_stream`]: its dataset.ron, and what was done to the rows.
+#[derive(Clone, Debug)]
+pub struct Converted {
+    /// dataset.ron of the rows handed to the sink.
+    pub meta: DatasetMeta,
+    /// Counts of dropped rows and blanked cells.
+    pub report: ImportReport,
+}
+
+/// The telemetry.csv columns an import with `map` writes.
+pub fn layout(map: &ImportMap) -> TelemetryLayout {
+    let spec = &map.spec;
+    TelemetryLayout {
+        photodiodes: spec.photodiodes.len(),
+        magnetometer: spec.mag.is_some(),
+        positions: matches!(spec.orbit, OrbitMap::Positions { .. }),
+        temperatures: temperature_names(spec),
+    }
+}
+
+/// Converts the export `bytes` (named `csv_file` in errors) with `map`, in memory: every
+/// column the map names must be in the header; every cell of those columns must be empty,
+/// a number (a time in the map's form) or a sentinel. Rows with an empty or sentinel time are
+/// dropped; the kept rows must be in time order (rows of one time as the map's
+/// `duplicate_times` says). The result has been through the dataset reader. An export too
+/// long to hold goes through [`convert_stream`].
 pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Imported, ImportError> {
-    let text = text_of(csv_file, bytes.to_vec())?;
-    let mut reader = csv::ReaderBuilder::new()
-        .has_headers(false)
-        .flexible(true)
-        .trim(csv::Trim::All)
-        .from_reader(text.as_bytes());
-    let mut records = reader.records();
-    let header = match records.next() {
-        Some(Ok(h)) => h,
-        Some(Err(e)) => return Err(csv_error(csv_file, &e)),
+    let lay = layout(map);
+    let mut telemetry = Telemetry {
+        pd_v: vec![Default::default(); lay.photodiodes],
+        mag_nt: lay.magnetometer.then(Vec::new),
+        r_gcrf_km: lay.positions.then(Vec::new),
+        temperature_c: (lay.temperatures.iter())
+            .map(|name| pdcal_dataset::TemperatureColumn {
+                name: name.clone(),
+                values: Vec::new(),
+            })
+            .collect(),
+        ..Telemetry::default()
+    };
+    let converted = convert_stream(map, csv_file, bytes, |row| {
+        let tm = &mut telemetry;
+        tm.t_s.push(row.t_s);
+        tm.gyro_rad_s.push(row.gyro_rad_s);
+        if let Some(mag) = tm.mag_nt.as_mut() {
+            mag.push(row.mag_nt);
+        }
+        for (pd, value) in tm.pd_v.iter_mut().zip(&row.pd_v) {
+            pd.push(*value);
+        }
+        if let Some(r) = tm.r_gcrf_km.as_mut() {
+            r.push(row.r_gcrf_km);
+        }
+        for (column, value) in tm.temperature_c.iter_mut().zip(&row.temperature_c) {
+            column.values.push(*value);
+        }
+        Ok(())
+    })?;
+    let dataset = Dataset {
+        meta: converted.meta,
+        telemetry,
+        truth: None,
+    };
+    pdcal_dataset::render_dataset(&dataset)?;
+    Ok(Imported {
+        dataset,
+        report: converted.report,
+    })
+}
+
+/// [`convert`] reading the export from `source` as it goes and handing each dataset row to
+/// `sink` (a [`pdcal_dataset::TelemetryStream`], say), holding no more than one row and the
+/// header: memory does not grow with the export's length. The sink's rows are in order and
+/// complete only when this returns `Ok`.
+pub fn convert_stream<R: Read>(
+    map: &ImportMap,
+    csv_file: &Path,
+    source: R,
+    mut sink: impl FnMut(&TelemetryRow) -> Result<(), ImportError>,
+) -> Result<Converted, ImportError> {
+    let spec = &map.spec;
+    let mut records = Records::open(csv_file, source, spec.delimiter)?;
+    let mut header = StringRecord::new();
+    let header_line = match records.next(&mut header)? {
+        Some(line) => line,
         None => return Err(ImportError::whole_file(csv_file, ErrorKind::Empty)),
     };
-    let header_line = header.position().map_or(1, |p| p.line() as usize);
-    let names: Vec<String> = header.iter().map(str::to_owned).collect();
-    let locate = map.locator();
-    let spec = &map.spec;
-    let find = |path: &str, name: &str| -> Result<usize, ImportError> {
-        let place = locate.column(name).map(|o| line_col(&map.text, o));
-        let mut hits = names.iter().enumerate().filter(|(_, h)| *h == name);
-        let Some((first, _)) = hits.next() else {
-            let listed: Vec<String> = names.iter().map(|n| format!("{n:?}")).collect();
-            let kind = ErrorKind::UnknownColumn {
-                name: name.to_owned(),
-                csv: file_name(csv_file),
-                header_line,
-                available: clip(&listed.join(", ")),
-            };
-            return Err(
-                ImportError::maybe_at(&map.file, place, kind).named(format!("{path}.column"))
-            );
-        };
-        if let Some((second, _)) = hits.next() {
-            let kind = ErrorKind::AmbiguousColumn {
-                name: name.to_owned(),
-                first: first + 1,
-                second: second + 1,
-            };
-            return Err(
-                ImportError::at(csv_file, header_line, Some(second + 1), kind)
-                    .named(name.to_owned()),
-            );
+    if header.iter().all(str::is_empty) {
+        // A header line of blanks: blank throughout is an empty file, else a missing header.
+        let mut rest = StringRecord::new();
+        while records.next(&mut rest)?.is_some() {}
+        if records.blank_so_far() {
+            return Err(ImportError::whole_file(csv_file, ErrorKind::Empty));
         }
-        Ok(first)
+    }
+    let mut index: HashMap<&str, (usize, Option<usize>)> = HashMap::new();
+    for (i, name) in header.iter().enumerate() {
+        index
+            .entry(name)
+            .and_modify(|e| {
+                e.1.get_or_insert(i);
+            })
+            .or_insert((i, None));
+    }
+    let locate = map.locator();
+    let find = |field: &str, name: &str| -> Result<usize, ImportError> {
+        match index.get(name) {
+            None => {
+                let place = locate.column(name).map(|o| line_col(&map.text, o));
+                let kind = ErrorKind::UnknownColumn {
+                    name: name.to_owned(),
+                    csv: file_name(csv_file),
+                    header_line,
+                    available: listing(&header),
+                };
+                Err(ImportError::maybe_at(&map.file, place, kind).named(field))
+            }
+            Some(&(first, Some(second))) => {
+                let kind = ErrorKind::AmbiguousColumn {
+                    name: name.to_owned(),
+                    first: first + 1,
+                    second: second + 1,
+                };
+                Err(
+                    ImportError::at(csv_file, header_line, Some(second + 1), kind)
+                        .named(name.to_owned()),
+                )
+            }
+            Some(&(first, None)) => Ok(first),
+        }
     };
-    let time_index = find("time", &spec.time.column)?;
-    let time_map_line = locate
-        .column(&spec.time.column)
-        .map(|o| line_col(&map.text, o).0);
+    let time_index = find("time.column", &spec.time.column)?;
+    let time_map_line = locate.column(&spec.time.column).map(|o| map.line_of(o));
     let mut channels = Vec::new();
     for (path, column, quantity) in columns(spec) {
-        let index = find(&path, &column.column)?;
+        let field = match column.columns {
+            Some(_) => format!("{path}.columns"),
+            None => format!("{path}.column"),
+        };
+        let mut terms = Vec::new();
+        for (name, coefficient) in column.terms() {
+            terms.push((find(&field, &name)?, coefficient));
+        }
         // parse_map has checked every unit.
         let (scale, offset) = linear(&column, quantity).unwrap_or((f64::NAN, f64::NAN));
         let sentinels = Sentinels::of(&[&column.sentinels, &spec.sentinels]);
         channels.push(Channel {
-            map_line: locate
-                .column(&column.column)
-                .map(|o| line_col(&map.text, o).0),
+            map_line: (column.first_name())
+                .and_then(|n| locate.column(n))
+                .map(|o| map.line_of(o)),
+            label: column.label(),
             path,
-            index,
+            terms,
             scale,
             offset,
             quantity,
@@ -140,35 +242,70 @@ pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Importe
     let has_mag = spec.mag.is_some();
     let has_r = matches!(spec.orbit, OrbitMap::Positions { .. });
     // Channel order of `columns`: gyro xyz, mag xyz, orbit xyz, photodiodes, temperatures.
-    let gyro_at = 0;
-    let mag_at = 3;
-    let r_at = if has_mag { 6 } else { 3 };
-    let pd_at = r_at + if has_r { 3 } else { 0 };
-    let temp_at = pd_at + n_pd;
+    let slots = Slots {
+        mag: has_mag.then_some(3),
+        r: has_r.then_some(if has_mag { 6 } else { 3 }),
+        pd: 3 + 3 * usize::from(has_mag) + 3 * usize::from(has_r),
+        n_pd,
+        n_temp: spec.temperatures.len(),
+    };
 
-    let mut report = ImportReport::default();
-    let mut epochs: Vec<Epoch> = Vec::new();
-    let mut lines: Vec<usize> = Vec::new();
-    let mut gyro = Vec::new();
-    let mut mag = Vec::new();
-    let mut r = Vec::new();
-    let mut pd: Vec<Vec<Option<f64>>> = vec![Vec::new(); n_pd];
-    let mut temperature: Vec<Vec<Option<f64>>> = vec![Vec::new(); spec.temperatures.len()];
+    let mut report = ImportReport {
+        delimiter: Some((records.delimiter, records.detected)),
+        duplicate_times: spec.duplicate_times,
+        ..ImportReport::default()
+    };
     let mut partial = [0usize; 3];
     let mut values = vec![None; channels.len()];
-    for record in records {
-        let record = record.map_err(|e| csv_error(csv_file, &e))?;
-        let line = record.position().map_or(0, |p| p.line() as usize);
+    let mut group: Option<Group> = None;
+    let mut first: Option<(Epoch, EpochUtc, usize)> = None;
+    let mut last_epoch = None;
+    let mut out_row = TelemetryRow {
+        pd_v: vec![None; n_pd],
+        temperature_c: vec![None; spec.temperatures.len()],
+        ..TelemetryRow::default()
+    };
+    let mut emit = |g: &Group,
+                    first: &mut Option<(Epoch, EpochUtc, usize)>,
+                    rows_kept: &mut usize|
+     -> Result<(), ImportError> {
+        let epoch_utc = match first {
+            Some((_, utc, _)) => utc.clone(),
+            None => {
+                let utc = dataset_epoch(g.epoch, csv_file, g.line, time_index)?;
+                *first = Some((g.epoch, utc.clone(), g.line));
+                utc
+            }
+        };
+        out_row.t_s = time::seconds_between(epoch_utc.epoch(), g.epoch);
+        g.fill(&slots, &mut out_row);
+        if let (
+            Some(r),
+            OrbitMap::Positions {
+                frame: PositionFrame::Teme,
+                ..
+            },
+        ) = (out_row.r_gcrf_km, &spec.orbit)
+        {
+            out_row.r_gcrf_km = Some(frames::teme_to_gcrf(g.epoch) * r);
+        }
+        *rows_kept += 1;
+        sink(&out_row)
+    };
+    let mut record = StringRecord::new();
+    while let Some(line) = records.next(&mut record)? {
         report.rows_read += 1;
-        if record.len() != names.len() {
+        if record.len() != header.len() {
             let kind = ErrorKind::WrongCellCount {
-                expected: names.len(),
+                expected: header.len(),
                 found: record.len(),
             };
             return Err(ImportError::at(csv_file, line, None, kind));
         }
+        let names = &header;
         let cell_error = |index: usize, kind: ErrorKind| {
-            ImportError::at(csv_file, line, Some(index + 1), kind).named(names[index].clone())
+            ImportError::at(csv_file, line, Some(index + 1), kind)
+                .named(names.get(index).unwrap_or("").to_owned())
         };
         let context = |what: &str, map_line: Option<usize>| match map_line {
             Some(l) => format!(" ({what} of {}:{l})", file_name(&map.file)),
@@ -212,21 +349,34 @@ pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Importe
                 .read_text(cell)
                 .map_err(|TimeFault(w)| bad_time(w))?
         };
-        if let (Some(&previous), Some(&previous_line)) = (epochs.last(), lines.last())
-            && epoch <= previous
-        {
-            let kind = ErrorKind::TimeNotIncreasing {
-                value: time::format_utc(epoch),
-                previous: time::format_utc(previous),
-                previous_line,
-            };
-            return Err(cell_error(time_index, kind));
-        }
+        let same_time = match (&group, last_epoch) {
+            (Some(g), Some(previous)) if epoch == previous => {
+                match spec.duplicate_times {
+                    DuplicateTimes::Refuse => {
+                        let kind = ErrorKind::DuplicateTime {
+                            value: time::format_utc(epoch),
+                            previous_line: g.line,
+                        };
+                        return Err(cell_error(time_index, kind));
+                    }
+                    DuplicateTimes::KeepFirst | DuplicateTimes::Average => {}
+                }
+                true
+            }
+            (Some(g), Some(previous)) if epoch < previous => {
+                let kind = ErrorKind::TimeNotIncreasing {
+                    value: time::format_utc(epoch),
+                    previous: time::format_utc(previous),
+                    previous_line: g.line,
+                };
+                return Err(cell_error(time_index, kind));
+            }
+            _ => false,
+        };
         for (channel, value) in channels.iter_mut().zip(values.iter_mut()) {
-            let cell = record.get(channel.index).unwrap_or("");
             *value = channel
-                .read(cell, context)
-                .map_err(|k| cell_error(channel.index, k))?;
+                .read(&record, context)
+                .map_err(|(i, k)| cell_error(i, k))?;
         }
         let vector = |at: usize, count: &mut usize| match values[at..at + 3] {
             [Some(x), Some(y), Some(z)] => Some(Vector3::new(x, y, z)),
@@ -236,66 +386,39 @@ pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Importe
                 None
             }
         };
-        gyro.push(vector(gyro_at, &mut partial[0]));
-        if has_mag {
-            mag.push(vector(mag_at, &mut partial[1]));
+        let gyro = vector(0, &mut partial[0]);
+        let mag = slots.mag.and_then(|at| vector(at, &mut partial[1]));
+        let r = slots.r.and_then(|at| vector(at, &mut partial[2]));
+        if same_time {
+            report.duplicate_rows += 1;
+            if let (DuplicateTimes::Average, Some(g)) = (spec.duplicate_times, group.as_mut()) {
+                g.add(gyro, mag, r, &values[slots.pd..]);
+            }
+            continue;
         }
-        if has_r {
-            r.push(vector(r_at, &mut partial[2]));
+        if let Some(g) = group.take() {
+            emit(&g, &mut first, &mut report.rows_kept)?;
         }
-        for (i, series) in pd.iter_mut().enumerate() {
-            series.push(values[pd_at + i]);
-        }
-        for (i, series) in temperature.iter_mut().enumerate() {
-            series.push(values[temp_at + i]);
-        }
-        epochs.push(epoch);
-        lines.push(line);
+        let mut g = Group::new(epoch, line, &slots);
+        g.add(gyro, mag, r, &values[slots.pd..]);
+        group = Some(g);
+        last_epoch = Some(epoch);
     }
-    let (Some(&first), Some(&last)) = (epochs.first(), epochs.last()) else {
+    if let Some(g) = group.take() {
+        emit(&g, &mut first, &mut report.rows_kept)?;
+    }
+    let (Some((first_epoch, epoch_utc, _)), Some(last)) = (first, last_epoch) else {
         let dropped = report.dropped_blank_time + report.dropped_sentinel_time;
         return Err(ImportError::whole_file(
             csv_file,
             ErrorKind::NoRows { dropped },
         ));
     };
-    // The epoch as dataset.ron will hold it (microseconds, none when whole), so that t_s
-    // counts from exactly the instant the file names.
-    let full = time::format_utc(first);
-    let epoch_text = match full.strip_suffix(".000000Z") {
-        Some(whole) => format!("{whole}Z"),
-        None => full,
-    };
-    let epoch_utc = EpochUtc::parse(&epoch_text).map_err(|kind| {
-        let kind = ErrorKind::BadTime {
-            value: epoch_text.clone(),
-            form: "a dataset epoch",
-            reason: clip(&kind.to_string()),
-        };
-        ImportError::at(csv_file, lines[0], Some(time_index + 1), kind)
-    })?;
-    let t_s: Vec<f64> = (epochs.iter())
-        .map(|&e| time::seconds_between(epoch_utc.epoch(), e))
-        .collect();
-    let r_gcrf_km = match &spec.orbit {
-        OrbitMap::Positions {
-            frame: PositionFrame::Teme,
-            ..
-        } => Some(
-            r.iter()
-                .zip(&epochs)
-                .map(|(v, &e)| v.map(|v| frames::teme_to_gcrf(e) * v))
-                .collect(),
-        ),
-        OrbitMap::Positions { .. } => Some(r),
-        OrbitMap::Tle { .. } => None,
-    };
-    report.rows_kept = t_s.len();
-    report.epoch_utc = epoch_text;
-    report.span_s = time::seconds_between(first, last);
+    report.epoch_utc = epoch_utc.as_str().to_owned();
+    report.span_s = time::seconds_between(first_epoch, last);
     report.sentinel_cells = (channels.iter())
         .filter(|c| c.sentinel_hits > 0)
-        .map(|c| (c.path.clone(), names[c.index].clone(), c.sentinel_hits))
+        .map(|c| (c.path.clone(), c.label.clone(), c.sentinel_hits))
         .collect();
     report.partial_vectors = ["gyro", "mag", "orbit"]
         .iter()
@@ -309,94 +432,237 @@ pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Importe
             |s| s.to_string_lossy().into_owned(),
         )
     });
-    let dataset = Dataset {
-        meta: DatasetMeta {
-            format_version: pdcal_dataset::FORMAT_VERSION,
-            name,
-            epoch_utc,
-            orbit: orbit_spec(&spec.orbit),
-            photodiodes: mounts(spec),
-            noise: spec.noise,
-        },
-        telemetry: Telemetry {
-            t_s,
-            gyro_rad_s: gyro,
-            mag_nt: has_mag.then_some(mag),
-            pd_v: pd.into_iter().map(|c| c.into_iter().collect()).collect(),
-            r_gcrf_km,
-            temperature_c: temperature_columns(spec, temperature),
-        },
-        truth: None,
+    let meta = DatasetMeta {
+        format_version: pdcal_dataset::FORMAT_VERSION,
+        name,
+        epoch_utc,
+        orbit: orbit_spec(&spec.orbit),
+        photodiodes: mounts(spec),
+        noise: spec.noise,
     };
-    pdcal_dataset::render_dataset(&dataset)?;
-    Ok(Imported { dataset, report })
+    Ok(Converted { meta, report })
+}
+
+/// Where each sensor's values are among the channels' (the order of `columns`).
+struct Slots {
+    mag: Option<usize>,
+    r: Option<usize>,
+    pd: usize,
+    n_pd: usize,
+    n_temp: usize,
+}
+
+/// The rows of one time: the first row's values, or under `Average` the running means of
+/// the non-empty ones.
+struct Group {
+    epoch: Epoch,
+    line: usize,
+    gyro: Mean3,
+    mag: Mean3,
+    r: Mean3,
+    /// Photodiodes, then temperatures.
+    scalars: Vec<Mean>,
+}
+
+#[derive(Clone, Copy, Default)]
+struct Mean {
+    value: f64,
+    n: u32,
+}
+
+impl Mean {
+    /// A running mean (not a sum divided at the end: no overflow, and one value, or several
+    /// equal ones, come out bit for bit).
+    fn add(&mut self, x: Option<f64>) {
+        if let Some(x) = x {
+            self.n = self.n.saturating_add(1);
+            self.value += (x - self.value) / f64::from(self.n);
+        }
+    }
+
+    fn get(self) -> Option<f64> {
+        (self.n > 0).then_some(self.value)
+    }
+}
+
+#[derive(Clone, Copy, Default)]
+struct Mean3 {
+    value: Vector3<f64>,
+    n: u32,
+}
+
+impl Mean3 {
+    fn add(&mut self, v: Option<Vector3<f64>>) {
+        if let Some(v) = v {
+            self.n = self.n.saturating_add(1);
+            self.value += (v - self.value) / f64::from(self.n);
+        }
+    }
+
+    fn get(self) -> Option<Vector3<f64>> {
+        (self.n > 0).then_some(self.value)
+    }
+}
+
+impl Group {
+    fn new(epoch: Epoch, line: usize, slots: &Slots) -> Self {
+        Group {
+            epoch,
+            line,
+            gyro: Mean3::default(),
+            mag: Mean3::default(),
+            r: Mean3::default(),
+            scalars: vec![Mean::default(); slots.n_pd + slots.n_temp],
+        }
+    }
+
+    fn add(
+        &mut self,
+        gyro: Option<Vector3<f64>>,
+        mag: Option<Vector3<f64>>,
+        r: Option<Vector3<f64>>,
+        scalars: &[Option<f64>],
+    ) {
+        self.gyro.add(gyro);
+        self.mag.add(mag);
+        self.r.add(r);
+        for (mean, x) in self.scalars.iter_mut().zip(scalars) {
+            mean.add(*x);
+        }
+    }
+
+    fn fill(&self, slots: &Slots, row: &mut TelemetryRow) {
+        row.gyro_rad_s = self.gyro.get();
+        row.mag_nt = slots.mag.and(self.mag.get());
+        row.r_gcrf_km = slots.r.and(self.r.get());
+        let (pd, temp) = self.scalars.split_at(slots.n_pd);
+        for (out, mean) in row.pd_v.iter_mut().zip(pd) {
+            *out = mean.get();
+        }
+        for (out, mean) in row.temperature_c.iter_mut().zip(temp) {
+            *out = mean.get();
+        }
+    }
+}
+
+/// The dataset's epoch for the first kept row's time, as dataset.ron will hold it
+/// (microseconds, none when whole), so that t_s counts from exactly the instant the file
+/// names.
+fn dataset_epoch(
+    epoch: Epoch,
+    csv_file: &Path,
+    line: usize,
+    time_index: usize,
+) -> Result<EpochUtc, ImportError> {
+    let full = time::format_utc(epoch);
+    let epoch_text = match full.strip_suffix(".000000Z") {
+        Some(whole) => format!("{whole}Z"),
+        None => full,
+    };
+    EpochUtc::parse(&epoch_text).map_err(|kind| {
+        let kind = ErrorKind::BadTime {
+            value: epoch_text.clone(),
+            form: "a dataset epoch",
+            reason: clip(&kind.to_string()),
+        };
+        ImportError::at(csv_file, line, Some(time_index + 1), kind)
+    })
+}
+
+/// The header's names for a message: quoted, escaped, as many as fit in about
+/// [`pdcal_ephem::text::QUOTE_MAX_CHARS`] characters, then how many there are.
+fn listing(header: &StringRecord) -> String {
+    let mut out = String::new();
+    for (i, name) in header.iter().enumerate() {
+        if out.chars().count() > pdcal_ephem::text::QUOTE_MAX_CHARS {
+            return format!("{out}, ... ({} columns)", header.len());
+        }
+        if i > 0 {
+            out.push_str(", ");
+        }
+        out.push_str(&quote(name));
+    }
+    out
 }
 
 impl Channel {
-    /// A cell in the dataset's unit: `None` when empty or a sentinel (counted), else the
-    /// converted number, or the error for the cell (`context` says what the map reads it as,
-    /// given this channel's field path and map line).
+    /// The channel's value on `record` in the dataset's unit: `None` when a term's cell is
+    /// empty or a sentinel (counted when a sentinel), else the converted combination, or the
+    /// error with the cell it is about (`context` says what the map reads it as, given this
+    /// channel's field path and map line).
     fn read(
         &mut self,
-        cell: &str,
+        record: &StringRecord,
         context: impl Fn(&str, Option<usize>) -> String,
-    ) -> Result<Option<f64>, ErrorKind> {
-        let value = self.convert(cell, || context(&self.path, self.map_line))?;
-        if value.is_none() && !cell.is_empty() {
+    ) -> Result<Option<f64>, (usize, ErrorKind)> {
+        let what = || context(&self.path, self.map_line);
+        let mut sum = 0.0;
+        let mut blank = false;
+        let mut hit = false;
+        for &(index, coefficient) in &self.terms {
+            let cell = record.get(index).unwrap_or("");
+            if cell.is_empty() {
+                blank = true;
+                continue;
+            }
+            if self.sentinels.text(cell) {
+                hit = true;
+                continue;
+            }
+            let raw = number(cell, what).map_err(|k| (index, k))?;
+            if self.sentinels.number(raw) {
+                hit = true;
+                continue;
+            }
+            sum += coefficient * raw;
+        }
+        if hit {
             self.sentinel_hits += 1;
         }
-        Ok(value)
-    }
-
-    /// [`Channel::read`] without the count: `None` for an empty or sentinel cell.
-    fn convert(&self, cell: &str, context: impl Fn() -> String) -> Result<Option<f64>, ErrorKind> {
-        if cell.is_empty() || self.sentinels.text(cell) {
+        if hit || blank {
             return Ok(None);
         }
-        let raw = number(cell, &context)?;
-        if self.sentinels.number(raw) {
-            return Ok(None);
-        }
-        let value = raw * self.scale + self.offset;
+        let at = self.terms.first().map_or(0, |t| t.0);
+        let cell = record.get(at).unwrap_or("");
+        let value = sum * self.scale + self.offset;
         if !value.is_finite() {
-            return Err(ErrorKind::NotFinite {
-                value: cell.to_owned(),
-                context: format!(
-                    "{}: it overflows when converted to the dataset's unit",
-                    context()
-                ),
-            });
+            return Err((
+                at,
+                ErrorKind::NotFinite {
+                    value: cell.to_owned(),
+                    context: format!(
+                        "{}: it overflows when converted to the dataset's unit",
+                        what()
+                    ),
+                },
+            ));
         }
         let (low, high) = pdcal_dataset::TEMPERATURE_RANGE_C;
         if self.quantity == Quantity::Temperature && !(low..=high).contains(&value) {
-            return Err(ErrorKind::ImplausibleTemperature {
-                value: cell.to_owned(),
-                celsius: value,
-                low,
-                high,
-                context: context(),
-            });
+            return Err((
+                at,
+                ErrorKind::ImplausibleTemperature {
+                    value: cell.to_owned(),
+                    celsius: value,
+                    low,
+                    high,
+                    context: what(),
+                },
+            ));
         }
         Ok(Some(value))
     }
 }
 
-/// telemetry.csv's temperature columns of the map's entries, in map order.
-fn temperature_columns(
-    spec: &MapSpec,
-    series: Vec<Vec<Option<f64>>>,
-) -> Vec<pdcal_dataset::TemperatureColumn> {
+/// telemetry.csv's temperature column names of the map's entries, in map order.
+fn temperature_names(spec: &MapSpec) -> Vec<String> {
     (spec.temperatures.iter())
-        .zip(series)
-        .map(|(t, values)| pdcal_dataset::TemperatureColumn {
+        .map(|t| match (t.photodiode, &t.panel) {
             // parse_map has checked that exactly one of the two is given.
-            name: match (t.photodiode, &t.panel) {
-                (Some(k), _) => pdcal_dataset::photodiode_temperature_column(k),
-                (None, panel) => {
-                    pdcal_dataset::panel_temperature_column(panel.as_deref().unwrap_or(""))
-                }
-            },
-            values,
+            (Some(k), _) => pdcal_dataset::photodiode_temperature_column(k),
+            (None, panel) => {
+                pdcal_dataset::panel_temperature_column(panel.as_deref().unwrap_or(""))
+            }
         })
         .collect()
 }
@@ -413,16 +679,6 @@ fn number(cell: &str, context: impl Fn() -> String) -> Result<f64, ErrorKind> {
             value: cell.to_owned(),
             context: context(),
         }),
-    }
-}
-
-fn csv_error(file: &Path, e: &csv::Error) -> ImportError {
-    let kind = ErrorKind::Csv {
-        message: clip(&e.to_string()),
-    };
-    match e.position() {
-        Some(p) => ImportError::at(file, p.line() as usize, None, kind),
-        None => ImportError::whole_file(file, kind),
     }
 }
 

@@ -3,7 +3,8 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-use pdcal_dataset::{DatasetError, quote};
+use pdcal_dataset::DatasetError;
+pub(crate) use pdcal_dataset::quote;
 
 /// An import that cannot be done, with the place of the fault.
 ///
@@ -104,6 +105,27 @@ pub enum ErrorKind {
         quantity: &'static str,
         /// The units allowed, comma-separated.
         allowed: String,
+    },
+    /// A column spec with both or neither of `column` and `columns`.
+    #[error(
+        "give exactly one of `column: \"HEADER\"` or `columns: [(\"HEADER\", 1.0), \
+         (\"OTHER\", -1.0)]`"
+    )]
+    ColumnOrColumns,
+    /// A `columns` combination that cannot be used.
+    #[error("the combination is refused: {reason}")]
+    BadCombination {
+        /// What is wrong.
+        reason: String,
+    },
+    /// The header line names no delimiter clearly.
+    #[error(
+        "cannot tell the delimiter from the header line ({counts}): give `delimiter: Comma`, \
+         `Semicolon`, `Tab` or `Whitespace` in the map"
+    )]
+    AmbiguousDelimiter {
+        /// The candidates and how often each appears.
+        counts: String,
     },
     /// A column spec with both or neither of `unit` and `counts`.
     #[error("give exactly one of `unit: \"...\"` or `counts: (gain: .., offset: .., unit: ..)`")]
@@ -208,6 +230,19 @@ pub enum ErrorKind {
         /// The previous kept row's line in the export.
         previous_line: usize,
     },
+    /// A time equal to the previous kept row's, under `duplicate_times: Refuse`.
+    #[error(
+        "time {} is the same as the previous kept row's (line {previous_line}): the export \
+         has several rows with one time tag; say in the map which to use, \
+         `duplicate_times: KeepFirst` or `duplicate_times: Average`",
+        .value
+    )]
+    DuplicateTime {
+        /// The time as UTC.
+        value: String,
+        /// The previous kept row's line in the export.
+        previous_line: usize,
+    },
     /// No row has a usable time.
     #[error("no row with a time is left ({dropped} dropped: blank or sentinel time)")]
     NoRows {
@@ -309,7 +344,7 @@ impl fmt::Display for ImportError {
             }
         }
         if let Some(field) = &e.field {
-            write!(f, " ({})", clip(field))?;
+            write!(f, " ({})", shown(field))?;
         }
         write!(f, ": {}", e.kind)
     }
@@ -319,22 +354,38 @@ impl fmt::Display for ImportError {
 // print it twice in an `anyhow` chain).
 impl std::error::Error for ImportError {}
 
-pub(crate) use pdcal_ephem::text::{clip, line_col};
+pub(crate) use pdcal_ephem::text::{clip, line_col, number};
 
-/// Checks the bytes are UTF-8 and not blank; strips a leading byte-order mark.
-pub(crate) fn text_of(file: &Path, bytes: Vec<u8>) -> Result<String, ImportError> {
-    let text = String::from_utf8(bytes).map_err(|e| {
-        let valid = &e.as_bytes()[..e.utf8_error().valid_up_to()];
-        let before = String::from_utf8_lossy(valid);
-        let (line, column) = line_col(&before, before.len());
-        ImportError::at(file, line, Some(column), ErrorKind::NotUtf8)
-    })?;
-    let text = match text.strip_prefix('\u{feff}') {
-        Some(rest) => rest.to_owned(),
-        None => text,
-    };
-    if text.trim().is_empty() {
-        return Err(ImportError::whole_file(file, ErrorKind::Empty));
+/// A name from the input for a message: as it is when it is short and printable, else
+/// quoted, with control characters escaped and cut to the limit of [`quote`] (so an ESC in
+/// a header cannot reach the terminal and a 100 MB header is not repeated).
+pub fn shown(name: &str) -> String {
+    if name.chars().any(|c| c.is_control()) {
+        quote(name)
+    } else {
+        clip(name)
     }
-    Ok(text)
+}
+
+/// The dataset reader's text check ([`pdcal_dataset::decode_text`]) with the fault as this
+/// crate's error.
+pub(crate) fn text_of(file: &Path, bytes: Vec<u8>) -> Result<String, ImportError> {
+    use pdcal_dataset::TextFault;
+    pdcal_dataset::decode_text(bytes).map_err(|fault| match fault {
+        TextFault::NotUtf8 { line, column } => {
+            ImportError::at(file, line, Some(column), ErrorKind::NotUtf8)
+        }
+        TextFault::Empty => ImportError::whole_file(file, ErrorKind::Empty),
+    })
+}
+
+impl From<pdcal_dataset::RonFaultKind> for ErrorKind {
+    fn from(kind: pdcal_dataset::RonFaultKind) -> Self {
+        use pdcal_dataset::RonFaultKind as K;
+        match kind {
+            K::Ron { message } => ErrorKind::Ron { message },
+            K::UnknownField { name, expected } => ErrorKind::UnknownField { name, expected },
+            K::MissingField { name } => ErrorKind::MissingField { name },
+        }
+    }
 }

@@ -23,7 +23,14 @@
 //!   in [`ImportReport::partial_vectors`].
 //! - Kept rows must be in strictly increasing time order; an export out of order (merged
 //!   passes, a wrapped counter) is refused naming both lines rather than sorted, because
-//!   sorting would silently interleave the rows of a counter that wrapped.
+//!   sorting would silently interleave the rows of a counter that wrapped. Rows whose time
+//!   equals the previous kept row's are refused with their own message, or kept first or
+//!   averaged as the map's `duplicate_times` says.
+//! - The delimiter is the map's `delimiter`, or found from the header line; a numeric
+//!   column may be a linear combination of export columns (`columns`), empty when any term
+//!   is empty or a sentinel.
+//! - [`convert_stream`] holds one row at a time (the command streams long exports through
+//!   it); [`convert`] is the same loop collecting the rows in memory.
 //! - The dataset's epoch is the first kept row's time (UTC, to the microsecond); `t_s` are
 //!   elapsed SI seconds from it, across leap seconds.
 //! - Mounting angles, TLE lines and noise hints go through the dataset reader's own checks,
@@ -48,14 +55,15 @@
 mod convert;
 mod error;
 mod map;
+mod source;
 mod timeform;
 mod units;
 
-pub use convert::{ImportReport, Imported, convert};
-pub use error::{ErrorKind, ImportError};
+pub use convert::{Converted, ImportReport, Imported, convert, convert_stream, layout};
+pub use error::{ErrorKind, ImportError, shown};
 pub use map::{
-    Column, Counts, ImportMap, MAP_FORMAT_VERSION, MapSpec, OrbitMap, PhotodiodeColumn,
-    PositionFrame, TimeColumn, VectorColumns, parse_map,
+    Column, Counts, Delimiter, DuplicateTimes, ImportMap, MAP_FORMAT_VERSION, MapSpec, OrbitMap,
+    PhotodiodeColumn, PositionFrame, TimeColumn, VectorColumns, parse_map,
 };
 pub use timeform::{PLAUSIBLE_UTC, TimeForm};
 pub use units::Quantity;

@@ -1,12 +1,12 @@
 //! The column map (`map.ron`): its types, the RON reader, and the checks that need no export.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use pdcal_dataset::{DatasetMeta, EpochUtc, NoiseHints, NominalMount, OrbitSpec};
-use ron::extensions::Extensions;
 use serde::Deserialize;
 
-use crate::error::{ErrorKind, ImportError, clip, line_col, text_of};
+use crate::error::{ErrorKind, ImportError, clip, line_col, number, quote, text_of};
 use crate::timeform::{TimeForm, TimeReader};
 use crate::units::Quantity;
 
@@ -42,6 +42,60 @@ pub struct MapSpec {
     /// Noise hints copied into dataset.ron (same fields and units).
     #[serde(default)]
     pub noise: Option<NoiseHints>,
+    /// The export's cell separator; detected from the header when absent.
+    #[serde(default)]
+    pub delimiter: Option<Delimiter>,
+    /// What to do with rows whose time equals the previous kept row's.
+    #[serde(default)]
+    pub duplicate_times: DuplicateTimes,
+}
+
+/// The export's cell separator.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+pub enum Delimiter {
+    /// `,`
+    Comma,
+    /// `;` (exports of tools set to a locale with a decimal comma)
+    Semicolon,
+    /// A tab character.
+    Tab,
+    /// Any run of spaces and tabs (fixed-width or aligned text; no quoting).
+    Whitespace,
+}
+
+impl Delimiter {
+    /// The delimiter as the output says it.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Delimiter::Comma => "comma (',')",
+            Delimiter::Semicolon => "semicolon (';')",
+            Delimiter::Tab => "tab",
+            Delimiter::Whitespace => "whitespace",
+        }
+    }
+
+    /// The byte of a single-character delimiter; `None` for [`Delimiter::Whitespace`].
+    pub(crate) fn byte(self) -> Option<u8> {
+        match self {
+            Delimiter::Comma => Some(b','),
+            Delimiter::Semicolon => Some(b';'),
+            Delimiter::Tab => Some(b'\t'),
+            Delimiter::Whitespace => None,
+        }
+    }
+}
+
+/// What the import does with rows whose time equals the previous kept row's (firmware that
+/// writes several frames with one time tag).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+pub enum DuplicateTimes {
+    /// An error naming both rows (the default: nothing is dropped unsaid).
+    #[default]
+    Refuse,
+    /// The first row of each time is kept, the others dropped and counted.
+    KeepFirst,
+    /// The rows of one time become one: each column the mean of its non-empty cells.
+    Average,
 }
 
 /// A cell value meaning "no value": a number (compared as a number, so `65535`, `65535.0`
@@ -104,8 +158,13 @@ pub struct TimeColumn {
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Column {
-    /// Header of the column.
-    pub column: String,
+    /// Header of the column; or give `columns`.
+    #[serde(default)]
+    pub column: Option<String>,
+    /// A linear combination of columns, `[("V5", 1.0), ("VN", -1.0)]`, converted as one
+    /// value by `unit` or `counts`; or give `column`.
+    #[serde(default)]
+    pub columns: Option<Vec<(String, f64)>>,
     /// The unit the cells are in; or give `counts`.
     #[serde(default)]
     pub unit: Option<String>,
@@ -115,6 +174,56 @@ pub struct Column {
     /// Values of this column that mean "not sampled", beside the global sentinels.
     #[serde(default)]
     pub sentinels: Vec<Sentinel>,
+}
+
+impl Column {
+    /// The export columns and their coefficients: `[(column, 1.0)]` for a single column.
+    /// Empty when neither or both of `column` and `columns` are given (refused by
+    /// [`parse_map`]).
+    pub fn terms(&self) -> Vec<(String, f64)> {
+        match (&self.column, &self.columns) {
+            (Some(name), None) => vec![(name.clone(), 1.0)],
+            (None, Some(terms)) => terms.clone(),
+            _ => Vec::new(),
+        }
+    }
+
+    /// The name that places the column in the map text: its header, or the first of a
+    /// combination.
+    pub(crate) fn first_name(&self) -> Option<&str> {
+        match (&self.column, &self.columns) {
+            (Some(name), _) => Some(name),
+            (None, Some(terms)) => terms.first().map(|(n, _)| n.as_str()),
+            _ => None,
+        }
+    }
+
+    /// The column as the output names it: its header, or the combination written out
+    /// (`V5 - VN`, `0.5*A + 0.5*B`), each header escaped and cut.
+    pub fn label(&self) -> String {
+        let terms = self.terms();
+        if let [(name, c)] = terms.as_slice()
+            && *c == 1.0
+        {
+            return crate::error::shown(name);
+        }
+        let mut out = String::new();
+        for (i, (name, c)) in terms.iter().enumerate() {
+            let name = crate::error::shown(name);
+            let (sign, magnitude) = if *c < 0.0 { ("-", -c) } else { ("+", *c) };
+            match (i, sign) {
+                (0, "-") => out.push('-'),
+                (0, _) => {}
+                _ => out.push_str(&format!(" {sign} ")),
+            }
+            if magnitude == 1.0 {
+                out.push_str(&name);
+            } else {
+                out.push_str(&format!("{magnitude}*{name}"));
+            }
+        }
+        out
+    }
 }
 
 /// A linear conversion of raw counts: `value = gain * count + offset`, in `unit`.
@@ -146,8 +255,12 @@ pub struct VectorColumns {
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PhotodiodeColumn {
-    /// Header of the column.
-    pub column: String,
+    /// As [`Column::column`].
+    #[serde(default)]
+    pub column: Option<String>,
+    /// As [`Column::columns`].
+    #[serde(default)]
+    pub columns: Option<Vec<(String, f64)>>,
     /// As [`Column::unit`] (`V`, `mV`).
     #[serde(default)]
     pub unit: Option<String>,
@@ -170,6 +283,7 @@ impl PhotodiodeColumn {
     fn as_column(&self) -> Column {
         Column {
             column: self.column.clone(),
+            columns: self.columns.clone(),
             unit: self.unit.clone(),
             counts: self.counts.clone(),
             sentinels: self.sentinels.clone(),
@@ -184,8 +298,12 @@ impl PhotodiodeColumn {
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TemperatureColumnMap {
-    /// Header of the column.
-    pub column: String,
+    /// As [`Column::column`].
+    #[serde(default)]
+    pub column: Option<String>,
+    /// As [`Column::columns`].
+    #[serde(default)]
+    pub columns: Option<Vec<(String, f64)>>,
     /// As [`Column::unit`] (`C`, `K`).
     #[serde(default)]
     pub unit: Option<String>,
@@ -207,6 +325,7 @@ impl TemperatureColumnMap {
     fn as_column(&self) -> Column {
         Column {
             column: self.column.clone(),
+            columns: self.columns.clone(),
             unit: self.unit.clone(),
             counts: self.counts.clone(),
             sentinels: self.sentinels.clone(),
@@ -261,6 +380,9 @@ pub struct ImportMap {
     pub spec: MapSpec,
     pub(crate) file: PathBuf,
     pub(crate) text: String,
+    pub(crate) names: HashMap<String, usize>,
+    /// Byte offsets of the map text's line ends, for [`ImportMap::line_of`].
+    newlines: Vec<usize>,
     pub(crate) time: TimeReader,
 }
 
@@ -268,7 +390,12 @@ pub struct ImportMap {
 pub fn parse_map(file: &Path, bytes: &[u8]) -> Result<ImportMap, ImportError> {
     let text = text_of(file, bytes.to_vec())?;
     let spec: MapSpec = from_ron(file, &text)?;
-    let map = Locator { file, text: &text };
+    let names = column_names(&text);
+    let map = Locator {
+        file,
+        text: &text,
+        names: &names,
+    };
     if spec.format_version != MAP_FORMAT_VERSION {
         return Err(map
             .key_error(
@@ -312,7 +439,9 @@ pub fn parse_map(file: &Path, bytes: &[u8]) -> Result<ImportMap, ImportError> {
     Ok(ImportMap {
         spec,
         file: file.to_path_buf(),
+        newlines: text.match_indices('\n').map(|(i, _)| i).collect(),
         text,
+        names,
         time,
     })
 }
@@ -323,10 +452,18 @@ impl ImportMap {
         &self.file
     }
 
+    /// The 1-based line of byte offset `offset` of the map text (a binary search, where
+    /// `line_col` counts from the start: every column of a long map is placed in time
+    /// linear in its length).
+    pub(crate) fn line_of(&self, offset: usize) -> usize {
+        1 + self.newlines.partition_point(|&n| n < offset)
+    }
+
     pub(crate) fn locator(&self) -> Locator<'_> {
         Locator {
             file: &self.file,
             text: &self.text,
+            names: &self.names,
         }
     }
 }
@@ -390,13 +527,26 @@ fn check_column(
     column: &Column,
     quantity: Quantity,
 ) -> Result<(), ImportError> {
-    let at = map.column(&column.column);
-    if column.column.trim().is_empty() {
-        let place = at.map(|o| line_col(map.text, o));
-        return Err(
-            ImportError::maybe_at(map.file, place, ErrorKind::EmptyColumnName)
-                .named(format!("{path}.column")),
-        );
+    let at = column.first_name().and_then(|n| map.column(n));
+    let here = || at.map(|o| line_col(map.text, o));
+    match (&column.column, &column.columns) {
+        (Some(name), None) if name.trim().is_empty() => {
+            return Err(
+                ImportError::maybe_at(map.file, here(), ErrorKind::EmptyColumnName)
+                    .named(format!("{path}.column")),
+            );
+        }
+        (Some(_), None) => {}
+        (None, Some(terms)) => {
+            let place = here().or_else(|| map.key_path(path).map(|o| line_col(map.text, o)));
+            check_terms(map, path, terms, place)?;
+        }
+        _ => {
+            let place = here().or_else(|| map.key_path(path).map(|o| line_col(map.text, o)));
+            return Err(
+                ImportError::maybe_at(map.file, place, ErrorKind::ColumnOrColumns).named(path),
+            );
+        }
     }
     // Where this spec's parts are: after its column name in the text.
     let near = |needle: &str| {
@@ -438,13 +588,51 @@ fn check_column(
             }
         }
         _ => {
-            let place = at.map(|o| line_col(map.text, o));
             return Err(
-                ImportError::maybe_at(map.file, place, ErrorKind::UnitOrCounts).named(path),
+                ImportError::maybe_at(map.file, here(), ErrorKind::UnitOrCounts).named(path),
             );
         }
     }
     check_sentinels(map, &column.sentinels, &format!("{path}.sentinels"), at)
+}
+
+/// A combination's terms: at least one, names not blank and not repeated, coefficients
+/// finite and nonzero.
+fn check_terms(
+    map: &Locator<'_>,
+    path: &str,
+    terms: &[(String, f64)],
+    place: Option<(usize, usize)>,
+) -> Result<(), ImportError> {
+    let fault = |reason: String| {
+        Err(
+            ImportError::maybe_at(map.file, place, ErrorKind::BadCombination { reason })
+                .named(format!("{path}.columns")),
+        )
+    };
+    if terms.is_empty() {
+        return fault("the list is empty: give at least one (\"COLUMN\", coefficient)".into());
+    }
+    let mut seen = std::collections::HashSet::new();
+    for (name, c) in terms {
+        if name.trim().is_empty() {
+            return fault("a column name is empty".into());
+        }
+        if !c.is_finite() || *c == 0.0 {
+            return fault(format!(
+                "the coefficient of {} is {}: it must be finite and nonzero",
+                quote(name),
+                number(*c)
+            ));
+        }
+        if !seen.insert(name.as_str()) {
+            return fault(format!(
+                "column {} appears twice: give it once with the sum of its coefficients",
+                quote(name)
+            ));
+        }
+    }
+    Ok(())
 }
 
 fn check_sentinels(
@@ -482,11 +670,15 @@ fn check_sentinels(
 /// Each temperature column names exactly one photodiode of the map or one panel some
 /// photodiode names, and no two name the same one (they would be one telemetry.csv column).
 fn check_temperatures(map: &Locator<'_>, spec: &MapSpec) -> Result<(), ImportError> {
-    let mut headers: Vec<String> = Vec::new();
+    let panels: std::collections::HashSet<&str> = (spec.photodiodes.iter())
+        .filter_map(|p| p.panel.as_deref())
+        .collect();
+    let mut headers = std::collections::HashSet::new();
     for (i, t) in spec.temperatures.iter().enumerate() {
         let path = format!("temperatures[{i}]");
+        let at = t.as_column().first_name().and_then(|n| map.column(n));
         let fault = |field: &str, reason: String| {
-            let place = (map.column(&t.column))
+            let place = at
                 .and_then(|o| map.key_after(o, field).or(Some(o)))
                 .map(|o| line_col(map.text, o));
             let kind = ErrorKind::BadTemperatureTarget { reason };
@@ -503,18 +695,13 @@ fn check_temperatures(map: &Locator<'_>, spec: &MapSpec) -> Result<(), ImportErr
                     format!("photodiode {k} is not one of the map's photodiodes 1 ..= {n}"),
                 );
             }
-            (None, Some(panel))
-                if spec
-                    .photodiodes
-                    .iter()
-                    .any(|p| p.panel.as_ref() == Some(panel)) =>
-            {
+            (None, Some(panel)) if panels.contains(panel.as_str()) => {
                 pdcal_dataset::panel_temperature_column(panel)
             }
             (None, Some(panel)) => {
                 return fault(
                     "panel",
-                    format!("no photodiode of the map names panel {panel:?}"),
+                    format!("no photodiode of the map names panel {}", quote(panel)),
                 );
             }
             _ => {
@@ -530,7 +717,7 @@ fn check_temperatures(map: &Locator<'_>, spec: &MapSpec) -> Result<(), ImportErr
                 format!("a second column for {header}: one temperature per photodiode or panel"),
             );
         }
-        headers.push(header);
+        headers.insert(header);
     }
     Ok(())
 }
@@ -614,6 +801,66 @@ pub(crate) fn mounts(spec: &MapSpec) -> Vec<NominalMount> {
 pub(crate) struct Locator<'a> {
     pub(crate) file: &'a Path,
     pub(crate) text: &'a str,
+    /// Byte offset of each column name's first literal after `column:` or `columns: [(`.
+    pub(crate) names: &'a HashMap<String, usize>,
+}
+
+/// Each column name of the map text with the byte offset of its first string literal after
+/// a `column:` key or as the first name of a `columns:` list, found in one pass so that
+/// placing every column of a map is linear in its length (a name written with escapes is
+/// left out).
+pub(crate) fn column_names(text: &str) -> HashMap<String, usize> {
+    let mut out = HashMap::new();
+    let is_ident = |c: char| c.is_alphanumeric() || c == '_';
+    for (i, _) in text.match_indices("column") {
+        if text[..i].chars().next_back().is_some_and(is_ident) {
+            continue;
+        }
+        let rest = &text[i + "column".len()..];
+        let (list, rest) = match rest.strip_prefix('s') {
+            Some(r) => (true, r),
+            None => (false, rest),
+        };
+        let Some(mut value) = rest.trim_start().strip_prefix(':') else {
+            continue;
+        };
+        value = value.trim_start();
+        if !list {
+            insert_literal(&mut out, text, value);
+            continue;
+        }
+        // Every name of a `[("A", 1.0), ("B", -1.0)]` list.
+        let Some(mut rest) = value.strip_prefix('[') else {
+            continue;
+        };
+        while let Some(entry) = rest.trim_start().strip_prefix('(') {
+            let entry = entry.trim_start();
+            insert_literal(&mut out, text, entry);
+            let Some(close) = entry.find(')') else {
+                break;
+            };
+            rest = entry[close + 1..].trim_start();
+            rest = rest.strip_prefix(',').unwrap_or(rest);
+        }
+    }
+    out
+}
+
+/// Records the string literal that `value` (a suffix of `text`) starts with, if any and if
+/// written without escapes, at its offset in `text`, unless the name is known already.
+fn insert_literal(out: &mut HashMap<String, usize>, text: &str, value: &str) {
+    let Some(literal) = value.strip_prefix('"') else {
+        return;
+    };
+    let Some(end) = literal.find('"') else {
+        return;
+    };
+    let name = &literal[..end];
+    if name.contains('\\') {
+        return;
+    }
+    let at = text.len() - value.len();
+    out.entry(name.to_owned()).or_insert(at);
 }
 
 impl Locator<'_> {
@@ -640,20 +887,24 @@ impl Locator<'_> {
         ImportError::maybe_at(self.file, place, kind)
     }
 
-    /// Byte offset of the string literal `"name"` that follows a `column:` key. A name
-    /// written with escapes is not found, and the error then names its field path only.
+    /// Byte offset of the string literal `"name"` that follows a `column:` key (or opens a
+    /// `columns:` list). A name written with escapes is not found, and the error then names
+    /// its field path only.
     pub(crate) fn column(&self, name: &str) -> Option<usize> {
-        let literal = format!("\"{name}\"");
-        let mut n = 0;
-        while let Some(at) = self.key("column", n) {
-            let rest = &self.text[at + "column".len()..];
-            let value = rest.trim_start().strip_prefix(':')?.trim_start();
-            if value.starts_with(&literal) {
-                return Some(self.text.len() - value.len());
-            }
-            n += 1;
+        self.names.get(name).copied()
+    }
+
+    /// Byte offset of a column spec given by its field path (`photodiodes[3]`: its
+    /// `azimuth_deg:`; `gyro.x`: the `x:` after `gyro:`), for a spec that names no column.
+    fn key_path(&self, path: &str) -> Option<usize> {
+        if let Some(i) = (path.strip_prefix("photodiodes["))
+            .and_then(|r| r.strip_suffix(']'))
+            .and_then(|i| i.parse::<usize>().ok())
+        {
+            return self.key("azimuth_deg", i);
         }
-        None
+        let (outer, axis) = path.split_once('.')?;
+        self.key_after(self.key(outer, 0)?, axis)
     }
 
     /// Byte offset of the `key:` of the map's outermost struct (not one inside a column).
@@ -707,25 +958,8 @@ fn nesting(text: &str) -> usize {
     depth
 }
 
-/// Deserialises the map, mapping ron's span start to line:column.
+/// Deserialises the map with the dataset reader's RON options and error mapping.
 fn from_ron<T: serde::de::DeserializeOwned>(file: &Path, text: &str) -> Result<T, ImportError> {
-    let options = ron::Options::default().with_default_extension(Extensions::IMPLICIT_SOME);
-    options.from_str(text).map_err(|e| {
-        let kind = match e.code {
-            ron::Error::NoSuchStructField {
-                expected, found, ..
-            } => ErrorKind::UnknownField {
-                name: clip(&found),
-                expected: expected.join(", "),
-            },
-            ron::Error::MissingStructField { field, .. } => ErrorKind::MissingField {
-                name: field.to_owned(),
-            },
-            other => ErrorKind::Ron {
-                message: clip(&other.to_string()),
-            },
-        };
-        let (line, col) = pdcal_ephem::text::skip_blanks(text, e.span.start.line, e.span.start.col);
-        ImportError::at(file, line, Some(col), kind)
-    })
+    pdcal_dataset::parse_ron(text)
+        .map_err(|f| ImportError::at(file, f.line, Some(f.column), f.kind.into()))
 }

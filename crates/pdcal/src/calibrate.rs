@@ -2,7 +2,6 @@
 
 use std::path::{Path, PathBuf};
 
-use serde::Serialize;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
@@ -12,14 +11,12 @@ use pdcal_albedo::{AlbedoModel, MapChoice};
 pub type AlbedoModelType = AlbedoModel;
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_filter::screen::ScreenTolerances;
-use pdcal_filter::{
-    Algebra, Calibration, CalibrationRun, FilterConfig, Mode, References, Rejections, RunInputs,
-};
+use pdcal_filter::{Algebra, Calibration, FilterConfig, Mode, References, Rejections, RunInputs};
 
-use crate::files::ResidualSummary;
 use crate::output::OutputDir;
+pub use crate::schema::{DatasetSummary, Outcome};
+pub use crate::stream::CancelCheck;
 use crate::stream::StreamSink;
-use crate::sunvec::SunVectorMetrics;
 
 /// The resolved run configuration: filter tuning and mode.
 #[derive(Debug, Clone)]
@@ -102,37 +99,6 @@ fn has_field(text: &str, field: &str) -> bool {
     })
 }
 
-/// Everything a calibration produces, in memory.
-pub struct Outcome {
-    /// The filter run (forward, smoother, residuals, calibration).
-    pub run: CalibrationRun,
-    /// Sun-vector magnitude and direction metrics (Figs. 8-11).
-    pub sun_vector: SunVectorMetrics,
-    /// Photodiode residual statistics over every row.
-    pub residuals: ResidualSummary,
-    /// Wall-clock time of the filter run, s.
-    pub runtime_s: f64,
-    /// Physical-plausibility warnings on the input ([`crate::checks`]), one line each.
-    pub warnings: Vec<String>,
-    /// The data sets of a joint calibration with their own residual statistics (empty for
-    /// one data set).
-    pub datasets: Vec<DatasetSummary>,
-    /// Photodiodes whose data contradict their nominal mounting or polarity, and what the
-    /// calibration did about each ([`crate::mounting`]).
-    pub mountings: Vec<pdcal_filter::mounting::MountingFinding>,
-}
-
-/// One data set of a calibration and the statistics of its own photodiode residuals
-/// (`summary.json` `datasets`).
-#[derive(Debug, Clone, Serialize)]
-pub struct DatasetSummary {
-    /// Where it sits among the sets.
-    #[serde(flatten)]
-    pub span: crate::joint::SetSpan,
-    /// Its photodiode residuals.
-    pub residuals: ResidualSummary,
-}
-
 /// The reflectivity map the filter uses: the paper's TOMS map.
 pub const ALBEDO_MAP: MapChoice = MapChoice::TomsMean1p25x1;
 
@@ -192,7 +158,13 @@ pub fn run_with_references(
         &config.filter,
     )?;
     Ok(Outcome {
-        residuals: crate::files::residual_summary(&run.residuals),
+        residuals: crate::schema::residual_summary(&run.residuals),
+        consistency: pdcal_filter::consistency::judge(
+            &run.residuals,
+            meta.photodiodes.len(),
+            run.sensor_sigmas.photodiode_v,
+            run.sensor_sigmas.mag_nt,
+        ),
         run,
         sun_vector,
         runtime_s,
@@ -226,7 +198,8 @@ pub fn run_dirs(
     datasets: &[PathBuf],
     out: &Path,
     config: &RunConfig,
-) -> Result<(Outcome, crate::files::Summary)> {
+    config: &RunConfig,
+) -> Result<(Outcome, crate::schema::Summary)> {
     run_dirs_forced(datasets, out, config, false)
 }
 
@@ -237,7 +210,7 @@ pub fn run_dirs_forced(
     out: &Path,
     config: &RunConfig,
     force: bool,
-) -> Result<(Outcome, crate::files::Summary)> {
+) -> Result<(Outcome, crate::schema::Summary)> {
     let dir = OutputDir::create_forced(out, "calibrate", force)?;
     // Only meta and telemetry: calibrate never reads truth.*.
     run_sets(crate::joint::read(datasets)?, dir, config, None)
@@ -275,11 +248,6 @@ pub fn check_photodiode_count(m: usize, what: &str) -> Result<()> {
     Ok(())
 }
 
-/// Asked every [`pdcal_filter::CANCEL_POLL_ROWS`] rows of a calibration whether to stop
-/// (an interactive session's interrupt); the run then fails with
-/// [`pdcal_filter::FilterError::Cancelled`] and publishes nothing.
-pub type CancelCheck = Box<dyn FnMut() -> bool>;
-
 /// The calibration of [`run_dirs`] on data sets held in memory (each with the directory
 /// it stands for, named in `summary.json` `datasets`), its outputs written into `dir` and
 /// published there; `cancel` may stop it.
@@ -288,7 +256,7 @@ pub fn run_sets(
     dir: OutputDir,
     config: &RunConfig,
     cancel: Option<CancelCheck>,
-) -> Result<(Outcome, crate::files::Summary)> {
+) -> Result<(Outcome, crate::schema::Summary)> {
     if let Some((dir, meta, _)) = sets.first() {
         check_photodiode_count(meta.photodiodes.len(), &dir.display().to_string())?;
     }
@@ -345,6 +313,7 @@ pub fn run_sets(
         meta.photodiodes.len(),
         telemetry.len(),
         config.filter.smoother,
+        &sigmas,
     )?
     .with_sets(&set_starts)
     .with_cancel(cancel);
@@ -379,6 +348,7 @@ pub fn run_sets(
         run,
         sun_vector,
         residuals: streamed.residual_summary,
+        consistency: streamed.consistency,
         runtime_s,
         warnings,
         // Listed for a joint calibration only: one set is the summary itself.
@@ -388,12 +358,17 @@ pub fn run_sets(
                 .sets
                 .into_iter()
                 .zip(streamed.set_residuals)
-                .map(|(span, residuals)| DatasetSummary { span, residuals })
+                .zip(streamed.set_consistency)
+                .map(|((span, residuals), consistency)| DatasetSummary {
+                    span,
+                    residuals,
+                    consistency,
+                })
                 .collect(),
         },
         mountings,
     };
-    let summary = crate::files::summary(&meta, &outcome);
+    let summary = crate::schema::summary(&meta, &outcome);
     crate::files::write_summary_and_figures(dir, &telemetry, &outcome, &summary, None)?;
     Ok((outcome, summary))
 }

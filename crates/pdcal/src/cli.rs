@@ -149,8 +149,8 @@ pub fn run(cli: Cli) -> Result<()> {
             println!(
                 "imported {}: {} samples, {} photodiodes -> {}",
                 source.display(),
-                imported.dataset.telemetry.len(),
-                imported.dataset.meta.photodiodes.len(),
+                imported.report.rows_kept,
+                imported.meta.photodiodes.len(),
                 out.display()
             );
             Ok(())

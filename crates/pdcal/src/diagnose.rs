@@ -239,6 +239,7 @@ pub fn report_text(
         );
         let _ = writeln!(s, "- kept: {}", effect_text(&r.effect));
         let _ = writeln!(s, "- its refit: {}", shrink_line(&r.shrink));
+        let _ = writeln!(s, "- significance: {}", r.significance.text());
         for x in &r.rejected {
             let _ = writeln!(
                 s,
@@ -251,6 +252,17 @@ pub fn report_text(
                 s,
                 "- dropped again: {} (score {:.1} without it, at most the threshold)",
                 x.id, x.score
+            );
+        }
+        for x in &r.reformed {
+            let _ = writeln!(
+                s,
+                "- changed form: {} from {} to {} (photodiode residual sum of squares {:.4} -> {:.4} V^2)",
+                x.id,
+                effect_text(&x.from),
+                effect_text(&x.to),
+                x.photodiode_rss_v2[0],
+                x.photodiode_rss_v2[1]
             );
         }
         let _ = writeln!(s, "- before: {}", gap_line(&r.gap_before));
@@ -373,11 +385,15 @@ pub fn console_summary(outcome: &DiagnoseOutcome) -> String {
         let _ = writeln!(s, "  round {}: {} (score {:.1})", n + 1, r.found, r.score);
         let _ = writeln!(s, "    {}", r.evidence);
         let _ = writeln!(s, "    refit: {}", shrink_line(&r.shrink));
+        let _ = writeln!(s, "    significance: {}", r.significance.text());
         for x in &r.rejected {
             let _ = writeln!(s, "    not named: {} ({:.1}): {}", x.id, x.score, x.reason);
         }
         for x in &r.dropped {
             let _ = writeln!(s, "    dropped again: {} ({:.1} without it)", x.id, x.score);
+        }
+        for x in &r.reformed {
+            let _ = writeln!(s, "    changed form: {} to {}", x.id, effect_text(&x.to));
         }
         let _ = writeln!(s, "    before: {}", gap_line(&r.gap_before));
         let _ = writeln!(s, "    after:  {}", gap_line(&r.gap_after));
@@ -409,5 +425,20 @@ pub fn console_summary(outcome: &DiagnoseOutcome) -> String {
         "  residuals: {}",
         misfit_text(&d.misfit).replace('\n', "\n  ")
     );
+    for (which, c) in [
+        ("first model", &d.base_consistency),
+        ("final model", &d.consistency),
+    ] {
+        let _ = writeln!(
+            s,
+            "  consistency of the {which}'s filter residuals (as calibrate judges it): {}{}",
+            c.verdict.as_str(),
+            if c.reasons.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", c.reasons.join("; "))
+            }
+        );
+    }
     s
 }

@@ -10,8 +10,7 @@ use pdcal_report::{
     histograms, lines, series_with_bounds, sphere_directions,
 };
 
-use crate::calibrate::Outcome;
-use crate::files::Summary;
+use crate::schema::{Outcome, Summary};
 use crate::stream::stride_for;
 
 /// A written figure: caption and file stem.
@@ -467,6 +466,7 @@ pub fn write_index(
     }
     let tables = [
         crate::tables::photodiode_table(summary),
+        crate::tables::consistency_table(&summary.consistency),
         crate::tables::segment_table(summary),
     ];
     pdcal_report::index_html_with_tables(

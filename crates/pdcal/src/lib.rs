@@ -1,9 +1,8 @@
 //! The pdcal driver: the commands of `docs/cli-contract.md` as library functions, so that
 //! `xtask` (Monte Carlo, demos) runs exactly what the binary runs.
 //!
-//! This crate and `xtask` are, with `pdcal-dataset` and `pdcal-report`, the only places that
-//! touch files. Every output directory is written whole or not at all
-//! ([`output::OutputDir`]).
+//! One of the few crates that touch files (docs/ARCHITECTURE.md, "Layering", lists them).
+//! Every output directory is written whole or not at all ([`output::OutputDir`]).
 
 pub mod calibrate;
 pub mod checks;
@@ -14,10 +13,12 @@ pub mod evaluate;
 pub mod figures;
 pub mod files;
 pub mod import;
-pub mod import_fixture;
 pub mod joint;
 pub mod mounting;
 pub mod output;
+pub mod rows;
+pub mod schema;
+pub mod sim_calibrate;
 pub mod simulate;
 pub mod stream;
 pub mod sunvec;

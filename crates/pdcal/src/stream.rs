@@ -15,12 +15,19 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use pdcal_attitude::Quat;
-use pdcal_filter::{ResidualRecord, RunSink, Sensor, StepEstimate};
-
-use crate::files::{
-    RESIDUAL_COLUMNS, ResidualSummary, estimate_header, estimate_row, residual_row,
+use pdcal_filter::{
+    Consistency, ConsistencyAccumulator, ResidualRecord, RunSink, Sensor, SensorSigmas,
+    StepEstimate,
 };
+
 use crate::output::OutputDir;
+use crate::rows::{RESIDUAL_COLUMNS, estimate_header, estimate_row, residual_row};
+use crate::schema::ResidualSummary;
+
+/// Asked every [`pdcal_filter::CANCEL_POLL_ROWS`] rows of a calibration whether to stop
+/// (an interactive session's interrupt); the run then fails with
+/// [`pdcal_filter::FilterError::Cancelled`] and publishes nothing.
+pub type CancelCheck = Box<dyn FnMut() -> bool>;
 
 /// Largest number of points a figure's time series keeps.
 pub const FIGURE_POINTS: usize = 4000;
@@ -43,6 +50,10 @@ pub struct Streamed {
     /// Photodiode residual statistics per data set of a joint calibration
     /// ([`StreamSink::with_sets`]; one entry otherwise).
     pub set_residuals: Vec<ResidualSummary>,
+    /// The consistency verdict over every row.
+    pub consistency: Consistency,
+    /// The consistency verdict per data set (one entry without sets).
+    pub set_consistency: Vec<Consistency>,
 }
 
 /// Sums of the photodiode residuals of one data set: squares, inside 3 sigma, count.
@@ -77,8 +88,10 @@ pub struct StreamSink {
     /// First row of each data set, and its residual sums.
     set_starts: Vec<usize>,
     set_sums: Vec<ResidualSums>,
+    consistency: ConsistencyAccumulator,
+    set_consistency: Vec<ConsistencyAccumulator>,
     error: Option<anyhow::Error>,
-    cancel: Option<crate::calibrate::CancelCheck>,
+    cancel: Option<CancelCheck>,
     estimates_path: PathBuf,
     residuals_path: PathBuf,
 }
@@ -94,8 +107,16 @@ fn create(path: &Path) -> Result<csv::Writer<BufWriter<File>>> {
 }
 
 impl StreamSink {
-    /// Files in `dir` for `m` photodiodes over at most `rows` rows.
-    pub fn new(dir: &OutputDir, m: usize, rows: usize, smoother: bool) -> Result<Self> {
+    /// Files in `dir` for `m` photodiodes over at most `rows` rows; `sigmas` are the sensor
+    /// noises the run uses (the consistency verdict's yardstick).
+    pub fn new(
+        dir: &OutputDir,
+        m: usize,
+        rows: usize,
+        smoother: bool,
+        sigmas: &SensorSigmas,
+    ) -> Result<Self> {
+        let consistency = ConsistencyAccumulator::new(m, sigmas.photodiode_v, sigmas.mag_nt);
         let spill_path = dir.file(".estimates_smoothed.spill");
         let residuals_path = dir.file("residuals.csv");
         let estimates_path = dir.file("estimates.csv");
@@ -123,6 +144,8 @@ impl StreamSink {
             pd_inside: 0,
             set_starts: vec![0],
             set_sums: vec![ResidualSums::default()],
+            set_consistency: vec![consistency.clone()],
+            consistency,
             error: None,
             cancel: None,
             estimates_path,
@@ -136,12 +159,13 @@ impl StreamSink {
         if !starts.is_empty() {
             self.set_starts = starts.to_vec();
             self.set_sums = vec![ResidualSums::default(); starts.len()];
+            self.set_consistency = vec![self.consistency.clone(); starts.len()];
         }
         self
     }
 
     /// Lets `cancel` stop the run ([`RunSink::cancelled`]); `None` never stops it.
-    pub fn with_cancel(mut self, cancel: Option<crate::calibrate::CancelCheck>) -> Self {
+    pub fn with_cancel(mut self, cancel: Option<CancelCheck>) -> Self {
         self.cancel = cancel;
         self
     }
@@ -256,6 +280,8 @@ impl StreamSink {
                 .iter()
                 .map(|s| ResidualSummary::from_sums(s.sum_sq, s.inside, s.count))
                 .collect(),
+            consistency: self.consistency.finish(),
+            set_consistency: self.set_consistency.iter().map(|c| c.finish()).collect(),
         })
     }
 }
@@ -268,12 +294,14 @@ impl RunSink for StreamSink {
         let result = self.write_forward(estimate, residuals);
         self.keep(result);
         for r in residuals {
+            let set = self.set_starts.partition_point(|&s| s <= r.index).max(1) - 1;
+            self.consistency.push(r);
+            self.set_consistency[set].push(r);
             if matches!(r.sensor, Sensor::Photodiode(_)) {
                 let inside = usize::from(r.residual.abs() <= r.bound_3sigma);
                 self.pd_count += 1;
                 self.pd_sum_sq += r.residual * r.residual;
                 self.pd_inside += inside;
-                let set = self.set_starts.partition_point(|&s| s <= r.index).max(1) - 1;
                 let sums = &mut self.set_sums[set];
                 sums.count += 1;
                 sums.sum_sq += r.residual * r.residual;

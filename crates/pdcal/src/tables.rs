@@ -6,7 +6,10 @@ use std::fmt::Write as _;
 
 use pdcal_report::Table;
 
-use crate::files::Summary;
+use pdcal_filter::Consistency;
+use pdcal_filter::identifiability::Status;
+
+use crate::schema::Summary;
 
 /// The photodiode table.
 pub fn photodiode_table(summary: &Summary) -> Table {
@@ -20,6 +23,7 @@ pub fn photodiode_table(summary: &Summary) -> Table {
         "normal change (deg)",
         "C change (%)",
         "sunlit used (min)",
+        "status",
         "flag",
     ];
     let rows = summary
@@ -29,11 +33,18 @@ pub fn photodiode_table(summary: &Summary) -> Table {
             let azimuth_sigma = p
                 .azimuth_sigma_deg
                 .map_or("undefined".to_owned(), |s| format!("{s:.2}"));
+            let d = &p.determination;
             vec![
                 format!("pd{:02}", p.index),
-                format!("{:.4} +- {:.4}", p.scale_V, p.scale_sigma_V),
-                format!("{:.2} +- {azimuth_sigma}", p.azimuth_deg),
-                format!("{:.2} +- {:.2}", p.elevation_deg, p.elevation_sigma_deg),
+                or_undetermined(d.scale.status, || {
+                    format!("{:.4} +- {:.4}", p.scale_V, p.scale_sigma_V)
+                }),
+                or_undetermined(d.azimuth.status, || {
+                    format!("{:.2} +- {azimuth_sigma}", p.azimuth_deg)
+                }),
+                or_undetermined(d.elevation.status, || {
+                    format!("{:.2} +- {:.2}", p.elevation_deg, p.elevation_sigma_deg)
+                }),
                 format!("{:.4}", p.initial.scale_V),
                 format!(
                     "{:.1} / {:.1}",
@@ -42,16 +53,77 @@ pub fn photodiode_table(summary: &Summary) -> Table {
                 format!("{:.2}", p.normal_change_deg),
                 format!("{:+.2}", p.scale_change_percent),
                 format!("{:.1}", p.time_used_min),
+                p.status.as_str().to_owned(),
                 p.flag.clone().unwrap_or_default(),
             ]
         })
         .collect();
     Table::new(
         "Photodiodes (calibrated value +- 1 sigma; nominal: the dataset.ron mounting, and \
-         the maximum output as C)",
+         the maximum output as C; \"not determined\": the data did not determine it, \
+         summary.json and calibration.ron hold the nominal value and say why)",
         &header,
         rows,
     )
+}
+
+/// A calibrated cell, or `not determined` where the data did not determine the quantity
+/// (its number would be the prior's, not a result).
+fn or_undetermined(status: Status, cell: impl FnOnce() -> String) -> String {
+    match status {
+        Status::NotDetermined => "not determined".to_owned(),
+        _ => cell(),
+    }
+}
+
+/// The consistency verdict: its reasons in the title, a row per sensor class and per
+/// photodiode with updates (RMS against the noise, NIS against its band, inside 3 sigma
+/// over held rows).
+pub fn consistency_table(c: &Consistency) -> Table {
+    let header = [
+        "sensor",
+        "updates",
+        "residual RMS",
+        "noise",
+        "RMS / noise",
+        "robust / noise",
+        "mean NIS [99.9 % band]",
+        "held updates",
+        "inside 3 sigma (held)",
+    ];
+    let opt = |x: Option<f64>, f: &dyn Fn(f64) -> String| x.map_or("-".to_owned(), f);
+    let rows = c
+        .sensors
+        .iter()
+        .chain(c.photodiodes.iter().filter(|p| p.updates > 0))
+        .map(|ch| {
+            vec![
+                ch.channel.clone(),
+                ch.updates.to_string(),
+                opt(ch.residual_rms, &|x| format!("{x:.4e}")),
+                format!("{:.4e}", ch.noise_sigma),
+                opt(ch.rms_over_noise, &|x| format!("{x:.2}")),
+                opt(ch.robust_over_noise, &|x| format!("{x:.2}")),
+                match (ch.nis_mean, ch.nis_band) {
+                    (Some(m), Some([lo, hi])) => format!("{m:.3} [{lo:.3}, {hi:.3}]"),
+                    _ => "-".to_owned(),
+                },
+                ch.held_updates.to_string(),
+                opt(ch.fraction_within_3sigma, &|x| {
+                    format!("{:.2} %", 100.0 * x)
+                }),
+            ]
+        })
+        .collect();
+    let title = match c.reasons.is_empty() {
+        true => format!("Consistency: {}", c.verdict.as_str()),
+        false => format!(
+            "Consistency: {} ({})",
+            c.verdict.as_str(),
+            c.reasons.join("; ")
+        ),
+    };
+    Table::new(&title, &header, rows)
 }
 
 /// The segments of the run: rows, time span, rows used, how the attitude was acquired and
@@ -140,8 +212,9 @@ pub fn text(table: &Table) -> String {
 /// The printed summary of `pdcal calibrate`: the photodiode table and the segments.
 pub fn console_summary(summary: &Summary) -> String {
     format!(
-        "{}\n{}",
+        "{}\n{}\n{}",
         text(&photodiode_table(summary)),
+        text(&consistency_table(&summary.consistency)),
         text(&shortened(segment_table(summary), CONSOLE_SEGMENTS))
     )
 }

@@ -102,3 +102,108 @@ fn a_foreign_out_directory_is_refused_before_reading() {
         "mine"
     );
 }
+
+/// A `;`-separated export of two photodiodes read against a common reference channel, with
+/// rows of one time tag, and its map (no `delimiter`: detected).
+const SEMICOLON_CSV: &str = "\
+unix;wx;wy;wz;V1;V2;VN
+1320431385;1;2;3;2048;1500;1024
+1320431386;1;2;3;2048;1500;1024
+1320431386;3;4;5;2048;1500;1000
+1320431387;1;2;3;4095;1500;1024
+";
+
+fn semicolon_map(extra: &str) -> String {
+    let text = std::fs::read_to_string(fixture("map.ron")).unwrap();
+    let tle: Vec<&str> = text.lines().filter(|l| l.contains("line")).collect();
+    format!(
+        r#"(
+    format_version: 1,
+    time: (column: "unix", form: Unix),
+{extra}    gyro: (x: (column: "wx", unit: "deg/s"), y: (column: "wy", unit: "deg/s"), z: (column: "wz", unit: "deg/s")),
+    photodiodes: [
+        (columns: [("V1", 1.0), ("VN", -1.0)], counts: (gain: 0.001220703125, unit: "V"), sentinels: [4095], azimuth_deg: 0.0, elevation_deg: 0.0),
+        (columns: [("V2", 1.0), ("VN", -1.0)], counts: (gain: 0.001220703125, unit: "V"), azimuth_deg: 90.0, elevation_deg: 0.0),
+    ],
+    orbit: Tle(
+{}
+{}
+    ),
+)
+"#,
+        tle[0], tle[1]
+    )
+}
+
+#[test]
+fn the_output_says_the_detected_delimiter_and_the_merged_rows() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (csv, map) = (tmp.path().join("pass.csv"), tmp.path().join("map.ron"));
+    std::fs::write(&csv, SEMICOLON_CSV).unwrap();
+    std::fs::write(&map, semicolon_map("    duplicate_times: Average,\n")).unwrap();
+    let out = tmp.path().join("ds");
+    let o = import(&csv, &map, &out);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert_eq!(
+        lines[..4],
+        [
+            "delimiter: semicolon (';') (detected from the header; `delimiter` in the map sets it)",
+            "3 of 4 rows kept (0 dropped with an empty time, 0 with a sentinel time); epoch \
+             2011-11-04T18:29:45Z, span 2 s",
+            "1 rows with the time of the previous row averaged into the first row of their time \
+             (duplicate_times: Average)",
+            "sentinel cells left empty: V1 - VN 1",
+        ],
+        "{stdout}"
+    );
+    let ds = pdcal_dataset::read_dataset(&out).unwrap();
+    // pd01 at the merged time: (1024 + 1048) / 2 counts.
+    assert_eq!(ds.telemetry.pd_v[0].get(1), Some(1036.0 * 5.0 / 4096.0));
+    // Refused by default, with its own message.
+    std::fs::write(&map, semicolon_map("")).unwrap();
+    let o = import(&csv, &map, &tmp.path().join("ds2"));
+    assert_eq!(
+        stderr(&o),
+        format!(
+            "pdcal: error: {}:4:1 (unix): time 2011-11-04T18:29:46.000000Z is the same as the \
+             previous kept row's (line 3): the export has several rows with one time tag; say \
+             in the map which to use, `duplicate_times: KeepFirst` or `duplicate_times: \
+             Average`\n",
+            csv.display()
+        )
+    );
+}
+
+#[test]
+fn a_fault_in_the_last_row_of_a_streamed_export_leaves_the_old_dataset() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (csv, map) = (tmp.path().join("pass.csv"), tmp.path().join("map.ron"));
+    std::fs::write(&map, semicolon_map("    duplicate_times: KeepFirst,\n")).unwrap();
+    std::fs::write(&csv, SEMICOLON_CSV).unwrap();
+    let out = tmp.path().join("ds");
+    assert!(import(&csv, &map, &out).status.success());
+    let before = std::fs::read(out.join("telemetry.csv")).unwrap();
+    // Many good rows are converted and staged before the last one is found bad.
+    let mut long = SEMICOLON_CSV.to_owned();
+    for k in 0..20_000 {
+        long.push_str(&format!("{};1;2;3;2048;1500;1024\n", 1_320_431_388 + k));
+    }
+    long.push_str("1320451388;1;2;3;20x48;1500;1024\n");
+    std::fs::write(&csv, long).unwrap();
+    let o = import(&csv, &map, &out);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains(":20006:5 (V1): \"20x48\" is not a number"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(std::fs::read(out.join("telemetry.csv")).unwrap(), before);
+    let leftovers: Vec<_> = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("pdcal"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}

@@ -313,7 +313,7 @@ fn estimates_csv_faults_name_the_file_and_a_nan_quaternion_is_not_zero() {
     let tmp = tempfile::tempdir().unwrap();
     let path = tmp.path().join("estimates.csv");
     let header = pdcal::files::estimate_header(1, &[]).join(",");
-    let row = |q: &str| format!("0.0,{q},0.1,0.1,0.1,0,0,0,0,0,0,3.5,0.1,17,0.5,-10,0.5,0");
+    let row = |q: &str| format!("0.0,{q},0.1,0.1,0.1,0,0,0,0,0,0,3.5,0.1,17,0.5,-10,0.5,0,0,0,0");
     fs::write(&path, format!("{header}\n{}\n", row("NaN,0,0,1"))).unwrap();
     let err = pdcal::evaluate::read_estimates(&path).unwrap_err();
     assert_eq!(

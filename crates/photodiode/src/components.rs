@@ -6,8 +6,8 @@
 use pdcal_effects::{Effect, EffectId};
 
 use crate::terms::{
-    Albedo, AlbedoGain, AlbedoPartials, DarkOffset, FovRolloff, Penumbra, Saturation, ScaleDrift,
-    Temperature, TimeOffset,
+    Albedo, AlbedoGain, AlbedoPartials, DarkOffset, FovRolloff, KellyRolloff, Penumbra, Saturation,
+    ScaleDrift, Temperature, TimeOffset,
 };
 use crate::{MeasurementModel, ParameterRole, PhotodiodeError};
 
@@ -17,7 +17,8 @@ pub struct EffectModelOptions {
     /// Partials of the albedo terms (`albedo`, `albedo-gain`).
     pub albedo_partials: AlbedoPartials,
     /// Role of the parameters of the effects a filter can estimate (`time-offset`,
-    /// `scale-drift`, `albedo-gain`, `temperature`); the others are always fixed.
+    /// `scale-drift`, `albedo-gain`, `temperature`, the Kelly roll-off's `kappa`); the
+    /// others are always fixed.
     pub role: ParameterRole,
     /// Whether `time-offset` becomes the first-order term; a simulator samples the scene at
     /// the shifted time instead and leaves it out.
@@ -25,7 +26,8 @@ pub struct EffectModelOptions {
 }
 
 /// Adds the component of `effect` to `model`; false when the effect is not a photodiode
-/// component (`mag-bias`, `gyro-scale`: telemetry corrections; `time-offset` without
+/// component (`mag-bias`, `gyro-scale`: telemetry corrections; `albedo-map`: a correction
+/// of the reflectivity map; `time-offset` without
 /// [`EffectModelOptions::time_offset_term`]).
 pub fn add_effect(
     model: &mut MeasurementModel,
@@ -40,7 +42,13 @@ pub fn add_effect(
             cutoff_rad,
         } => model.add_term(FovRolloff::new(*start_rad, *cutoff_rad)?)?,
         Effect::DarkOffset { volts } => model.add_term(DarkOffset::new(volts))?,
+        Effect::KellyRolloff { kappa, exponent } => {
+            model.add_term(KellyRolloff::new(*kappa, *exponent)?)?
+        }
         Effect::Saturation { volts } => model.add_stage(Saturation::shared(*volts))?,
+        Effect::SaturationPerPhotodiode { volts } => {
+            model.add_stage(Saturation::per_photodiode(volts))?
+        }
         Effect::Penumbra => model.add_term(Penumbra)?,
         Effect::TimeOffset { seconds } if options.time_offset_term => {
             model.add_term(TimeOffset::new(*seconds))?
@@ -53,28 +61,37 @@ pub fn add_effect(
             coefficient_per_k,
             reference_c,
         } => model.add_gain(Temperature::per_photodiode(coefficient_per_k, *reference_c))?,
-        Effect::TimeOffset { .. } | Effect::MagBias { .. } | Effect::GyroScale { .. } => {
+        // `albedo-map` corrects the reflectivity map the albedo provider is built from.
+        Effect::TimeOffset { .. }
+        | Effect::MagBias { .. }
+        | Effect::GyroScale { .. }
+        | Effect::AlbedoMap { .. } => {
             return Ok(false);
         }
     }
     // The effects whose values a filter can carry as states: those `estimated_values_mut`
     // lists.
-    if !estimated_values_mut(&mut effect.clone()).is_empty() {
-        set_role(model, effect.id(), options.role)?;
+    let estimated = estimated_values_mut(&mut effect.clone()).len();
+    if estimated > 0 {
+        set_role(model, effect.id(), options.role, estimated)?;
     }
     Ok(true)
 }
 
+/// Sets the role of the first `count` parameters of the component `id` (the ones
+/// [`estimated_values_mut`] lists, in order).
 fn set_role(
     model: &mut MeasurementModel,
     id: EffectId,
     role: ParameterRole,
+    count: usize,
 ) -> Result<(), PhotodiodeError> {
     let indices: Vec<usize> = model
         .parameters()
         .enumerate()
         .filter(|(_, (c, _))| *c == id.into())
         .map(|(i, _)| i)
+        .take(count)
         .collect();
     for i in indices {
         model.parameter_mut(i)?.role = role;
@@ -83,12 +100,15 @@ fn set_role(
 }
 
 /// The effect's values that a filter estimates, in the order of its component's
-/// parameters (and in their units: s, 1/h, 1, 1/K); empty for the others.
+/// parameters (and in their units: s, 1/h, 1, 1/K); empty for the others. The Kelly
+/// roll-off's `kappa` only: its exponent is fixed at the diagnosis's fit (the two are
+/// nearly interchangeable inside the filter's 60-deg gate).
 pub fn estimated_values_mut(effect: &mut Effect) -> Vec<&mut f64> {
     match effect {
         Effect::TimeOffset { seconds } => vec![seconds],
         Effect::ScaleDrift { fraction_per_hour } => fraction_per_hour.iter_mut().collect(),
         Effect::AlbedoGain { gain } => vec![gain],
+        Effect::KellyRolloff { kappa, .. } => vec![kappa],
         Effect::Temperature {
             coefficient_per_k, ..
         } => coefficient_per_k.iter_mut().collect(),

@@ -108,6 +108,6 @@ pub use term::{
     parameter_for,
 };
 pub use terms::{
-    Albedo, AlbedoGain, AlbedoPartials, DarkOffset, DirectSun, FovRolloff, Penumbra, Saturation,
-    ScaleDrift, Temperature, TimeOffset,
+    Albedo, AlbedoGain, AlbedoPartials, DarkOffset, DirectSun, FovRolloff, KELLY_MIN_KAPPA,
+    KellyRolloff, Penumbra, Saturation, ScaleDrift, Temperature, TimeOffset,
 };

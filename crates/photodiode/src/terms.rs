@@ -281,6 +281,120 @@ impl Term for FovRolloff {
     }
 }
 
+/// Smallest `kappa` the [`KellyRolloff`] evaluates with; a filter step below it is held
+/// there (with zero partial), where the roll-off is already a hard cut at grazing incidence.
+pub const KELLY_MIN_KAPPA: f64 = 1e-4;
+
+/// Roll-off below the cosine law in the Kelly form of other tools' coarse-sun-sensor models
+/// (Basilisk's `kellyFactor`, exponent 2): the direct-Sun output times
+/// `K(c) = 1 - exp(-c^k / kappa)`, `c = n^T s` the incidence cosine. The term adds the
+/// correction `f C c (K - 1) = -f C c exp(-c^k / kappa)`.
+/// Id `fov-rolloff`; parameters `fov_rolloff_kappa` and `fov_rolloff_exponent` (shared,
+/// dimensionless). Smooth in `c` on `(0, 1]`, unlike the raised-cosine [`FovRolloff`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct KellyRolloff {
+    params: [Parameter; 2],
+    /// Shadow factor applied to the correction; keep equal to the [`DirectSun`]'s mode.
+    pub shadow: ShadowMode,
+}
+
+impl KellyRolloff {
+    /// A Kelly roll-off with `kappa > 0` and `exponent > 0`.
+    pub fn new(kappa: f64, exponent: f64) -> Result<Self, PhotodiodeError> {
+        if !(kappa > 0.0 && kappa.is_finite()) {
+            return Err(PhotodiodeError::BadValue {
+                what: "fov_rolloff_kappa".into(),
+                value: kappa,
+                rule: "kappa > 0",
+            });
+        }
+        if !(exponent > 0.0 && exponent.is_finite()) {
+            return Err(PhotodiodeError::BadValue {
+                what: "fov_rolloff_exponent".into(),
+                value: exponent,
+                rule: "exponent > 0",
+            });
+        }
+        Ok(KellyRolloff {
+            params: [
+                Parameter::shared("fov_rolloff_kappa", "1", kappa),
+                Parameter::shared("fov_rolloff_exponent", "1", exponent),
+            ],
+            shadow: ShadowMode::Hard,
+        })
+    }
+
+    /// `exp(-c^k / kappa)` and its partials w.r.t. `c`, `kappa`, `k` at `c > 0`.
+    fn loss(&self, c: f64) -> [f64; 4] {
+        let raw_kappa = self.params[0].value;
+        let kappa = raw_kappa.max(KELLY_MIN_KAPPA);
+        let k = self.params[1].value;
+        let ck = c.powf(k);
+        let e = (-ck / kappa).exp();
+        let d_kappa = if raw_kappa > KELLY_MIN_KAPPA {
+            e * ck / (kappa * kappa)
+        } else {
+            0.0
+        };
+        [
+            e,
+            -e * k * ck / (c * kappa),
+            d_kappa,
+            -e * ck * c.ln() / kappa,
+        ]
+    }
+
+    /// The multiplicative factor `K` at incidence cosine `cos_incidence` (0 behind).
+    pub fn factor(&self, cos_incidence: f64) -> f64 {
+        if cos_incidence <= 0.0 {
+            return 0.0;
+        }
+        1.0 - self.loss(cos_incidence.min(1.0))[0]
+    }
+}
+
+impl Component for KellyRolloff {
+    fn id(&self) -> ComponentId {
+        EffectId::FovRolloff.into()
+    }
+    fn parameters(&self) -> &[Parameter] {
+        &self.params
+    }
+    fn parameters_mut(&mut self) -> &mut [Parameter] {
+        &mut self.params
+    }
+}
+
+impl Term for KellyRolloff {
+    fn value(&self, pd: &Photodiode, _index: usize, scene: &Scene) -> f64 {
+        sun_view(pd, scene, self.shadow).map_or(0.0, |v| {
+            -v.shadow * pd.scale_v * v.cos * self.loss(v.cos.min(1.0))[0]
+        })
+    }
+
+    /// With `g(c) = -c e`, `e = exp(-c^k/kappa)`: `dg/dc = -e - c de/dc`, and the parameter
+    /// partials `-f C c de/dp`.
+    fn partials(
+        &self,
+        pd: &Photodiode,
+        _: usize,
+        scene: &Scene,
+        d_params: &mut [f64],
+    ) -> Sensitivity {
+        let Some(view) = sun_view(pd, scene, self.shadow) else {
+            return Sensitivity::default();
+        };
+        let c = view.cos.min(1.0);
+        let [e, de_dc, de_dkappa, de_dk] = self.loss(c);
+        let k = -view.shadow * pd.scale_v * view.cos;
+        if let [d_kappa, d_exponent, ..] = d_params {
+            *d_kappa = k * de_dkappa;
+            *d_exponent = k * de_dk;
+        }
+        cosine_law(pd, scene, &view, -view.cos * e, -e - view.cos * de_dc)
+    }
+}
+
 /// Constant additive output per photodiode (dark current, ADC offset), present in eclipse too.
 /// Id `dark-offset`; parameters `pdNN_dark_offset_V`.
 #[derive(Debug, Clone, PartialEq)]

@@ -197,6 +197,62 @@ fn fov_rolloff_partials_match_finite_differences() {
 }
 
 #[test]
+fn kelly_rolloff_partials_match_finite_differences() {
+    let mut stats = Stats::default();
+    let mut rng = rng(16);
+    for_states(
+        17,
+        STATES,
+        |s| lit(s) && s.sun_fraction > 0.5,
+        |s| {
+            use rand::RngExt;
+            // kappa over the range other tools use (0.01-1) and exponents 1-4: the loss
+            // exp(-c^k/kappa) then spans 0 to nearly 1 over the drawn incidences.
+            let kappa = 10f64.powf(rng.random_range(-2.0..0.0));
+            let exponent = rng.random_range(1.0..4.0);
+            let mut term = KellyRolloff::new(kappa, exponent).unwrap();
+            let mut d = [0.0; 2];
+            let sens = term.partials(&s.pd, 0, &s.scene(), &mut d);
+            let value = |st: &State| term.value(&st.pd, 0, &st.scene());
+            check_sensitivity(s, &sens, &value, &mut stats, "fov-rolloff (Kelly)");
+            // Parameter steps relative to the value: kappa spans 0.01-1, and a step of 1e-5
+            // absolute is 0.1 % of the smallest, where exp(-c^k/kappa) curves strongly.
+            let scene = s.scene();
+            for (k, &analytic) in d.iter().enumerate() {
+                let p0 = term.parameters()[k].value;
+                let h = 1e-6 * p0;
+                let mut at = |p: f64| {
+                    term.parameters_mut()[k].value = p;
+                    term.value(&s.pd, 0, &scene)
+                };
+                let fd = (at(p0 + h) - at(p0 - h)) / (2.0 * h);
+                at(p0);
+                stats.check(&format!("fov-rolloff (Kelly) d/dp[{k}]"), analytic, fd);
+            }
+        },
+    );
+    stats.report("fov-rolloff (Kelly)");
+    assert!(stats.checked > 5 * STATES);
+}
+
+#[test]
+fn kelly_rolloff_matches_its_equation() {
+    // K(c) = 1 - exp(-c^2/0.1): 0.67 % low at 45 deg, 8.2 % at 60, 31 % at 70.
+    let term = KellyRolloff::new(0.1, 2.0).unwrap();
+    for (deg, loss) in [(45.0, 0.006738), (60.0, 0.082085), (70.0, 0.310_436)] {
+        let c = f64::cos(f64::to_radians(deg));
+        assert!(
+            ((1.0 - term.factor(c)) - loss).abs() < 1e-5,
+            "{deg}: {}",
+            1.0 - term.factor(c)
+        );
+    }
+    assert_eq!(term.factor(-0.1), 0.0);
+    assert!(KellyRolloff::new(0.0, 2.0).is_err());
+    assert!(KellyRolloff::new(0.1, -1.0).is_err());
+}
+
+#[test]
 fn dark_offset_partials_match_finite_differences() {
     let mut stats = Stats::default();
     for_states(8, STATES, State::away_from_kinks, |s| {

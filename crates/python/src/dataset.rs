@@ -528,6 +528,19 @@ fn scenario_from_dict(dict: &Bound<'_, PyDict>) -> PyResult<pdcal_sim::Scenario>
     Ok(scenario)
 }
 
+/// The scenario of a `scenario` argument: a built-in name (`"rax2-like"` when None), a
+/// scenario RON file, or a dict from `pdcal.scenario`.
+pub fn scenario_arg(scenario: Option<&Bound<'_, PyAny>>) -> PyResult<pdcal_sim::Scenario> {
+    Ok(match scenario {
+        Some(s) if s.is_instance_of::<PyDict>() => scenario_from_dict(s.cast::<PyDict>()?)?,
+        Some(s) => {
+            let name: PathBuf = s.extract()?;
+            pdcal::simulate::load_scenario(&name.to_string_lossy()).map_err(py_err)?
+        }
+        None => pdcal::simulate::load_scenario("rax2-like").map_err(py_err)?,
+    })
+}
+
 /// Simulates a scenario (a built-in name, `"rax2-like"` when None, a scenario RON file, or
 /// a dict from `pdcal.scenario`) with `seed`; the dataset carries the truth. `downlink`
 /// picks one of the seed spacecraft's downlinks: the same hardware, its own noise, start
@@ -540,14 +553,7 @@ pub fn simulate(
     seed: u64,
     downlink: u64,
 ) -> PyResult<Dataset> {
-    let scenario = match scenario {
-        Some(s) if s.is_instance_of::<PyDict>() => scenario_from_dict(s.cast::<PyDict>()?)?,
-        Some(s) => {
-            let name: PathBuf = s.extract()?;
-            pdcal::simulate::load_scenario(&name.to_string_lossy()).map_err(py_err)?
-        }
-        None => pdcal::simulate::load_scenario("rax2-like").map_err(py_err)?,
-    };
+    let scenario = scenario_arg(scenario)?;
     let output = py
         .detach(|| pdcal::simulate::run_downlink(&scenario, seed, downlink))
         .map_err(py_err)?;
@@ -557,11 +563,12 @@ pub fn simulate(
     })
 }
 
-/// A built-in scenario as a dict (edit it, e.g. `duration_s`, and pass it to `simulate`).
+/// A built-in scenario, or a scenario RON file, as a dict (edit it, e.g. `duration_s`, and
+/// pass it to `simulate`).
 #[pyfunction]
 #[pyo3(signature = (name="rax2-like"))]
 pub fn scenario<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
-    let scenario = pdcal_sim::Scenario::builtin(name).map_err(py_err)?;
+    let scenario = pdcal::simulate::load_scenario(name).map_err(py_err)?;
     let json = serde_json::to_string(&scenario).map_err(py_err)?;
     json_loads(py, &json)
 }

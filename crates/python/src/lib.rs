@@ -13,6 +13,7 @@ use pyo3::prelude::*;
 
 mod arrays;
 mod calibration;
+mod campaign;
 mod dataset;
 mod diagnosis;
 mod errors;
@@ -29,5 +30,7 @@ fn _pdcal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calibration::calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(calibration::evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(diagnosis::diagnose, m)?)?;
+    m.add_function(wrap_pyfunction!(campaign::sim_calibrate, m)?)?;
+    m.add_function(wrap_pyfunction!(campaign::ron_to_json, m)?)?;
     Ok(())
 }

@@ -2,6 +2,8 @@
 
 use std::path::PathBuf;
 
+use plotters::drawing::DrawingAreaErrorKind;
+
 /// What can go wrong while making a figure or the index page.
 ///
 /// Data without any finite value is *not* an error: it gives an empty-but-valid figure with a
@@ -100,4 +102,13 @@ pub enum ReportError {
         #[source]
         source: std::io::Error,
     },
+}
+
+/// A plotters failure with the backend type erased.
+pub(crate) struct DrawError(pub String);
+
+impl<E: std::error::Error + Send + Sync> From<DrawingAreaErrorKind<E>> for DrawError {
+    fn from(e: DrawingAreaErrorKind<E>) -> Self {
+        Self(e.to_string())
+    }
 }

@@ -8,11 +8,11 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use image::ImageEncoder;
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use plotters::coord::Shift;
-use plotters::drawing::DrawingAreaErrorKind;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 
 use crate::ReportError;
+pub(crate) use crate::error::DrawError;
 use crate::style::FAMILY;
 
 /// The embedded font (DejaVu Sans, licence in fixtures/fonts/DejaVu-LICENSE.txt): the build
@@ -67,15 +67,6 @@ pub struct Written {
     pub png: PathBuf,
     /// `<out_dir>/<stem>.svg`
     pub svg: PathBuf,
-}
-
-/// A plotters failure with the backend type erased.
-pub(crate) struct DrawError(pub String);
-
-impl<E: std::error::Error + Send + Sync> From<DrawingAreaErrorKind<E>> for DrawError {
-    fn from(e: DrawingAreaErrorKind<E>) -> Self {
-        Self(e.to_string())
-    }
 }
 
 /// A validated figure that can draw itself on any plotters backend (so one drawing routine

@@ -5,7 +5,7 @@ use plotters::coord::ranged1d::ValueFormatter;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use crate::render::DrawError;
+use crate::error::DrawError;
 
 /// Font family name the embedded font is registered under; SVG viewers fall back to their own
 /// sans-serif font with the same name.

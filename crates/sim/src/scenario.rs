@@ -594,7 +594,9 @@ impl Scenario {
             }
             // Without these the effect would be written to truth.ron as "on" while changing
             // nothing in the data.
-            if effect.id() == EffectId::AlbedoGain && self.effect(EffectId::Albedo).is_none() {
+            if matches!(effect.id(), EffectId::AlbedoGain | EffectId::AlbedoMap)
+                && self.effect(EffectId::Albedo).is_none()
+            {
                 return Err(invalid(
                     &field,
                     "scales the albedo term, so the scenario's effects need `albedo` as well",

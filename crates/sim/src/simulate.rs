@@ -573,6 +573,13 @@ pub fn simulate_downlink(
         Some(Effect::Albedo { map }) => Some(AlbedoModel::from_choice(&map.parse::<MapChoice>()?)?),
         _ => None,
     };
+    // `albedo-map`: the Earth's reflectivity is the map's times a factor of latitude.
+    let albedo = match (albedo, scenario.effect(EffectId::AlbedoMap)) {
+        (Some(model), Some(Effect::AlbedoMap { latitude_gains })) => Some(
+            model.with_latitude_factor(|lat| pdcal_effects::albedo_map_factor(latitude_gains, lat)),
+        ),
+        (albedo, _) => albedo,
+    };
     let shadow = if scenario.effect(EffectId::Penumbra).is_some() {
         ShadowMode::Penumbra
     } else {

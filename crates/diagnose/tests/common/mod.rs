@@ -68,7 +68,7 @@ pub fn inputs<'a>(
 /// sees it).
 pub fn true_errors(sim: &SimOutput, calibration: &pdcal_filter::Calibration) -> (f64, f64) {
     let (_, normal, scale) =
-        pdcal::evaluate::photodiode_errors(calibration, &sim.truth, &sim.constants);
+        pdcal_evaluate::photodiode_errors(calibration, &sim.truth, &sim.constants);
     (normal, scale)
 }
 

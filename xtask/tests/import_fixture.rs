@@ -5,11 +5,11 @@
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use pdcal::import_fixture::{self, ADC_GAIN_V, Fixture};
 use pdcal_dataset::Dataset;
+use xtask::import_fixture::{self, ADC_GAIN_V, Fixture};
 
 fn fixture_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/import")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/import")
 }
 
 fn fixture() -> &'static Fixture {
@@ -26,14 +26,16 @@ fn import(map: &str) -> (Dataset, pdcal_import::ImportReport) {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("imported");
     let dir = fixture_dir();
-    let imported =
+    let streamed =
         pdcal::import::run_to_dir(&dir.join("export.csv"), &dir.join(map), &out).unwrap();
     let read = pdcal_dataset::read_dataset(&out).unwrap();
+    let in_memory = pdcal::import::import_files(&dir.join("export.csv"), &dir.join(map)).unwrap();
     assert_eq!(
-        read, imported.dataset,
-        "the written dataset reads back as built"
+        read, in_memory.dataset,
+        "the streamed dataset reads back as the one built in memory"
     );
-    (read, imported.report)
+    assert_eq!(streamed.report, in_memory.report);
+    (read, streamed.report)
 }
 
 #[test]

@@ -1,8 +1,7 @@
-//! Input text quoted in error messages, cut to a bounded length.
-//!
-//! Here, in the lowest crate every file reader depends on (the dataset, scenario and
-//! configuration readers and this crate's own time parser), so that all of them cut the
-//! same way with one implementation; `pdcal-dataset` re-exports it.
+//! Input text quoted in error messages, cut to a bounded length: the one implementation
+//! every reader and catalogue uses (the effect catalogue's names, the UTC parser of
+//! `pdcal-ephem`, which re-exports it as `pdcal_ephem::text`, and through it the dataset,
+//! scenario, configuration and import readers), so that all of them cut the same way.
 
 /// Characters of an offending value quoted in a message; longer values are cut, so that a
 /// 50 MB cell does not become a 50 MB error message.

@@ -1,0 +1,246 @@
+//! The other forms the field gives two effects of the catalogue, fitted beside the
+//! built-in ones and chosen by the same evidence (the score, `W/2 - k ln(N)/2`):
+//! - `fov-rolloff` in the Kelly form of other tools' coarse-sun-sensor models,
+//!   `K(c) = 1 - exp(-c^k / kappa)` (Basilisk: `k = 2`), beside the raised-cosine
+//!   start/cutoff taper;
+//! - `saturation` with one clip level per photodiode (each channel's own range), beside
+//!   one level for all.
+
+use pdcal_dataset::Effect;
+use pdcal_photodiode::KellyRolloff;
+
+use crate::candidates::{CandidateFit, candidate_fit, pd_entries_of, scored};
+use crate::residuals::Residuals;
+use crate::stats::{Entry, hac_wald};
+
+/// Width of the incidence-angle bins of the Kelly search, deg.
+const KELLY_BIN_DEG: f64 = 0.25;
+/// `log10 kappa` searched: 0.001 to 10 (a loss of e^-1000 to 90 % at normal incidence).
+const KELLY_LOG_KAPPA: (f64, f64, usize) = (-3.0, 1.0, 81);
+/// Exponents searched: 0.5 to 6 in steps of 0.25.
+const KELLY_EXPONENT: (f64, f64, usize) = (0.5, 6.0, 23);
+
+fn grid((lo, hi, n): (f64, f64, usize)) -> impl Iterator<Item = f64> {
+    (0..n).map(move |i| lo + (hi - lo) * i as f64 / (n - 1) as f64)
+}
+
+/// `fov-rolloff`, Kelly form: the signature `C c (K(c) - 1)` made orthogonal, per
+/// photodiode, to `C c` (the calibration's scale factors, fitted inside the filter's gate,
+/// absorb the mean loss: a Kelly roll-off of `kappa = 0.3` takes 19 % at 45 deg). Grid
+/// search of `kappa` and `k` on per-photodiode binned sums of `r C c` and `(C c)^2`, then
+/// the HAC Wald statistic of the amplitude. `None` without lit samples.
+pub(crate) fn kelly_rolloff(res: &Residuals, n_pd: usize, lag: usize) -> Option<CandidateFit> {
+    let bins = (90.0 / KELLY_BIN_DEG) as usize;
+    let mut ry = vec![vec![0.0; bins]; n_pd];
+    let mut yy = vec![vec![0.0; bins]; n_pd];
+    let lit = |p: &crate::residuals::PdSample| p.direct_v > 0.0 && p.pd < n_pd;
+    for p in res.pd.iter().filter(|p| lit(p)) {
+        let theta = p.cos_incidence.clamp(-1.0, 1.0).acos().to_degrees();
+        let b = ((theta / KELLY_BIN_DEG) as usize).min(bins - 1);
+        ry[p.pd][b] += p.residual_v * p.direct_v;
+        yy[p.pd][b] += p.direct_v * p.direct_v;
+    }
+    let centre_cos: Vec<f64> = (0..bins)
+        .map(|b| ((b as f64 + 0.5) * KELLY_BIN_DEG).to_radians().cos())
+        .collect();
+    let mut best: Option<(f64, f64, f64)> = None;
+    for log_kappa in grid(KELLY_LOG_KAPPA) {
+        let kappa = 10f64.powf(log_kappa);
+        for exponent in grid(KELLY_EXPONENT) {
+            let g: Vec<f64> = centre_cos
+                .iter()
+                .map(|c| -(-c.powf(exponent) / kappa).exp())
+                .collect();
+            let (mut num, mut den) = (0.0, 0.0);
+            for pd in 0..n_pd {
+                let w: f64 = yy[pd].iter().sum();
+                if w <= 0.0 {
+                    continue;
+                }
+                let mean = g.iter().zip(&yy[pd]).map(|(g, y)| g * y).sum::<f64>() / w;
+                for b in 0..bins {
+                    let d = g[b] - mean;
+                    num += d * ry[pd][b];
+                    den += d * d * yy[pd][b];
+                }
+            }
+            if den > 0.0 && num > 0.0 {
+                let gain = num * num / den;
+                if best.is_none_or(|(b, _, _)| gain > b) {
+                    best = Some((gain, kappa, exponent));
+                }
+            }
+        }
+    }
+    let (_, kappa, exponent) = best?;
+    let law = KellyRolloff::new(kappa, exponent).ok()?;
+    // The per-photodiode mean of the loss over its lit samples, weighted as the fit.
+    let mut sum = vec![0.0; n_pd];
+    let mut weight = vec![0.0; n_pd];
+    for p in res.pd.iter().filter(|p| lit(p)) {
+        let y2 = p.direct_v * p.direct_v;
+        sum[p.pd] += y2 * (law.factor(p.cos_incidence) - 1.0);
+        weight[p.pd] += y2;
+    }
+    let (entries, support) = pd_entries_of(res, |p| {
+        lit(p).then(|| {
+            let mean = sum[p.pd] / weight[p.pd];
+            (0, p.direct_v * (law.factor(p.cos_incidence) - 1.0 - mean))
+        })
+    });
+    let mut fit = hac_wald(&entries, 1, lag, &[res.sigma_pd_v * res.sigma_pd_v]);
+    if fit.amplitudes[0] <= 0.0 {
+        fit.wald = 0.0;
+    }
+    let evidence = format!(
+        "photodiode residual vs incidence: Kelly roll-off 1 - exp(-c^{exponent:.2} / \
+         {kappa:.4}) (loss {:.1} % at 45 deg, {:.1} % at 60, {:.1} % at 75), amplitude {:.2} \
+         beside each photodiode's scale",
+        100.0 * (1.0 - law.factor(45f64.to_radians().cos())),
+        100.0 * (1.0 - law.factor(60f64.to_radians().cos())),
+        100.0 * (1.0 - law.factor(75f64.to_radians().cos())),
+        fit.amplitudes[0]
+    );
+    let effect = Effect::KellyRolloff { kappa, exponent };
+    Some(scored(
+        candidate_fit(effect, &fit, 2, evidence, support),
+        res,
+    ))
+}
+
+/// Fewest samples exactly at a photodiode's largest output that make it its clip level.
+pub(crate) const MIN_CLIPPED_SAMPLES: usize = 3;
+
+/// `saturation`, one level per photodiode: photodiode `i`'s clip level is its largest
+/// measured output where at least [`MIN_CLIPPED_SAMPLES`] samples sit exactly there (the
+/// data reach it); signature `min(y, L_i) - y` of the model's pre-stage output, one
+/// amplitude per clipped photodiode. A photodiode the data never clip keeps `common`
+/// (nothing in the data says where it would clip). `None` when no photodiode clips.
+pub(crate) fn saturation_per_photodiode(
+    res: &Residuals,
+    n_pd: usize,
+    common: f64,
+    lag: usize,
+) -> Option<CandidateFit> {
+    let mut level = vec![f64::NEG_INFINITY; n_pd];
+    for p in res.pd.iter().filter(|p| p.pd < n_pd) {
+        level[p.pd] = level[p.pd].max(p.measured_v);
+    }
+    let mut at_level = vec![0usize; n_pd];
+    for p in res.pd.iter().filter(|p| p.pd < n_pd) {
+        if p.measured_v >= level[p.pd] {
+            at_level[p.pd] += 1;
+        }
+    }
+    let reached: Vec<bool> = at_level
+        .iter()
+        .zip(&level)
+        .map(|(&n, &l)| n >= MIN_CLIPPED_SAMPLES && l > 0.0)
+        .collect();
+    if !reached.iter().any(|r| *r) {
+        return None;
+    }
+    let entries: Vec<Entry>;
+    let support;
+    (entries, support) = pd_entries_of(res, |p| {
+        (p.pd < n_pd && reached[p.pd] && p.pre_stage_v > level[p.pd])
+            .then(|| (p.pd, level[p.pd] - p.pre_stage_v))
+    });
+    let mut fit = hac_wald(&entries, n_pd, lag, &vec![res.sigma_pd_v.powi(2); n_pd]);
+    // Clipping removes output: a photodiode whose amplitude has the wrong sign is no
+    // evidence, and the fit keeps only the others.
+    if fit.amplitudes.iter().any(|a| *a < 0.0) {
+        let keep: Vec<bool> = fit.amplitudes.iter().map(|a| *a > 0.0).collect();
+        let kept: Vec<Entry> = entries.into_iter().filter(|e| keep[e.param]).collect();
+        fit = hac_wald(&kept, n_pd, lag, &vec![res.sigma_pd_v.powi(2); n_pd]);
+    }
+    let volts: Vec<f64> = (0..n_pd)
+        .map(|i| if reached[i] { level[i] } else { common })
+        .collect();
+    let clipped: Vec<String> = (0..n_pd)
+        .filter(|&i| reached[i])
+        .map(|i| format!("pd{:02} {:.3}", i + 1, level[i]))
+        .collect();
+    let evidence = format!(
+        "photodiode residual vs predicted output, each photodiode clipped at its own largest \
+         output ({} of {n_pd} reached, V: {})",
+        clipped.len(),
+        clipped.join(", ")
+    );
+    let k = fit.active;
+    let effect = Effect::SaturationPerPhotodiode { volts };
+    Some(scored(
+        candidate_fit(effect, &fit, k, evidence, support),
+        res,
+    ))
+}
+
+/// Latitude bands of the `albedo-map` correction (30 deg each).
+pub const ALBEDO_MAP_BANDS: usize = 6;
+
+/// `albedo-map`: one gain per 30-deg latitude band of the point below the spacecraft, on
+/// the albedo regressor `C E_a/E_AM0` (either sign: the map may be too bright or too dark
+/// there). The visible Earth is a cap of about 25 deg around that point at 600 km, most of
+/// its albedo from near its centre, so the band of the nadir stands for the band of the
+/// reflecting cells; the correction is then applied to the map cell by cell (piecewise
+/// linear between the band centres, [`pdcal_effects::albedo_map_factor`]) and the refit,
+/// not this regression, decides whether it shrinks the gap. A constant field is
+/// `albedo-gain` with fewer parameters: the score's BIC decides between them.
+pub(crate) fn albedo_map(res: &Residuals, lag: usize) -> CandidateFit {
+    let (entries, support) = pd_entries_of(res, |p| {
+        (p.albedo_v != 0.0).then(|| {
+            (
+                pdcal_effects::albedo_map_band(ALBEDO_MAP_BANDS, p.nadir_lat_rad),
+                p.albedo_v,
+            )
+        })
+    });
+    // The pattern beyond one common gain (the constant part is `albedo-gain`'s): the bands
+    // are fitted, and their Wald statistic taken, on the residuals left by the common gain
+    // (the score test of the pattern given the gain); the effect carries the common gain
+    // plus each band's increment.
+    let common: Vec<Entry> = entries.iter().map(|e| Entry { param: 0, ..*e }).collect();
+    let gain = hac_wald(&common, 1, lag, &[res.sigma_pd_v.powi(2)]);
+    let beyond: Vec<Entry> = entries
+        .iter()
+        .map(|e| Entry {
+            r: e.r - gain.amplitudes[0] * e.s,
+            ..*e
+        })
+        .collect();
+    let mut fit = hac_wald(
+        &beyond,
+        ALBEDO_MAP_BANDS,
+        lag,
+        &[res.sigma_pd_v.powi(2); ALBEDO_MAP_BANDS],
+    );
+    for a in fit.amplitudes.iter_mut() {
+        *a += gain.amplitudes[0];
+    }
+    let latitude_gains: Vec<f64> = fit.amplitudes.iter().map(|a| (1.0 + a).max(0.0)).collect();
+    let bands: Vec<String> = latitude_gains
+        .iter()
+        .enumerate()
+        .map(|(j, g)| {
+            let lo = -90.0 + 180.0 * j as f64 / ALBEDO_MAP_BANDS as f64;
+            format!(
+                "{lo:+.0}..{:+.0} deg {g:.3}",
+                lo + 180.0 / ALBEDO_MAP_BANDS as f64
+            )
+        })
+        .collect();
+    let evidence = format!(
+        "photodiode residual vs C E_a/E_AM0 per latitude band below the spacecraft: map \
+         factors {} (common gain {:.3}; Wald beyond it)",
+        bands.join(", "),
+        1.0 + gain.amplitudes[0]
+    );
+    let k = fit.active.saturating_sub(1).max(1);
+    candidate_fit(
+        Effect::AlbedoMap { latitude_gains },
+        &fit,
+        k,
+        evidence,
+        support,
+    )
+}

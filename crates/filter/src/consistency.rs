@@ -1,0 +1,537 @@
+//! The one judgement of whether a run's residuals are consistent with the model: the
+//! verdict `calibrate` writes to `summary.json` (and prints, and shows in index.html), the
+//! one `diagnose` reports for its models, and the one the Python API reads back. One piece
+//! of code, so they cannot contradict each other.
+//!
+//! Three figures per sensor class and per photodiode, each answering its own question:
+//! - **The residuals' spread against the sensor noise alone**, over every accepted update.
+//!   It does not read the covariance at all, so a filter whose attitude sigma has grown to
+//!   tens of degrees cannot talk its way past it: residuals several times the noise mean
+//!   the model and the data disagree, whatever the bounds say. The spread judged is the
+//!   robust one, the median absolute residual over its Gaussian value (`0.6745 sigma`): the
+//!   first minutes of a run, while the scale factors and normals converge from their prior,
+//!   give residuals far beyond the noise that say nothing about the model, and a median is
+//!   not moved by them as long as they are a minority. The RMS is reported beside it. The
+//!   filter's own state errors (attitude, calibration) add to the residuals, which is why
+//!   the bound is [`MAX_RMS_NOISE_RATIO`] times the noise and not one.
+//! - **Normalised innovation squared** (`nu^2 / S`, S the predicted variance of the
+//!   innovation) over the accepted updates of rows where the attitude is *held* (its sigma
+//!   in the observed directions below the bound of [`crate::SegmentConfig`]), against the
+//!   two-sided 99.9 % band of its chi-square mean. Above the band the innovations exceed
+//!   what the filter predicts; below it the bounds are conservative (said, not an error).
+//! - **The fraction inside 3 sigma** over every update (gated ones count as outside) of the
+//!   held rows, against the 99.73 % a Gaussian gives: too many outside (more than 1 % and
+//!   3 sigma beyond the binomial expectation) is inconsistent.
+
+use serde::Serialize;
+
+use crate::filter::Sensor;
+use crate::output::ResidualRecord;
+
+/// Residual RMS above this many times the sensor noise is inconsistent. A consistent
+/// filter's pre-update residuals carry its own attitude and calibration errors too
+/// (for a well-determined attitude about as much again as the noise); three times the
+/// noise is nine times its variance, which no Gaussian error budget of the model explains.
+pub const MAX_RMS_NOISE_RATIO: f64 = 3.0;
+
+/// Fewer accepted updates than this and a channel's figures are reported but not judged.
+pub const MIN_JUDGED_UPDATES: usize = 10;
+
+/// Two-sided tail of the chi-square band of the mean NIS.
+const NIS_TAIL: f64 = 1e-3;
+
+/// The Gaussian probability of a residual beyond 3 sigma.
+const OUTSIDE_3SIGMA_P: f64 = 0.0027;
+
+/// `consistent` or `inconsistent`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Verdict {
+    /// Every judged figure is inside its band.
+    Consistent,
+    /// At least one is not (the reasons say which).
+    Inconsistent,
+}
+
+impl Verdict {
+    /// `consistent` / `inconsistent`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Verdict::Consistent => "consistent",
+            Verdict::Inconsistent => "inconsistent",
+        }
+    }
+}
+
+/// The figures of one channel (a sensor class, or one photodiode).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ChannelConsistency {
+    /// `photodiode`, `magnetometer`, or `pd01`, ...
+    pub channel: String,
+    /// The sensor noise alone (1 sigma, V or nT).
+    pub noise_sigma: f64,
+    /// Accepted updates.
+    pub updates: usize,
+    /// RMS of the accepted updates' residuals (V or nT); absent without updates.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub residual_rms: Option<f64>,
+    /// That RMS over the noise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rms_over_noise: Option<f64>,
+    /// The robust spread over the noise: the median `|residual| / noise` over 0.6745 (1 for
+    /// Gaussian residuals at the noise); the figure the verdict judges.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub robust_over_noise: Option<f64>,
+    /// Updates (accepted or gated) of rows where the attitude was held.
+    pub held_updates: usize,
+    /// Mean NIS of the held accepted updates.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub nis_mean: Option<f64>,
+    /// Its two-sided 99.9 % chi-square band.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub nis_band: Option<[f64; 2]>,
+    /// Fraction of the held updates inside their 3-sigma bound (gated ones outside).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fraction_within_3sigma: Option<f64>,
+}
+
+/// The verdict with its figures and reasons (`summary.json` `consistency`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Consistency {
+    /// The verdict.
+    pub verdict: Verdict,
+    /// Why it is inconsistent, or what could not be judged; one sentence each.
+    pub reasons: Vec<String>,
+    /// The RMS bound, in noise sigmas ([`MAX_RMS_NOISE_RATIO`]).
+    pub max_rms_over_noise: f64,
+    /// Per sensor class (`photodiode`, `magnetometer`).
+    pub sensors: Vec<ChannelConsistency>,
+    /// Per photodiode, pdNN order.
+    pub photodiodes: Vec<ChannelConsistency>,
+}
+
+/// Bins per decade of the histogram of `|residual| / noise`.
+const BINS_PER_DECADE: f64 = 20.0;
+/// Its lowest edge, a decade exponent: 1e-4 of the noise.
+const LOWEST_DECADE: f64 = -4.0;
+/// Its bins: 1e-4 to 1e8 of the noise, 12 % wide each.
+const BINS: usize = 240;
+
+/// Counts of `|residual| / noise` on a log scale: the median of any number of updates in
+/// fixed memory (a streaming run never holds its residuals), to the bin's 12 %.
+#[derive(Debug, Clone)]
+struct LogHistogram {
+    counts: Vec<u64>,
+    total: u64,
+}
+
+impl Default for LogHistogram {
+    fn default() -> Self {
+        LogHistogram {
+            counts: vec![0; BINS],
+            total: 0,
+        }
+    }
+}
+
+impl LogHistogram {
+    fn push(&mut self, x: f64) {
+        if !x.is_finite() {
+            return;
+        }
+        let at = (x.max(1e-300).log10() - LOWEST_DECADE) * BINS_PER_DECADE;
+        let bin = (at.max(0.0) as usize).min(BINS - 1);
+        self.counts[bin] += 1;
+        self.total += 1;
+    }
+
+    /// The median, at the geometric centre of its bin.
+    fn median(&self) -> Option<f64> {
+        let half = self.total.div_ceil(2);
+        let mut seen = 0;
+        for (bin, &c) in self.counts.iter().enumerate() {
+            seen += c;
+            if c > 0 && seen >= half {
+                let exponent = LOWEST_DECADE + (bin as f64 + 0.5) / BINS_PER_DECADE;
+                return Some(10f64.powf(exponent));
+            }
+        }
+        None
+    }
+}
+
+/// The median of `|x|` for a standard Gaussian `x`.
+const GAUSSIAN_MEDIAN_ABS: f64 = 0.674_489_750_196_081_7;
+
+#[derive(Debug, Clone, Default)]
+struct Sums {
+    updates: usize,
+    spread: LogHistogram,
+    sum_sq: f64,
+    held: usize,
+    held_accepted: usize,
+    held_nis: f64,
+    held_inside: usize,
+}
+
+impl Sums {
+    fn push(&mut self, r: &ResidualRecord, noise_sigma: f64) {
+        if r.accepted {
+            self.updates += 1;
+            self.sum_sq += r.residual * r.residual;
+            if noise_sigma > 0.0 {
+                self.spread.push(r.residual.abs() / noise_sigma);
+            }
+        }
+        if !r.attitude_held {
+            return;
+        }
+        self.held += 1;
+        let sigma = r.bound_3sigma / 3.0;
+        if r.accepted && sigma > 0.0 {
+            self.held_accepted += 1;
+            self.held_nis += (r.residual / sigma).powi(2);
+        }
+        if r.accepted && r.residual.abs() <= r.bound_3sigma {
+            self.held_inside += 1;
+        }
+    }
+
+    fn channel(&self, name: String, noise_sigma: f64) -> ChannelConsistency {
+        let rms = (self.updates > 0).then(|| (self.sum_sq / self.updates as f64).sqrt());
+        let nis = (self.held_accepted > 0).then(|| self.held_nis / self.held_accepted as f64);
+        ChannelConsistency {
+            channel: name,
+            noise_sigma,
+            updates: self.updates,
+            residual_rms: rms,
+            rms_over_noise: rms.filter(|_| noise_sigma > 0.0).map(|r| r / noise_sigma),
+            robust_over_noise: self.spread.median().map(|m| m / GAUSSIAN_MEDIAN_ABS),
+            held_updates: self.held,
+            nis_mean: nis,
+            nis_band: nis.map(|_| nis_band(self.held_accepted)),
+            fraction_within_3sigma: (self.held > 0)
+                .then(|| self.held_inside as f64 / self.held as f64),
+        }
+    }
+}
+
+/// Accumulates residual records, one at a time (a streaming run never holds them all),
+/// into a [`Consistency`].
+#[derive(Debug, Clone)]
+pub struct ConsistencyAccumulator {
+    photodiode_sigma_v: f64,
+    mag_sigma_nt: f64,
+    photodiode: Sums,
+    magnetometer: Sums,
+    per_photodiode: Vec<Sums>,
+}
+
+impl ConsistencyAccumulator {
+    /// For `photodiodes` photodiodes with the sensor noise sigmas the run used.
+    pub fn new(photodiodes: usize, photodiode_sigma_v: f64, mag_sigma_nt: f64) -> Self {
+        ConsistencyAccumulator {
+            photodiode_sigma_v,
+            mag_sigma_nt,
+            photodiode: Sums::default(),
+            magnetometer: Sums::default(),
+            per_photodiode: vec![Sums::default(); photodiodes],
+        }
+    }
+
+    /// Adds one scalar update.
+    pub fn push(&mut self, r: &ResidualRecord) {
+        match r.sensor {
+            Sensor::Photodiode(i) => {
+                self.photodiode.push(r, self.photodiode_sigma_v);
+                if let Some(s) = self.per_photodiode.get_mut(i) {
+                    s.push(r, self.photodiode_sigma_v);
+                }
+            }
+            Sensor::Magnetometer(_) => self.magnetometer.push(r, self.mag_sigma_nt),
+        }
+    }
+
+    /// The verdict over everything pushed.
+    pub fn finish(&self) -> Consistency {
+        let mut sensors = vec![
+            self.photodiode
+                .channel("photodiode".to_owned(), self.photodiode_sigma_v),
+        ];
+        if self.magnetometer.updates + self.magnetometer.held > 0 {
+            sensors.push(
+                self.magnetometer
+                    .channel("magnetometer".to_owned(), self.mag_sigma_nt),
+            );
+        }
+        let photodiodes: Vec<ChannelConsistency> = self
+            .per_photodiode
+            .iter()
+            .enumerate()
+            .map(|(i, s)| s.channel(format!("pd{:02}", i + 1), self.photodiode_sigma_v))
+            .collect();
+        let mut reasons = Vec::new();
+        for c in sensors.iter().chain(&photodiodes) {
+            reasons.extend(channel_problems(c));
+        }
+        let judged = sensors.iter().any(|c| c.updates >= MIN_JUDGED_UPDATES);
+        if !judged {
+            reasons.push(format!(
+                "fewer than {MIN_JUDGED_UPDATES} accepted updates of any sensor: nothing to \
+                 judge the model by"
+            ));
+        }
+        let verdict = if reasons.is_empty() {
+            Verdict::Consistent
+        } else {
+            Verdict::Inconsistent
+        };
+        Consistency {
+            verdict,
+            reasons,
+            max_rms_over_noise: MAX_RMS_NOISE_RATIO,
+            sensors,
+            photodiodes,
+        }
+    }
+}
+
+/// The verdict of a run's residual records.
+pub fn judge<'a>(
+    records: impl IntoIterator<Item = &'a ResidualRecord>,
+    photodiodes: usize,
+    photodiode_sigma_v: f64,
+    mag_sigma_nt: f64,
+) -> Consistency {
+    let mut acc = ConsistencyAccumulator::new(photodiodes, photodiode_sigma_v, mag_sigma_nt);
+    for r in records {
+        acc.push(r);
+    }
+    acc.finish()
+}
+
+/// What is wrong with one channel's figures, one sentence each.
+fn channel_problems(c: &ChannelConsistency) -> Vec<String> {
+    let mut out = Vec::new();
+    if c.updates >= MIN_JUDGED_UPDATES
+        && let Some(ratio) = c.robust_over_noise
+        && ratio > MAX_RMS_NOISE_RATIO
+    {
+        out.push(format!(
+            "{}: residuals {ratio:.1} times the noise {:.3e} (robust spread; RMS {:.3e}; \
+             bound {MAX_RMS_NOISE_RATIO})",
+            c.channel,
+            c.noise_sigma,
+            c.residual_rms.unwrap_or(f64::NAN),
+        ));
+    }
+    if let (Some(nis), Some([_, high])) = (c.nis_mean, c.nis_band)
+        && c.held_updates >= MIN_JUDGED_UPDATES
+        && nis > high
+    {
+        out.push(format!(
+            "{}: mean normalised innovation squared {nis:.2} above its 99.9 % band (<= \
+             {high:.2}): innovations larger than the filter predicts",
+            c.channel
+        ));
+    }
+    if let Some(fraction) = c.fraction_within_3sigma
+        && c.held_updates >= MIN_JUDGED_UPDATES
+        && too_many_outside(c.held_updates, fraction)
+    {
+        out.push(format!(
+            "{}: {:.2} % of the residuals of held rows inside 3 sigma (a Gaussian gives \
+             99.73 %)",
+            c.channel,
+            100.0 * fraction
+        ));
+    }
+    out
+}
+
+/// More than 1 % outside and 3 sigma beyond the binomial expectation of 0.27 %.
+fn too_many_outside(n: usize, fraction_inside: f64) -> bool {
+    let n = n as f64;
+    let outside = n * (1.0 - fraction_inside);
+    let expected = n * OUTSIDE_3SIGMA_P;
+    let sd = (n * OUTSIDE_3SIGMA_P * (1.0 - OUTSIDE_3SIGMA_P)).sqrt();
+    outside > 0.01 * n && outside > expected + 3.0 * sd
+}
+
+/// The two-sided [`NIS_TAIL`] band of the mean of `n` chi-square(1) variables (Wilson-Hilferty).
+pub fn nis_band(n: usize) -> [f64; 2] {
+    let z = normal_quantile(1.0 - NIS_TAIL / 2.0);
+    let q = |z: f64| chi_square_quantile_wh(n as f64, z) / n as f64;
+    [q(-z).max(0.0), q(z)]
+}
+
+/// The chi-square(`k`) quantile at standard normal quantile `z` (Wilson-Hilferty).
+fn chi_square_quantile_wh(k: f64, z: f64) -> f64 {
+    let a = 2.0 / (9.0 * k);
+    k * (1.0 - a + z * a.sqrt()).powi(3)
+}
+
+/// The standard normal quantile (Acklam's rational approximation, relative error < 1.2e-9).
+pub fn normal_quantile(p: f64) -> f64 {
+    const A: [f64; 6] = [
+        -3.969683028665376e1,
+        2.209460984245205e2,
+        -2.759285104469687e2,
+        1.383_577_518_672_69e2,
+        -3.066479806614716e1,
+        2.506628277459239,
+    ];
+    const B: [f64; 5] = [
+        -5.447609879822406e1,
+        1.615858368580409e2,
+        -1.556989798598866e2,
+        6.680131188771972e1,
+        -1.328068155288572e1,
+    ];
+    const C: [f64; 6] = [
+        -7.784894002430293e-3,
+        -3.223964580411365e-1,
+        -2.400758277161838,
+        -2.549732539343734,
+        4.374664141464968,
+        2.938163982698783,
+    ];
+    const D: [f64; 4] = [
+        7.784695709041462e-3,
+        3.224671290700398e-1,
+        2.445134137142996,
+        3.754408661907416,
+    ];
+    let tail = |q: f64| {
+        (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5])
+            / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
+    };
+    if p < 0.02425 {
+        tail((-2.0 * p.ln()).sqrt())
+    } else if p > 1.0 - 0.02425 {
+        -tail((-2.0 * (1.0 - p).ln()).sqrt())
+    } else {
+        let q = p - 0.5;
+        let r = q * q;
+        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
+            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+
+    fn record(sensor: Sensor, residual: f64, sigma: f64, held: bool) -> ResidualRecord {
+        ResidualRecord {
+            index: 0,
+            t_s: 0.0,
+            sensor,
+            measured: 0.0,
+            residual,
+            bound_3sigma: 3.0 * sigma,
+            accepted: residual.abs() <= 5.0 * sigma,
+            attitude_held: held,
+        }
+    }
+
+    fn gaussian_records(n: usize, scale: f64, sigma: f64, seed: u64) -> Vec<ResidualRecord> {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        (0..n)
+            .map(|k| {
+                let x: f64 = StandardNormal.sample(&mut rng);
+                record(Sensor::Photodiode(k % 3), scale * x, sigma, true)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn normal_quantile_matches_known_values() {
+        assert!((normal_quantile(0.975) - 1.959964).abs() < 1e-6);
+        assert!((normal_quantile(0.9995) - 3.290527).abs() < 1e-6);
+        assert!((normal_quantile(0.5)).abs() < 1e-12);
+        assert!((normal_quantile(0.01) + 2.326348).abs() < 1e-6);
+    }
+
+    #[test]
+    fn gaussian_residuals_at_their_noise_are_consistent() {
+        let records = gaussian_records(6000, 0.01, 0.01, 7);
+        let c = judge(&records, 3, 0.01, 300.0);
+        assert_eq!(c.verdict, Verdict::Consistent, "{:?}", c.reasons);
+        let pd = &c.sensors[0];
+        assert!((pd.rms_over_noise.unwrap() - 1.0).abs() < 0.05);
+        assert!((pd.robust_over_noise.unwrap() - 1.0).abs() < 0.12);
+        let [lo, hi] = pd.nis_band.unwrap();
+        assert!(lo < pd.nis_mean.unwrap() && pd.nis_mean.unwrap() < hi);
+    }
+
+    #[test]
+    fn residuals_many_times_the_noise_are_inconsistent_whatever_the_bounds() {
+        // Bounds inflated to cover everything (an attitude sigma of tens of degrees) and
+        // residuals 70 times the noise: the RMS test still says no.
+        let records: Vec<ResidualRecord> = gaussian_records(500, 0.35, 2.0, 3);
+        let c = judge(&records, 3, 0.005, 300.0);
+        assert_eq!(c.verdict, Verdict::Inconsistent);
+        assert!(c.reasons[0].contains("times the noise"), "{:?}", c.reasons);
+        assert!(
+            c.photodiodes
+                .iter()
+                .all(|p| p.robust_over_noise.unwrap() > 50.0)
+        );
+        assert!(
+            c.photodiodes
+                .iter()
+                .all(|p| p.rms_over_noise.unwrap() > 50.0)
+        );
+    }
+
+    #[test]
+    fn innovations_above_their_predicted_spread_are_inconsistent() {
+        // Residuals twice their predicted sigma but near the noise (a covariance that is
+        // too small): the NIS and the 3-sigma fraction catch it.
+        let records = gaussian_records(3000, 0.02, 0.01, 11);
+        let c = judge(&records, 3, 0.01, 300.0);
+        assert_eq!(c.verdict, Verdict::Inconsistent);
+        assert!(
+            c.reasons
+                .iter()
+                .any(|r| r.contains("normalised innovation"))
+        );
+        assert!(c.reasons.iter().any(|r| r.contains("inside 3 sigma")));
+    }
+
+    #[test]
+    fn rows_without_a_held_attitude_do_not_count_for_the_bounds() {
+        let mut records = gaussian_records(2000, 0.01, 0.01, 5);
+        // Wide residuals on rows whose attitude is not held, inside their wide bounds:
+        // the RMS over every accepted update sees them, the held figures do not.
+        records.extend((0..10).map(|_| record(Sensor::Photodiode(0), 0.02, 1.0, false)));
+        let c = judge(&records, 3, 0.01, 300.0);
+        assert_eq!(c.sensors[0].held_updates, 2000);
+        assert_eq!(c.sensors[0].updates, 2010);
+        assert_eq!(c.verdict, Verdict::Consistent, "{:?}", c.reasons);
+    }
+
+    #[test]
+    fn a_convergence_transient_does_not_make_a_run_inconsistent() {
+        // A fifth of the updates at 20 times the noise (the first minutes, scale factors
+        // still at their prior), the rest at the noise: the robust spread stays near 1.
+        let mut records = gaussian_records(4000, 0.01, 1.0, 9);
+        for r in records.iter_mut().take(800) {
+            r.residual *= 20.0;
+        }
+        let c = judge(&records, 3, 0.01, 300.0);
+        assert!(c.sensors[0].rms_over_noise.unwrap() > 5.0);
+        assert_eq!(c.verdict, Verdict::Consistent, "{:?}", c.reasons);
+    }
+
+    #[test]
+    fn too_little_data_is_not_called_consistent() {
+        let records = gaussian_records(5, 0.01, 0.01, 1);
+        let c = judge(&records, 3, 0.01, 300.0);
+        assert_eq!(c.verdict, Verdict::Inconsistent);
+        assert!(c.reasons[0].contains("nothing to judge"));
+    }
+}

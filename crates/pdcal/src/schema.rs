@@ -1,0 +1,637 @@
+//! The output schema: `summary.json`'s content (its types and how it is built from a
+//! calibration's [`Outcome`]), and the [`Outcome`] itself, what a calibration produced.
+
+use pdcal_dataset::DatasetMeta;
+use pdcal_filter::identifiability::{Evidence, Judged, PdIdentifiability, Status};
+use pdcal_filter::{
+    Calibration, CalibrationRun, GapRules, ModeUsed, RepairKind, ResidualRecord, SegmentReport,
+    Sensor,
+};
+use serde::Serialize;
+
+use crate::sunvec::SunVectorMetrics;
+
+pub use pdcal_evaluate::OUTPUT_FORMAT_VERSION;
+
+/// The Sun's distance, AU, at which `C` (`scale_V`) is defined: the model's direct-Sun term
+/// carries `(1 AU / r_sun)^2` (`pdcal_photodiode::DirectSun`).
+pub const SCALE_REFERENCE_DISTANCE_AU: f64 = 1.0;
+
+/// `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    /// Layout version.
+    pub format_version: u32,
+    /// Dataset name from dataset.ron.
+    pub dataset: String,
+    /// Mode the filter ran in: `full`, `photodiode-only` or `scale-only` ([`mode_name`]).
+    pub mode: &'static str,
+    /// Whether magnetometer updates were made.
+    pub magnetometer_used: bool,
+    /// The Sun's distance, AU, at which the scale factors are defined (always
+    /// [`SCALE_REFERENCE_DISTANCE_AU`]): `scale_V` is the output at that distance and
+    /// normal incidence, whatever the Sun's distance on the data set's dates.
+    pub scale_reference_distance_au: f64,
+    /// Per photodiode, in pdNN order.
+    pub photodiodes: Vec<PdSummary>,
+    /// Final gyro bias, rad/s, body (the prior's on an axis the data did not determine).
+    pub gyro_bias_rad_s: [f64; 3],
+    /// How well the data determined each gyro-bias axis.
+    pub gyro_bias_status: [Judged; 3],
+    /// Sun-vector magnitude with initial and calibrated parameters.
+    pub sun_vector_magnitude: MagnitudeSummary,
+    /// Mean angle between the initial and calibrated Sun directions.
+    pub sun_direction_change_deg: MeanOnly,
+    /// Photodiode residual statistics.
+    pub residuals: ResidualSummary,
+    /// Whether the residuals are consistent with the model: the one verdict `calibrate`,
+    /// `diagnose` and the Python API share ([`pdcal_filter::consistency`]).
+    pub consistency: pdcal_filter::Consistency,
+    /// Update counts (accepted, gated, ...) per sensor class.
+    pub updates: serde_json::Value,
+    /// Samples rejected per sensor (`gyro`, `mag`, `pd01`...): screened against their
+    /// neighbours before the filter, or gated by it; counts and the first rows.
+    pub rejected_samples: Vec<RejectedSummary>,
+    /// Repairs of the filter covariance (it stopped being positive definite).
+    pub covariance_repairs: RepairsSummary,
+    /// Wall-clock time of the filter run, s.
+    pub runtime_s: f64,
+    /// Physical-plausibility warnings on the input, one line each (also on stderr).
+    pub warnings: Vec<String>,
+    /// The rules that split the telemetry into segments (gap threshold, gyro hold, the
+    /// gyro's own sample period, magnetometer pairing tolerance; s).
+    pub segment_rules: GapRules,
+    /// The segments: rows between gaps, silent gyros and lost attitudes, how each one's
+    /// attitude was acquired, or why it was skipped.
+    pub segments: Vec<SegmentReport>,
+    /// The data sets calibrated together, in time order, each with its place on the joint
+    /// time line and its own photodiode residual statistics.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub datasets: Vec<DatasetSummary>,
+    /// Photodiodes whose data contradict their nominal mounting or polarity: what dataset.ron
+    /// says, what the data support, and what the calibration did (`crate::mounting`).
+    pub mounting_findings: Vec<pdcal_filter::mounting::MountingFinding>,
+    /// The calibration as reported (`calibration.ron`): every quantity the data did not
+    /// determine at its prior value, the statuses listed.
+    #[serde(skip)]
+    pub reported: Calibration,
+}
+
+/// One photodiode in `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+#[allow(non_snake_case)]
+pub struct PdSummary {
+    /// 1-based index.
+    pub index: usize,
+    /// Calibrated scale factor, V.
+    pub scale_V: f64,
+    /// Its 1-sigma, V.
+    pub scale_sigma_V: f64,
+    /// Calibrated azimuth, deg.
+    pub azimuth_deg: f64,
+    /// Its 1-sigma, deg; null where undefined (elevation +-90 deg).
+    pub azimuth_sigma_deg: Option<f64>,
+    /// Calibrated elevation, deg.
+    pub elevation_deg: f64,
+    /// Its 1-sigma, deg.
+    pub elevation_sigma_deg: f64,
+    /// Whether the photodiode took part (false: never lit).
+    pub used: bool,
+    /// How well the data determined it: the weakest of its three quantities
+    /// (`calibrated`, `weakly-determined`, `not-determined`); a `not-determined` quantity
+    /// is reported at its nominal value.
+    pub status: Status,
+    /// Why, when not `calibrated`.
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub status_reason: String,
+    /// Per quantity (`scale`, `azimuth`, `elevation`), each with its reason.
+    pub determination: PdIdentifiability,
+    /// The initial estimates.
+    pub initial: PdInitial,
+    /// Angle between the calibrated and the nominal (initial) normal, deg.
+    pub normal_change_deg: f64,
+    /// Calibrated C against the initial C (the maximum output), %.
+    pub scale_change_percent: f64,
+    /// Sunlit time the calibration used: the time its accepted updates cover, min.
+    pub time_used_min: f64,
+    /// Why the result deserves a second look, when it does: `never lit`, `lit too little
+    /// (N min)`, `change beyond 3 sigma of the prior`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub flag: Option<String>,
+}
+
+/// A photodiode whose updates cover less than this is flagged as lit too little to
+/// calibrate, min (the evaluation's own "lit at least 5 minutes").
+pub const MIN_TIME_USED_MIN: f64 = 5.0;
+
+/// The flag of a photodiode ([`PdSummary::flag`]): never lit, lit too little, or changed by
+/// more than 3 sigma of the initial uncertainty (a mounting or a scale factor that far from
+/// the prior is more often a data problem than a discovery).
+fn photodiode_flag(
+    used: bool,
+    time_used_min: f64,
+    (normal_change_deg, scale_change_v): (f64, f64),
+    init: &pdcal_filter::PdCalibration,
+) -> Option<String> {
+    if !used {
+        return Some("never lit".to_owned());
+    }
+    if time_used_min < MIN_TIME_USED_MIN {
+        return Some(format!("lit too little ({time_used_min:.1} min)"));
+    }
+    let normal_sigma_deg = init
+        .elevation_sigma_deg
+        .max(init.azimuth_sigma_deg.unwrap_or(0.0));
+    let beyond = normal_change_deg > 3.0 * normal_sigma_deg
+        || scale_change_v.abs() > 3.0 * init.scale_sigma_v;
+    beyond.then(|| "change beyond 3 sigma of the prior".to_owned())
+}
+
+/// The flag of a photodiode with a mounting finding: what the data say instead of
+/// dataset.ron.
+fn mounting_flag(
+    index: usize,
+    findings: &[pdcal_filter::mounting::MountingFinding],
+) -> Option<String> {
+    use pdcal_filter::mounting::Action;
+    let f = findings.iter().find(|f| f.photodiode == index)?;
+    Some(match (f.action, f.polarity_reversed) {
+        (Action::Excluded, _) => "nominal mounting contradicted: left out".to_owned(),
+        (Action::CalibratedNegated, _) => "polarity reversed: outputs negated".to_owned(),
+        (Action::CalibratedFromSupported, reversed) => format!(
+            "nominal mounting off by {:.0} deg: calibrated from the data's normal{}",
+            f.angle_deg.unwrap_or(f64::NAN),
+            if reversed { ", outputs negated" } else { "" }
+        ),
+    })
+}
+
+/// Initial values of one photodiode.
+#[derive(Debug, Clone, Serialize)]
+#[allow(non_snake_case)]
+pub struct PdInitial {
+    /// Maximum measured output referred to 1 AU (each sample divided by `(1 AU / r_sun)^2`), V.
+    pub scale_V: f64,
+    /// Nominal azimuth, deg.
+    pub azimuth_deg: f64,
+    /// Nominal elevation, deg.
+    pub elevation_deg: f64,
+}
+
+/// Serde's test for statistics that do not exist (NaN): they are left out of the JSON,
+/// and the object's `count` and `reason` say why, instead of a bare `null`.
+fn undefined(x: &f64) -> bool {
+    !x.is_finite()
+}
+
+/// Mean and standard deviation; in JSON, `mean` is left out when `count` is 0 and `std`
+/// when `count` is below 2, with `reason` saying so.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct MeanStd {
+    /// Mean (NaN without samples).
+    #[serde(skip_serializing_if = "undefined")]
+    pub mean: f64,
+    /// Sample standard deviation (NaN with fewer than 2 samples).
+    #[serde(skip_serializing_if = "undefined")]
+    pub std: f64,
+    /// Finite samples counted.
+    pub count: usize,
+    /// Why `mean` or `std` is absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<&'static str>,
+}
+
+/// Sun-vector magnitude, initial and calibrated.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct MagnitudeSummary {
+    /// With the initial parameters.
+    pub initial: MeanStd,
+    /// With the calibrated parameters.
+    pub calibrated: MeanStd,
+    /// Samples used.
+    pub samples: usize,
+}
+
+/// A mean only; in JSON, `mean` is left out when `count` is 0, with `reason`.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct MeanOnly {
+    /// Mean (NaN without samples).
+    #[serde(skip_serializing_if = "undefined")]
+    pub mean: f64,
+    /// Finite samples counted.
+    pub count: usize,
+    /// Why `mean` is absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<&'static str>,
+}
+
+/// Photodiode residuals; in JSON, the RMS and fraction are left out when `count` is 0,
+/// with `reason`.
+#[derive(Debug, Clone, Copy, Serialize)]
+#[allow(non_snake_case)]
+pub struct ResidualSummary {
+    /// RMS of the photodiode residuals, V (NaN without residuals).
+    #[serde(skip_serializing_if = "undefined")]
+    pub photodiode_rms_V: f64,
+    /// Fraction of photodiode residuals inside their 3-sigma bound (NaN without residuals).
+    #[serde(skip_serializing_if = "undefined")]
+    pub fraction_within_3sigma: f64,
+    /// Photodiode residuals counted.
+    pub count: usize,
+    /// Why the statistics are absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<&'static str>,
+}
+
+/// One sensor's rejected samples in `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct RejectedSummary {
+    /// `gyro`, `mag`, `pd01`, ...
+    pub sensor: String,
+    /// Samples rejected by the screening against their neighbours.
+    pub screened: usize,
+    /// Their telemetry rows (zero-based data rows of telemetry.csv), the first 100.
+    pub screened_rows: Vec<usize>,
+    /// Samples rejected by the filter's innovation gate (a magnetometer row counts once).
+    pub gated: usize,
+    /// Their rows, the first 100.
+    pub gated_rows: Vec<usize>,
+}
+
+/// The covariance repairs in `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct RepairsSummary {
+    /// How many.
+    pub count: usize,
+    /// The first 100: row, time and what was done.
+    pub first: Vec<serde_json::Value>,
+}
+
+fn rejected_summary(run: &CalibrationRun) -> Vec<RejectedSummary> {
+    run.rejections
+        .channels
+        .iter()
+        .map(|c| RejectedSummary {
+            sensor: c.channel.name(),
+            screened: c.screened.count,
+            screened_rows: c.screened.first.clone(),
+            gated: c.gated.count,
+            gated_rows: c.gated.first.clone(),
+        })
+        .collect()
+}
+
+fn repairs_summary(run: &CalibrationRun) -> RepairsSummary {
+    let first = run
+        .covariance_repairs
+        .first
+        .iter()
+        .map(|r| match r.kind {
+            RepairKind::NonFinite { states } => serde_json::json!({
+                "row": r.index, "t_s": r.t_s, "kind": "non-finite", "states_reset": states,
+            }),
+            RepairKind::Indefinite { min_eigenvalue } => serde_json::json!({
+                "row": r.index, "t_s": r.t_s, "kind": "indefinite",
+                "min_eigenvalue": min_eigenvalue,
+            }),
+        })
+        .collect();
+    RepairsSummary {
+        count: run.covariance_repairs.count,
+        first,
+    }
+}
+
+/// The `reason` of a statistic over `count` samples that needs at least `needed`.
+fn too_few(count: usize, needed: usize) -> Option<&'static str> {
+    match (count, needed) {
+        (0, _) => Some("no samples"),
+        (1, 2) => Some("one sample: no standard deviation"),
+        _ => None,
+    }
+}
+
+/// Mean and sample standard deviation of finite values (NaN, and a reason, for fewer than
+/// 1 and 2 values).
+pub fn mean_std(values: &[f64]) -> MeanStd {
+    let v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    let n = v.len() as f64;
+    let mean = v.iter().sum::<f64>() / n;
+    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    MeanStd {
+        mean,
+        std: if v.len() < 2 { f64::NAN } else { var.sqrt() },
+        count: v.len(),
+        reason: too_few(v.len(), 2),
+    }
+}
+
+/// RMS and within-3-sigma fraction of the photodiode residuals.
+pub fn residual_summary(residuals: &[ResidualRecord]) -> ResidualSummary {
+    let pd: Vec<&ResidualRecord> = residuals
+        .iter()
+        .filter(|r| matches!(r.sensor, Sensor::Photodiode(_)))
+        .collect();
+    let sum_sq = pd.iter().map(|r| r.residual * r.residual).sum::<f64>();
+    let inside = pd
+        .iter()
+        .filter(|r| r.residual.abs() <= r.bound_3sigma)
+        .count();
+    ResidualSummary::from_sums(sum_sq, inside, pd.len())
+}
+
+impl ResidualSummary {
+    /// From the sum of squared photodiode residuals, how many were inside their 3-sigma
+    /// bound, and how many there were (NaN statistics and a reason when none).
+    pub fn from_sums(sum_sq_v2: f64, inside: usize, count: usize) -> Self {
+        let n = count as f64;
+        ResidualSummary {
+            photodiode_rms_V: (sum_sq_v2 / n).sqrt(),
+            fraction_within_3sigma: inside as f64 / n,
+            count,
+            reason: too_few(count, 1),
+        }
+    }
+}
+
+/// The stable name of a mode in `summary.json`: `full`, `photodiode-only`, `scale-only`.
+pub fn mode_name(mode: ModeUsed) -> &'static str {
+    match mode {
+        ModeUsed::Full => "full",
+        ModeUsed::PhotodiodeOnly => "photodiode-only",
+        ModeUsed::ScaleOnly { .. } => "scale-only",
+    }
+}
+
+/// Builds `summary.json`'s content.
+pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
+    let run = &outcome.run;
+    let evidence = Evidence {
+        initial: &run.initial,
+        calibration: &run.calibration,
+        used: &run.used_photodiodes,
+        time_used_s: &run.photodiode_time_used_s,
+        covariance: &run.final_covariance,
+        layout: &run.layout,
+        normals_estimated: !matches!(run.mode, ModeUsed::ScaleOnly { .. }),
+        verdict: outcome.consistency.verdict,
+    };
+    let determination = pdcal_filter::identifiability::judge_photodiodes(&evidence);
+    let bias_status = pdcal_filter::identifiability::judge_gyro_bias(&evidence);
+    let mut reported = pdcal_filter::identifiability::reported_calibration(
+        &run.initial,
+        &run.calibration,
+        &determination,
+        &bias_status,
+    );
+    reported.status = status_lines(&determination, &bias_status);
+    let photodiodes = reported
+        .photodiodes
+        .iter()
+        .zip(&run.initial.photodiodes)
+        .zip(&run.used_photodiodes)
+        .zip(determination)
+        .enumerate()
+        .map(|(i, (((cal, init), used), determination))| {
+            let normal_change_deg = cal.n_body().angle(&init.n_body()).to_degrees();
+            let time_used_min = run.photodiode_time_used_s.get(i).copied().unwrap_or(0.0) / 60.0;
+            let change = (normal_change_deg, cal.scale_v - init.scale_v);
+            PdSummary {
+                index: i + 1,
+                scale_V: cal.scale_v,
+                scale_sigma_V: cal.scale_sigma_v,
+                azimuth_deg: cal.azimuth_deg,
+                azimuth_sigma_deg: cal.azimuth_sigma_deg,
+                elevation_deg: cal.elevation_deg,
+                elevation_sigma_deg: cal.elevation_sigma_deg,
+                used: *used,
+                status: determination.status,
+                status_reason: status_reason(&determination),
+                determination,
+                initial: PdInitial {
+                    scale_V: init.scale_v,
+                    azimuth_deg: init.azimuth_deg,
+                    elevation_deg: init.elevation_deg,
+                },
+                normal_change_deg,
+                scale_change_percent: 100.0 * (cal.scale_v - init.scale_v) / init.scale_v,
+                time_used_min,
+                flag: mounting_flag(i + 1, &outcome.mountings)
+                    .or_else(|| photodiode_flag(*used, time_used_min, change, init)),
+            }
+        })
+        .collect();
+    let sv = &outcome.sun_vector;
+    Summary {
+        format_version: OUTPUT_FORMAT_VERSION,
+        dataset: meta.name.clone(),
+        mode: mode_name(run.mode),
+        magnetometer_used: matches!(
+            run.mode,
+            ModeUsed::Full
+                | ModeUsed::ScaleOnly {
+                    with_magnetometer: true
+                }
+        ),
+        scale_reference_distance_au: SCALE_REFERENCE_DISTANCE_AU,
+        photodiodes,
+        gyro_bias_rad_s: reported.gyro_bias_rad_s,
+        gyro_bias_status: bias_status,
+        sun_vector_magnitude: MagnitudeSummary {
+            initial: mean_std(&sv.magnitude_initial),
+            calibrated: mean_std(&sv.magnitude_calibrated),
+            samples: sv.t_s.len(),
+        },
+        sun_direction_change_deg: {
+            let m = mean_std(&sv.direction_change_deg);
+            MeanOnly {
+                mean: m.mean,
+                count: m.count,
+                reason: too_few(m.count, 1),
+            }
+        },
+        residuals: outcome.residuals,
+        consistency: outcome.consistency.clone(),
+        updates: counts_json(run),
+        rejected_samples: rejected_summary(run),
+        covariance_repairs: repairs_summary(run),
+        runtime_s: outcome.runtime_s,
+        warnings: outcome
+            .warnings
+            .iter()
+            .cloned()
+            .chain(bias_beyond_prior(&run.initial, &run.calibration))
+            .collect(),
+        segment_rules: run.segment_rules,
+        segments: run.segments.clone(),
+        datasets: outcome.datasets.clone(),
+        mounting_findings: outcome.mountings.clone(),
+        reported,
+    }
+}
+
+/// A warning per gyro-bias axis whose estimate lies beyond 3 sigma of its prior: the prior
+/// (`initial_bias_sigma_deg_s`) was too narrow for this gyro, and the attitude and every
+/// number that leaned on it were held by a wrong model while the bias converged.
+fn bias_beyond_prior(initial: &Calibration, calibration: &Calibration) -> Vec<String> {
+    (0..3)
+        .filter_map(|k| {
+            let prior = initial.gyro_bias_sigma_rad_s[k];
+            let change = calibration.gyro_bias_rad_s[k] - initial.gyro_bias_rad_s[k];
+            (prior > 0.0 && change.abs() > 3.0 * prior).then(|| {
+                format!(
+                    "gyro bias {} = {:.3} deg/s is {:.1} sigma of its prior ({:.3} deg/s): \
+                     set a wider initial_bias_sigma_deg_s in --config for this gyro",
+                    ["x", "y", "z"][k],
+                    calibration.gyro_bias_rad_s[k].to_degrees(),
+                    change.abs() / prior,
+                    prior.to_degrees()
+                )
+            })
+        })
+        .collect()
+}
+
+/// The photodiode's status reason: each quantity that is not `calibrated`, with its own.
+fn status_reason(d: &PdIdentifiability) -> String {
+    [
+        ("scale", &d.scale),
+        ("azimuth", &d.azimuth),
+        ("elevation", &d.elevation),
+    ]
+    .iter()
+    .filter(|(_, j)| j.status != Status::Calibrated)
+    .map(|(name, j)| format!("{name} {}: {}", j.status.as_str(), j.reason))
+    .collect::<Vec<_>>()
+    .join("; ")
+}
+
+/// `calibration.ron`'s `status` lines: every quantity that is not `calibrated`.
+fn status_lines(photodiodes: &[PdIdentifiability], bias: &[Judged; 3]) -> Vec<String> {
+    let mut lines = Vec::new();
+    for (i, d) in photodiodes.iter().enumerate() {
+        for (name, j) in [
+            ("scale_V", &d.scale),
+            ("azimuth_deg", &d.azimuth),
+            ("elevation_deg", &d.elevation),
+        ] {
+            if j.status != Status::Calibrated {
+                lines.push(format!(
+                    "pd{:02} {name}: {} ({})",
+                    i + 1,
+                    j.status.as_str(),
+                    j.reason
+                ));
+            }
+        }
+    }
+    for (axis, j) in ["x", "y", "z"].iter().zip(bias) {
+        if j.status != Status::Calibrated {
+            lines.push(format!(
+                "gyro_bias_{axis}: {} ({})",
+                j.status.as_str(),
+                j.reason
+            ));
+        }
+    }
+    lines
+}
+
+fn counts_json(run: &CalibrationRun) -> serde_json::Value {
+    let class = |c: &pdcal_filter::SensorCounts| {
+        serde_json::json!({
+            "accepted": c.accepted, "gated": c.gated, "not_sampled": c.not_sampled,
+            "shadowed": c.shadowed, "outside_fov": c.outside_fov, "unused_sensor": c.unused_sensor,
+        })
+    };
+    serde_json::json!({
+        "photodiode": class(&run.counts.photodiode),
+        "magnetometer": class(&run.counts.magnetometer),
+    })
+}
+
+/// Everything a calibration produces, in memory.
+pub struct Outcome {
+    /// The filter run (forward, smoother, residuals, calibration).
+    pub run: CalibrationRun,
+    /// Sun-vector magnitude and direction metrics (Figs. 8-11).
+    pub sun_vector: SunVectorMetrics,
+    /// Photodiode residual statistics over every row.
+    pub residuals: ResidualSummary,
+    /// Whether the residuals are consistent with the model ([`pdcal_filter::consistency`]).
+    pub consistency: pdcal_filter::Consistency,
+    /// Wall-clock time of the filter run, s.
+    pub runtime_s: f64,
+    /// Physical-plausibility warnings on the input ([`crate::checks`]), one line each.
+    pub warnings: Vec<String>,
+    /// The data sets of a joint calibration with their own residual statistics (empty for
+    /// one data set).
+    pub datasets: Vec<DatasetSummary>,
+    /// Photodiodes whose data contradict their nominal mounting or polarity, and what the
+    /// calibration did about each ([`crate::mounting`]).
+    pub mountings: Vec<pdcal_filter::mounting::MountingFinding>,
+}
+
+/// One data set of a calibration and the statistics of its own photodiode residuals
+/// (`summary.json` `datasets`).
+#[derive(Debug, Clone, Serialize)]
+pub struct DatasetSummary {
+    /// Where it sits among the sets.
+    #[serde(flatten)]
+    pub span: crate::joint::SetSpan,
+    /// Its photodiode residuals.
+    pub residuals: ResidualSummary,
+    /// The consistency verdict of its own residuals.
+    pub consistency: pdcal_filter::Consistency,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_bias_beyond_three_prior_sigmas_is_a_warning() {
+        let cal = |bias: [f64; 3], sigma: f64| Calibration {
+            format_version: 1,
+            photodiodes: Vec::new(),
+            gyro_bias_rad_s: bias,
+            gyro_bias_sigma_rad_s: [sigma; 3],
+            parameters: Vec::new(),
+            status: Vec::new(),
+        };
+        let prior = cal([0.0; 3], 0.5f64.to_radians());
+        let within = cal([0.01, -0.02, 0.025], 1e-4);
+        assert!(bias_beyond_prior(&prior, &within).is_empty());
+        let beyond = cal([0.07, 0.0, -0.03], 1e-4);
+        let w = bias_beyond_prior(&prior, &beyond);
+        assert_eq!(w.len(), 2, "{w:?}");
+        assert!(
+            w[0].starts_with("gyro bias x = 4.011 deg/s is 8.0 sigma"),
+            "{}",
+            w[0]
+        );
+        assert!(w[1].starts_with("gyro bias z"), "{}", w[1]);
+    }
+
+    #[test]
+    fn flags_say_never_lit_too_little_and_implausible_change() {
+        let init = pdcal_filter::PdCalibration {
+            scale_v: 3.7,
+            scale_sigma_v: 0.5,
+            azimuth_deg: 0.0,
+            azimuth_sigma_deg: Some(10.0),
+            elevation_deg: 0.0,
+            elevation_sigma_deg: 10.0,
+        };
+        let flag = |used, minutes, change| photodiode_flag(used, minutes, change, &init);
+        assert_eq!(flag(false, 0.0, (0.0, 0.0)).as_deref(), Some("never lit"));
+        assert_eq!(
+            flag(true, 2.04, (1.0, 0.1)).as_deref(),
+            Some("lit too little (2.0 min)")
+        );
+        assert_eq!(flag(true, 20.0, (9.0, -0.2)), None);
+        let beyond = Some("change beyond 3 sigma of the prior");
+        assert_eq!(flag(true, 20.0, (31.0, 0.0)).as_deref(), beyond);
+        assert_eq!(flag(true, 20.0, (1.0, -1.6)).as_deref(), beyond);
+    }
+}
