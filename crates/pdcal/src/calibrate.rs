@@ -198,7 +198,6 @@ pub fn run_dirs(
     datasets: &[PathBuf],
     out: &Path,
     config: &RunConfig,
-    config: &RunConfig,
 ) -> Result<(Outcome, crate::schema::Summary)> {
     run_dirs_forced(datasets, out, config, false)
 }

@@ -38,6 +38,7 @@ fn prior(edit: impl FnOnce(&mut PdCalibration)) -> String {
         gyro_bias_rad_s: [0.0; 3],
         gyro_bias_sigma_rad_s: [1e-4; 3],
         parameters: Vec::new(),
+        status: Vec::new(),
     };
     cal.to_ron_string().unwrap()
 }
