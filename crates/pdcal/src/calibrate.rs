@@ -247,6 +247,18 @@ pub fn check_photodiode_count(m: usize, what: &str) -> Result<()> {
     Ok(())
 }
 
+/// The references of a run: the stored ones when there are, else computed per row.
+fn references_of<'a>(
+    stored: Option<&'a [pdcal_filter::StepReference]>,
+    model: &'a pdcal_filter::ReferenceModel,
+    t_s: &'a [f64],
+) -> References<'a> {
+    match stored {
+        Some(stored) => References::Stored(stored),
+        None => References::Computed { model, t_s },
+    }
+}
+
 /// The calibration of [`run_dirs`] on data sets held in memory (each with the directory
 /// it stands for, named in `summary.json` `datasets`), its outputs written into `dir` and
 /// published there; `cancel` may stop it.
@@ -281,25 +293,15 @@ pub fn run_sets(
         }
         None => None,
     };
-    let mountings = {
-        let references = match &stored {
-            Some(stored) => References::Stored(stored),
-            None => References::Computed {
-                model: &reference_model,
-                t_s: &telemetry.t_s,
-            },
-        };
-        crate::mounting::check(&meta, &telemetry, references, &config.filter)?
-    };
+    let mountings = crate::mounting::check(
+        &meta,
+        &telemetry,
+        references_of(stored.as_deref(), &reference_model, &telemetry.t_s),
+        &config.filter,
+    )?;
     crate::mounting::apply(&mountings, &mut meta, &mut telemetry);
     warnings.extend(mountings.iter().map(|f| f.message()));
-    let references = match &stored {
-        Some(stored) => References::Stored(stored),
-        None => References::Computed {
-            model: &reference_model,
-            t_s: &telemetry.t_s,
-        },
-    };
+    let references = references_of(stored.as_deref(), &reference_model, &telemetry.t_s);
     let inputs = RunInputs {
         meta: &meta,
         telemetry: &telemetry,
