@@ -49,6 +49,7 @@ pub const PDCAL: Rules = Rules {
         ),
         ("pdcal-dataset", &["pdcal-effects", "pdcal-ephem"]),
         ("pdcal-import", &["pdcal-dataset", "pdcal-ephem"]),
+        ("pdcal-magcal", &["pdcal-ephem"]),
         (
             "pdcal-sim",
             &[
