@@ -395,6 +395,7 @@ impl Series {
                 pd_v: vec![Samples::with_capacity(rows); n_pd],
                 r_gcrf_km: None,
                 temperature_c: Vec::new(),
+                current_a: Vec::new(),
             },
             truth: TruthSeries::default(),
             sun_gcrf: Vec::with_capacity(rows),
