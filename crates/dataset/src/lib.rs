@@ -92,7 +92,7 @@ pub use temperature::{
     panel_temperature_column, photodiode_temperature_column,
 };
 pub use truth::{
-    TruePd, TruthConstants, TruthSeries, truth_columns, truth_constants_from_str,
+    TrueMagnetometer, TruePd, TruthConstants, TruthSeries, truth_columns, truth_constants_from_str,
     truth_series_from_str,
 };
 

@@ -129,6 +129,64 @@ impl MagCalibration {
             .collect()
     }
 
+    /// A calibration from its forward form as written in a file: `T` (symmetric, of
+    /// `form`), `b`, the kept regressors' `c_j` and the covariance of `[T coefficients, b,
+    /// c]`; what [`MagCalibration::correct`] and [`MagCalibration::correction_covariance`]
+    /// need. `None` when `T` is singular. The fit's statistics are left empty.
+    pub fn from_forward(
+        form: MatrixForm,
+        matrix: Matrix3<f64>,
+        bias_nt: Vector3<f64>,
+        regressors: Vec<(String, Vector3<f64>)>,
+        covariance: DMatrix<f64>,
+    ) -> Option<Self> {
+        let p = matrix.try_inverse()?;
+        let (names, coeff_nt): (Vec<String>, Vec<Vector3<f64>>) = regressors.into_iter().unzip();
+        let params = Params {
+            form,
+            p: (p + p.transpose()) * 0.5,
+            bias_nt,
+            coeff_nt,
+        };
+        if covariance.nrows() != params.len() || covariance.ncols() != params.len() {
+            return None;
+        }
+        let (_, jac) = forward_matrix(&params);
+        let inv = jac.try_inverse()?;
+        let param_covariance = &inv * &covariance * inv.transpose();
+        Some(MagCalibration {
+            params,
+            matrix,
+            regressors: names,
+            covariance,
+            param_covariance,
+            noise_sigma_nt: 0.0,
+            rows_used: 0,
+            rejected_rows: Vec::new(),
+            residual_rms_before_nt: 0.0,
+            residual_rms_after_nt: 0.0,
+            decisions: Vec::new(),
+            forms_not_determined: Vec::new(),
+        })
+    }
+
+    /// Names of the entries of [`MagCalibration::covariance`], in order (`T11`, ..., `b_x`,
+    /// ..., `<regressor>_x`, ...).
+    pub fn parameter_names(&self) -> Vec<String> {
+        let mut names: Vec<String> = match self.params.form {
+            MatrixForm::Symmetric => ["T11", "T22", "T33", "T12", "T13", "T23"]
+                .map(String::from)
+                .to_vec(),
+            MatrixForm::Diagonal => ["T11", "T22", "T33"].map(String::from).to_vec(),
+            MatrixForm::Scalar => vec!["T".to_owned()],
+        };
+        names.extend(["b_x", "b_y", "b_z"].map(String::from));
+        for r in &self.regressors {
+            names.extend(["x", "y", "z"].map(|a| format!("{r}_{a}")));
+        }
+        names
+    }
+
     /// The corrected field `P (m - b - sum c_j u_j)`; `u` the kept regressors' values.
     pub fn correct(&self, mag_nt: &Vector3<f64>, u: &[f64]) -> Vector3<f64> {
         self.params.correct(mag_nt, u)
@@ -607,6 +665,29 @@ mod tests {
     }
 
     /// The Jacobian from `P`'s coefficients to `T = P^-1`'s against central differences.
+    /// A calibration rebuilt from its forward form has the same correction and the same
+    /// covariance of the corrected field.
+    #[test]
+    fn forward_form_round_trip() {
+        let params = params();
+        let n = params.len();
+        let a = DMatrix::from_fn(n, n, |i, j| ((i * 7 + j * 3) % 5) as f64 * 0.1);
+        let param_covariance = &a * a.transpose() + DMatrix::identity(n, n);
+        let (matrix, jac) = forward_matrix(&params);
+        let covariance = &jac * &param_covariance * jac.transpose();
+        let back = MagCalibration::from_forward(
+            MatrixForm::Symmetric,
+            matrix,
+            params.bias_nt,
+            vec![("cur_px_A".into(), params.coeff_nt[0])],
+            covariance,
+        )
+        .expect("invertible");
+        assert!((back.params.p - params.p).abs().max() < 1e-12);
+        assert!((&back.param_covariance - &param_covariance).abs().max() < 1e-8);
+        assert_eq!(back.parameter_names().len(), n);
+    }
+
     #[test]
     fn forward_matrix_jacobian_matches_central_differences() {
         let base = params();

@@ -25,6 +25,8 @@ pub struct RunConfig {
     pub filter: FilterConfig,
     /// Full, photodiode-only or scale-only with a prior.
     pub mode: Mode,
+    /// A magnetometer calibration (`--mag-cal`) applied to the telemetry before the filter.
+    pub mag_cal: Option<pdcal_magcal::MagCalibration>,
 }
 
 impl Default for RunConfig {
@@ -32,6 +34,7 @@ impl Default for RunConfig {
         Self {
             filter: FilterConfig::default(),
             mode: Mode::Full,
+            mag_cal: None,
         }
     }
 }
@@ -47,6 +50,7 @@ pub fn load_config(path: &Path) -> Result<RunConfig> {
             return Ok(RunConfig {
                 filter: FilterConfig::default(),
                 mode: Mode::ScaleOnly { prior },
+                mag_cal: None,
             });
         }
         // A calibration.ron with a bad value gets the calibration's own message, not the
@@ -69,6 +73,7 @@ pub fn load_config(path: &Path) -> Result<RunConfig> {
     Ok(RunConfig {
         filter,
         mode: Mode::Full,
+        mag_cal: None,
     })
 }
 
@@ -212,7 +217,21 @@ pub fn run_dirs_forced(
 ) -> Result<(Outcome, crate::schema::Summary)> {
     let dir = OutputDir::create_forced(out, "calibrate", force)?;
     // Only meta and telemetry: calibrate never reads truth.*.
-    run_sets(crate::joint::read(datasets)?, dir, config, None)
+    let mut sets = crate::joint::read(datasets)?;
+    let Some(cal) = &config.mag_cal else {
+        return run_sets(sets, dir, config, None);
+    };
+    let mut config = config.clone();
+    let mut worst_sigma_nt: f64 = 0.0;
+    for (path, meta, telemetry) in &mut sets {
+        let cal_sigma = crate::magcal::apply(telemetry, cal)
+            .with_context(|| format!("--mag-cal on {}", path.display()))?;
+        let base = config.filter.resolve(meta.noise.as_ref()).mag_nt;
+        worst_sigma_nt = worst_sigma_nt.max(base.hypot(cal_sigma));
+    }
+    // The calibration's uncertainty adds to the sensor noise (docs/magcal.md).
+    config.filter.mag_sigma_nt = Some(worst_sigma_nt);
+    run_sets(sets, dir, &config, None)
 }
 
 /// The largest number of photodiodes `calibrate` and `diagnose` accept

@@ -103,6 +103,7 @@ pub const PDCAL: Rules = Rules {
                 "pdcal-evaluate",
                 "pdcal-diagnose",
                 "pdcal-report",
+                "pdcal-magcal",
             ],
         ),
         (
