@@ -27,6 +27,9 @@ pub struct RunConfig {
     pub mode: Mode,
     /// A magnetometer calibration (`--mag-cal`) applied to the telemetry before the filter.
     pub mag_cal: Option<pdcal_magcal::MagCalibration>,
+    /// Calibrate the magnetometer from each run's own data first (`pdcal magcal`) and apply
+    /// that (the Monte Carlo's `--magcal`); ignored when `mag_cal` is given.
+    pub fit_mag_cal: bool,
 }
 
 impl Default for RunConfig {
@@ -35,6 +38,7 @@ impl Default for RunConfig {
             filter: FilterConfig::default(),
             mode: Mode::Full,
             mag_cal: None,
+            fit_mag_cal: false,
         }
     }
 }
@@ -50,7 +54,7 @@ pub fn load_config(path: &Path) -> Result<RunConfig> {
             return Ok(RunConfig {
                 filter: FilterConfig::default(),
                 mode: Mode::ScaleOnly { prior },
-                mag_cal: None,
+                ..RunConfig::default()
             });
         }
         // A calibration.ron with a bad value gets the calibration's own message, not the
@@ -72,8 +76,7 @@ pub fn load_config(path: &Path) -> Result<RunConfig> {
         FilterConfig::from_ron_str(&text).with_context(|| format!("{}", path.display()))?;
     Ok(RunConfig {
         filter,
-        mode: Mode::Full,
-        mag_cal: None,
+        ..RunConfig::default()
     })
 }
 
@@ -224,14 +227,26 @@ pub fn run_dirs_forced(
     let mut config = config.clone();
     let mut worst_sigma_nt: f64 = 0.0;
     for (path, meta, telemetry) in &mut sets {
-        let cal_sigma = crate::magcal::apply(telemetry, cal)
+        let sigma = with_mag_cal(&config, cal, meta, telemetry)
             .with_context(|| format!("--mag-cal on {}", path.display()))?;
-        let base = config.filter.resolve(meta.noise.as_ref()).mag_nt;
-        worst_sigma_nt = worst_sigma_nt.max(base.hypot(cal_sigma));
+        worst_sigma_nt = worst_sigma_nt.max(sigma);
     }
-    // The calibration's uncertainty adds to the sensor noise (docs/magcal.md).
     config.filter.mag_sigma_nt = Some(worst_sigma_nt);
     run_sets(sets, dir, &config, None)
+}
+
+/// Corrects `telemetry`'s magnetometer with `cal` and returns the magnetometer noise the
+/// filter should then use: the configured (or hinted) sigma and the correction's own
+/// uncertainty added in quadrature (docs/magcal.md).
+pub fn with_mag_cal(
+    config: &RunConfig,
+    cal: &pdcal_magcal::MagCalibration,
+    meta: &DatasetMeta,
+    telemetry: &mut Telemetry,
+) -> Result<f64> {
+    let cal_sigma = crate::magcal::apply(telemetry, cal)?;
+    let base = config.filter.resolve(meta.noise.as_ref()).mag_nt;
+    Ok(base.hypot(cal_sigma))
 }
 
 /// The largest number of photodiodes `calibrate` and `diagnose` accept

@@ -129,6 +129,7 @@ pub const PDCAL: Rules = Rules {
                 "pdcal-filter",
                 "pdcal-evaluate",
                 "pdcal-diagnose",
+                "pdcal-magcal",
             ],
         ),
         (
