@@ -6,7 +6,7 @@ use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
 use crate::MagCalError;
 use crate::model::{MatrixForm, Params};
-use crate::start::{Row, linear_start};
+use crate::start::{Row, linear_start, sphere_start};
 
 /// One telemetry row for the calibration.
 #[derive(Debug, Clone, PartialEq)]
@@ -386,12 +386,23 @@ fn fit_with(
             u,
         })
         .collect();
-    let mut params = linear_start(&start_rows, form, active.len()).unwrap_or_else(|| {
+    let all = vec![true; samples.len()];
+    // Both starts are refined and the one of lower cost kept: the magnitude's cost has
+    // local minima, and which start lands in the global one depends on the data.
+    let mut params = [
+        linear_start(&start_rows, form, active.len()),
+        sphere_start(&start_rows, form, active.len()),
+    ]
+    .into_iter()
+    .flatten()
+    .map(|p| refine(samples, &u, &all, p, config.max_iterations))
+    .min_by(|a, b| profiled(samples, &u, a).total_cmp(&profiled(samples, &u, b)))
+    .unwrap_or_else(|| {
         let mut p = Params::identity(form, active.len());
         p.bias_nt = samples.iter().map(|s| s.mag_nt).sum::<Vector3<f64>>() / samples.len() as f64;
         p
     });
-    let mut keep = vec![true; samples.len()];
+    let mut keep = all.clone();
     for _ in 0..8 {
         params = refine(samples, &u, &keep, params, config.max_iterations);
         let next = gate(samples, &u, &params, config.gate_sigmas);
@@ -495,6 +506,20 @@ fn cost(samples: &[Sample], u: &[Vec<f64>], keep: &[bool], params: &Params) -> f
             row.r_nt * row.r_nt / row.var_rel
         })
         .sum()
+}
+
+/// The negative log-likelihood with the noise variance profiled out, up to a constant:
+/// `n ln(sum r^2 / v / n) + sum ln v` over every row (comparable between fits whose `P`, and
+/// so whose variances `v`, differ).
+fn profiled(samples: &[Sample], u: &[Vec<f64>], params: &Params) -> f64 {
+    let (mut weighted, mut log_v) = (0.0, 0.0);
+    for (s, u) in samples.iter().zip(u) {
+        let row = params.row(&s.mag_nt, u, s.field_nt);
+        weighted += row.r_nt * row.r_nt / row.var_rel;
+        log_v += row.var_rel.ln();
+    }
+    let n = samples.len().max(1) as f64;
+    n * (weighted / n).ln() + log_v
 }
 
 /// Levenberg-Marquardt with Marquardt's diagonal scaling; the weights are re-evaluated at

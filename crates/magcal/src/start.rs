@@ -90,6 +90,47 @@ pub(crate) fn linear_start(
     })
 }
 
+/// A second start for data the linear solution misjudges (few rows, a field that varies
+/// little against a large hard iron): the centre of the sphere that best fits the readings,
+/// `|m|^2 = 2 m^T b + k`, and one scale factor `mean |H| / mean |m - b|`, no current bias.
+pub(crate) fn sphere_start(
+    rows: &[Row<'_>],
+    form: MatrixForm,
+    regressors: usize,
+) -> Option<Params> {
+    if rows.len() < 8 {
+        return None;
+    }
+    let scale = rows.iter().map(|r| r.mag_nt.norm()).sum::<f64>() / rows.len() as f64;
+    if scale.is_nan() || scale <= 0.0 {
+        return None;
+    }
+    let mut a = DMatrix::<f64>::zeros(4, 4);
+    let mut rhs = DVector::<f64>::zeros(4);
+    for row in rows {
+        let m = row.mag_nt / scale;
+        let x = DVector::from_vec(vec![2.0 * m.x, 2.0 * m.y, 2.0 * m.z, 1.0]);
+        a.syger(1.0, &x, &x, 1.0);
+        rhs.axpy(m.norm_squared(), &x, 1.0);
+    }
+    let solution = solve_scaled(&a, &rhs)?;
+    let bias_nt = Vector3::new(solution[0], solution[1], solution[2]) * scale;
+    let n = rows.len() as f64;
+    let radius = rows
+        .iter()
+        .map(|r| (r.mag_nt - bias_nt).norm())
+        .sum::<f64>()
+        / n;
+    let field = rows.iter().map(|r| r.field_nt).sum::<f64>() / n;
+    if radius.is_nan() || radius <= 0.0 {
+        return None;
+    }
+    let mut params = Params::identity(form, regressors);
+    params.p = Matrix3::identity() * (field / radius);
+    params.bias_nt = bias_nt;
+    Some(params)
+}
+
 /// The row's terms in the order `E11 E22 E33 E12 E13 E23, beta, gamma_j, kappa, lambda_j,
 /// mu_jl`.
 fn terms(m: &Vector3<f64>, u: &[f64], x: &mut DVector<f64>) {

@@ -215,6 +215,7 @@ pub fn run(cli: Cli) -> Result<()> {
             force,
         }) => {
             let outcome = crate::magcal::run_dir_forced(&dataset, &out, force)?;
+            print_warnings(&outcome.warnings);
             let cal = &outcome.calibration;
             println!(
                 "magnetometer: field-magnitude residual {:.1} nT -> {:.1} nT over {} rows ({} rejected); regressors kept: {}",

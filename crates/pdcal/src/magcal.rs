@@ -100,6 +100,8 @@ pub struct MagCalSummary {
     pub regressors: Vec<RegressorRecord>,
     /// Forms of `T` the data did not determine (fallen back from).
     pub matrix_forms_not_determined: Vec<MatrixForm>,
+    /// Why the result should not be trusted, when the residuals say so (empty otherwise).
+    pub warnings: Vec<String>,
     /// [`CONVENTION`].
     pub convention: &'static str,
 }
@@ -122,6 +124,33 @@ pub struct MagCalOutcome {
     pub samples: Vec<Sample>,
     /// Every candidate regressor's name (the telemetry's current columns).
     pub names: Vec<String>,
+    /// Why the result should not be trusted ([`warnings`]).
+    pub warnings: Vec<String>,
+}
+
+/// The misfit that makes a calibration untrustworthy: the implied noise well beyond the
+/// dataset's noise hint, or a corrected magnitude that misses the reference by more than
+/// 5 % RMS (no magnetometer worth calibrating is that noisy: the model, the time tags or the
+/// orbit do not describe the data).
+pub fn warnings(cal: &MagCalibration, mean_field_nt: f64, hint_nt: Option<f64>) -> Vec<String> {
+    let mut out = Vec::new();
+    if let Some(hint) = hint_nt.filter(|h| *h > 0.0)
+        && cal.noise_sigma_nt > 1.5 * hint
+    {
+        out.push(format!(
+            "the residuals imply {:.0} nT of noise per axis, {:.1} times dataset.ron's mag_nT {hint:.0}: the model does not describe these data; the parameters are not a calibration",
+            cal.noise_sigma_nt,
+            cal.noise_sigma_nt / hint
+        ));
+    }
+    if cal.residual_rms_after_nt > 0.05 * mean_field_nt {
+        out.push(format!(
+            "the corrected magnitude misses the reference by {:.0} nT RMS ({:.1} % of the mean field): the model, the time tags or the orbit do not describe these data; the parameters are not a calibration",
+            cal.residual_rms_after_nt,
+            100.0 * cal.residual_rms_after_nt / mean_field_nt
+        ));
+    }
+    out
 }
 
 /// Calibrates the magnetometer of `meta`/`telemetry`.
@@ -141,7 +170,11 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry) -> Result<MagCalOutcome> {
         samples.push(pdcal_magcal::sample_along_orbit(&model, row, t_s, *m, u)?);
     }
     let calibration = pdcal_magcal::calibrate(&samples, &names, &MagCalConfig::default())?;
+    let mean_field_nt =
+        samples.iter().map(|s| s.field_nt).sum::<f64>() / samples.len().max(1) as f64;
+    let hint = meta.noise.as_ref().and_then(|n| n.mag_nt);
     Ok(MagCalOutcome {
+        warnings: warnings(&calibration, mean_field_nt, hint),
         calibration,
         samples,
         names,
@@ -375,6 +408,7 @@ fn summary_of(outcome: &MagCalOutcome) -> MagCalSummary {
         rejected_rows: cal.rejected_rows.clone(),
         regressors: records(cal),
         matrix_forms_not_determined: cal.forms_not_determined.clone(),
+        warnings: outcome.warnings.clone(),
         convention: CONVENTION,
     }
 }
@@ -386,7 +420,10 @@ fn index_rows(s: &MagCalSummary) -> Vec<(String, String)> {
             v[0], sig[0], v[1], sig[1], v[2], sig[2]
         )
     };
-    let mut rows = vec![
+    let mut rows: Vec<(String, String)> = (s.warnings.iter())
+        .map(|w| ("warning".to_owned(), w.clone()))
+        .collect();
+    rows.extend([
         (
             "field-magnitude residual RMS, nT".to_owned(),
             format!(
@@ -416,7 +453,7 @@ fn index_rows(s: &MagCalSummary) -> Vec<(String, String)> {
             "rows used / rejected".to_owned(),
             format!("{} / {}", s.rows_used, s.rows_rejected),
         ),
-    ];
+    ]);
     for (name, c) in &s.current_bias_nt_per_a {
         let sig = &s.current_bias_sigma_nt_per_a[name];
         rows.push((format!("{name}, nT/A"), v3(c, sig)));
