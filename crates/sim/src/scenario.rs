@@ -192,10 +192,10 @@ impl CurrentChannel {
     }
 }
 
-/// Magnetometer errors drawn per seed (hardware: the same for every downlink): `m = T B + b
-/// + sum_j c_j u_j + noise`, `T = (I + D + S) N` with `D` the scale errors, `S` symmetric
-/// soft iron and `N` unit upper triangular (non-orthogonal axes). Each value is a magnitude
-/// drawn from its spread with a random sign.
+/// Magnetometer errors drawn per seed (hardware: the same for every downlink):
+/// `m = T B + b + sum_j c_j u_j + noise`, `T = (I + D + S) N` with `D` the scale errors,
+/// `S` symmetric soft iron and `N` unit upper triangular (non-orthogonal axes). Each value
+/// is a magnitude drawn from its spread with a random sign.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MagErrors {
