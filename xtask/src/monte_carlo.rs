@@ -18,6 +18,7 @@ pub fn run(
     photodiode_only: bool,
     config_file: Option<&std::path::Path>,
     (cut, sets): (Option<Cut>, usize),
+    magcal: bool,
 ) -> Result<()> {
     let scenario = pdcal::simulate::load_scenario(scenario_name)?;
     let mut config = match config_file {
@@ -27,6 +28,7 @@ pub fn run(
     if photodiode_only {
         config.mode = Mode::PhotodiodeOnly;
     }
+    config.fit_mag_cal = magcal;
     let albedo = albedo_model()?;
     let bar = ProgressBar::new(n);
     bar.set_style(ProgressStyle::with_template(
@@ -56,6 +58,9 @@ pub fn run(
     if sets > 1 {
         mode = format!("{mode}, {sets} sets {SET_SPACING_DAYS} days apart calibrated jointly");
     }
+    if magcal {
+        mode = format!("{mode}, magnetometer calibrated first (pdcal magcal)");
+    }
     let table = table(&scenario.name, &mode, &results);
     print!("{table}");
     let mut tag = match cut {
@@ -64,6 +69,9 @@ pub fn run(
     };
     if sets > 1 {
         tag = format!("{tag}-{sets}-sets");
+    }
+    if magcal {
+        tag = format!("{tag}-magcal");
     }
     let dir = PathBuf::from("out/sim-calibrate").join(format!(
         "{}-{}{tag}",

@@ -25,6 +25,11 @@ pub struct RunConfig {
     pub filter: FilterConfig,
     /// Full, photodiode-only or scale-only with a prior.
     pub mode: Mode,
+    /// A magnetometer calibration (`--mag-cal`) applied to the telemetry before the filter.
+    pub mag_cal: Option<pdcal_magcal::MagCalibration>,
+    /// Calibrate the magnetometer from each run's own data first (`pdcal magcal`) and apply
+    /// that (the Monte Carlo's `--magcal`); ignored when `mag_cal` is given.
+    pub fit_mag_cal: bool,
 }
 
 impl Default for RunConfig {
@@ -32,6 +37,8 @@ impl Default for RunConfig {
         Self {
             filter: FilterConfig::default(),
             mode: Mode::Full,
+            mag_cal: None,
+            fit_mag_cal: false,
         }
     }
 }
@@ -47,6 +54,7 @@ pub fn load_config(path: &Path) -> Result<RunConfig> {
             return Ok(RunConfig {
                 filter: FilterConfig::default(),
                 mode: Mode::ScaleOnly { prior },
+                ..RunConfig::default()
             });
         }
         // A calibration.ron with a bad value gets the calibration's own message, not the
@@ -68,7 +76,7 @@ pub fn load_config(path: &Path) -> Result<RunConfig> {
         FilterConfig::from_ron_str(&text).with_context(|| format!("{}", path.display()))?;
     Ok(RunConfig {
         filter,
-        mode: Mode::Full,
+        ..RunConfig::default()
     })
 }
 
@@ -212,7 +220,33 @@ pub fn run_dirs_forced(
 ) -> Result<(Outcome, crate::schema::Summary)> {
     let dir = OutputDir::create_forced(out, "calibrate", force)?;
     // Only meta and telemetry: calibrate never reads truth.*.
-    run_sets(crate::joint::read(datasets)?, dir, config, None)
+    let mut sets = crate::joint::read(datasets)?;
+    let Some(cal) = &config.mag_cal else {
+        return run_sets(sets, dir, config, None);
+    };
+    let mut config = config.clone();
+    let mut worst_sigma_nt: f64 = 0.0;
+    for (path, meta, telemetry) in &mut sets {
+        let sigma = with_mag_cal(&config, cal, meta, telemetry)
+            .with_context(|| format!("--mag-cal on {}", path.display()))?;
+        worst_sigma_nt = worst_sigma_nt.max(sigma);
+    }
+    config.filter.mag_sigma_nt = Some(worst_sigma_nt);
+    run_sets(sets, dir, &config, None)
+}
+
+/// Corrects `telemetry`'s magnetometer with `cal` and returns the magnetometer noise the
+/// filter should then use: the configured (or hinted) sigma and the correction's own
+/// uncertainty added in quadrature (docs/magcal.md).
+pub fn with_mag_cal(
+    config: &RunConfig,
+    cal: &pdcal_magcal::MagCalibration,
+    meta: &DatasetMeta,
+    telemetry: &mut Telemetry,
+) -> Result<f64> {
+    let cal_sigma = crate::magcal::apply(telemetry, cal)?;
+    let base = config.filter.resolve(meta.noise.as_ref()).mag_nt;
+    Ok(base.hypot(cal_sigma))
 }
 
 /// The largest number of photodiodes `calibrate` and `diagnose` accept

@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use pdcal_dataset::{DatasetMeta, OrbitSpec, Samples, Telemetry, TemperatureColumn};
+use pdcal_dataset::{CurrentColumn, DatasetMeta, OrbitSpec, Samples, Telemetry, TemperatureColumn};
 use pdcal_filter::StepReference;
 use serde::Serialize;
 
@@ -235,10 +235,16 @@ fn concat(parts: &[(f64, &Telemetry)]) -> Telemetry {
     let all_positions = parts.iter().all(|(_, t)| t.r_gcrf_km.is_some());
     let m = parts.first().map_or(0, |(_, t)| t.pd_v.len());
     let mut names: Vec<String> = Vec::new();
+    let mut currents: Vec<String> = Vec::new();
     for (_, t) in parts {
         for c in &t.temperature_c {
             if !names.contains(&c.name) {
                 names.push(c.name.clone());
+            }
+        }
+        for c in &t.current_a {
+            if !currents.contains(&c.name) {
+                currents.push(c.name.clone());
             }
         }
     }
@@ -251,6 +257,13 @@ fn concat(parts: &[(f64, &Telemetry)]) -> Telemetry {
         temperature_c: names
             .iter()
             .map(|name| TemperatureColumn {
+                name: name.clone(),
+                values: Vec::new(),
+            })
+            .collect(),
+        current_a: currents
+            .iter()
+            .map(|name| CurrentColumn {
                 name: name.clone(),
                 values: Vec::new(),
             })
@@ -274,6 +287,12 @@ fn concat(parts: &[(f64, &Telemetry)]) -> Telemetry {
         }
         for column in &mut out.temperature_c {
             match t.temperature_c.iter().find(|c| c.name == column.name) {
+                Some(theirs) => column.values.extend_from_slice(&theirs.values),
+                None => column.values.extend(std::iter::repeat_n(None, rows)),
+            }
+        }
+        for column in &mut out.current_a {
+            match t.current_a.iter().find(|c| c.name == column.name) {
                 Some(theirs) => column.values.extend_from_slice(&theirs.values),
                 None => column.values.extend(std::iter::repeat_n(None, rows)),
             }

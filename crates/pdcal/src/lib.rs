@@ -14,6 +14,7 @@ pub mod figures;
 pub mod files;
 pub mod import;
 pub mod joint;
+pub mod magcal;
 pub mod mounting;
 pub mod output;
 pub mod rows;

@@ -195,6 +195,17 @@ pub fn run_seed(
     if matches!(config.mode, Mode::PhotodiodeOnly) {
         telemetry.mag_nt = None;
     }
+    let fitted = (config.fit_mag_cal && config.mag_cal.is_none() && telemetry.mag_nt.is_some())
+        .then(|| crate::magcal::run(&joint.meta, &telemetry))
+        .transpose()?
+        .map(|outcome| outcome.calibration);
+    let cal = fitted.or_else(|| config.mag_cal.clone());
+    let mut config = config.clone();
+    if let Some(cal) = &cal {
+        let sigma = crate::calibrate::with_mag_cal(&config, cal, &joint.meta, &mut telemetry)?;
+        config.filter.mag_sigma_nt = Some(sigma);
+    }
+    let config = &config;
     let references = match joint.references.clone() {
         Some(references) => references,
         None => pdcal_filter::step_references(&joint.meta, &joint.telemetry)?,

@@ -88,6 +88,130 @@ pub struct Scenario {
     /// and whose true values drive the `temperature` effect. Absent: no temperature columns.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub temperature: Option<Thermal>,
+    /// Telemetry current channels, written as `cur_<name>_A` columns; those that drive the
+    /// magnetometer add `c_j u_j` to it (`magnetometer.errors`). Absent: no current columns.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub currents: Vec<CurrentChannel>,
+}
+
+/// One telemetry current channel (a `cur_<name>_A` column).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CurrentChannel {
+    /// The channel's name: `a-z`, `0-9`, `_` (the column is `cur_<name>_A`).
+    pub name: String,
+    /// What the current follows.
+    pub source: CurrentSource,
+    /// Whether it drives a magnetometer bias (`c_j` drawn from
+    /// `magnetometer.errors.current_bias_nT_per_A`); a channel that does not is a control.
+    #[serde(default)]
+    pub drives_mag: bool,
+}
+
+/// How a channel's current evolves.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum CurrentSource {
+    /// A body-mounted solar panel: `max_A nu max(0, n . s_body)`, `n` its outward normal,
+    /// `s_body` the Sun direction, `nu` the lit fraction of the solar disc.
+    Panel {
+        /// Outward normal, body frame (normalized when used).
+        normal: (f64, f64, f64),
+        /// Current facing the full Sun, A (file name `max_A`).
+        #[serde(rename = "max_A")]
+        max_a: f64,
+    },
+    /// A torquer driven on and off: `amplitude_A` for the first half of every period, 0 for
+    /// the second.
+    Square {
+        /// Current when on, A (file name `amplitude_A`).
+        #[serde(rename = "amplitude_A")]
+        amplitude_a: f64,
+        /// Period, s.
+        period_s: f64,
+    },
+}
+
+impl CurrentChannel {
+    /// The current at `t_s` with the body Sun direction `sun_body` and lit fraction `nu`, A.
+    pub fn current_a(&self, t_s: f64, sun_body: &nalgebra::Vector3<f64>, nu: f64) -> f64 {
+        match self.source {
+            CurrentSource::Panel { normal, max_a } => {
+                let n = nalgebra::Vector3::new(normal.0, normal.1, normal.2).normalize();
+                max_a * nu * n.dot(sun_body).max(0.0)
+            }
+            CurrentSource::Square {
+                amplitude_a,
+                period_s,
+            } => {
+                if (t_s / period_s).fract() < 0.5 {
+                    amplitude_a
+                } else {
+                    0.0
+                }
+            }
+        }
+    }
+
+    fn validate(&self, i: usize) -> Result<(), ScenarioError> {
+        let field = |f: &str| format!("currents[{i}].{f}");
+        if !pdcal_dataset::is_current_name(&self.name) {
+            return Err(invalid(
+                &field("name"),
+                "a-z, 0-9, _ only (the column is cur_<name>_A)",
+            ));
+        }
+        let (amps, what) = match self.source {
+            CurrentSource::Panel { normal, max_a } => {
+                let n = nalgebra::Vector3::new(normal.0, normal.1, normal.2);
+                if !(n.norm() > 0.0 && n.iter().all(|v| v.is_finite())) {
+                    return Err(invalid(
+                        &field("source.normal"),
+                        "must be a finite non-zero vector",
+                    ));
+                }
+                (max_a, "source.max_A")
+            }
+            CurrentSource::Square {
+                amplitude_a,
+                period_s,
+            } => {
+                if !(period_s.is_finite() && period_s > 0.0) {
+                    return Err(invalid(&field("source.period_s"), "must be positive"));
+                }
+                (amplitude_a, "source.amplitude_A")
+            }
+        };
+        let (low, high) = pdcal_dataset::CURRENT_RANGE_A;
+        if !(low..=high).contains(&amps) {
+            return Err(invalid(
+                &field(what),
+                format!("must lie within {low} .. {high} A"),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Magnetometer errors drawn per seed (hardware: the same for every downlink):
+/// `m = T B + b + sum_j c_j u_j + noise`, `T = (I + D + S) N` with `D` the scale errors,
+/// `S` symmetric soft iron and `N` unit upper triangular (non-orthogonal axes). Each value
+/// is a magnitude drawn from its spread with a random sign.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MagErrors {
+    /// Hard-iron bias per axis, nT (file name `hard_iron_nT`).
+    #[serde(rename = "hard_iron_nT")]
+    pub hard_iron_nt: Spread,
+    /// Scale-factor error per axis, fraction (`T_aa - 1` before the non-orthogonality).
+    pub scale: Spread,
+    /// Soft-iron coupling per axis pair, fraction (symmetric off-diagonal of `T`).
+    pub soft_iron: Spread,
+    /// Non-orthogonality per axis pair, degrees.
+    pub nonorthogonality_deg: Spread,
+    /// Bias per ampere of a channel with `drives_mag`, per axis, nT/A (file name
+    /// `current_bias_nT_per_A`).
+    #[serde(rename = "current_bias_nT_per_A")]
+    pub current_bias_nt_per_a: Spread,
 }
 
 /// A first-order thermal model of each photodiode's mount, driven by sunlight:
@@ -389,6 +513,10 @@ pub struct Magnetometer {
     /// Sample period, s.
     #[serde(default = "default_period")]
     pub sample_period_s: f64,
+    /// Hard iron, scale, soft iron, non-orthogonality and current-driven bias. Absent: an
+    /// ideal sensor (beyond `mag-bias`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub errors: Option<MagErrors>,
 }
 
 impl Scenario {
@@ -575,6 +703,24 @@ impl Scenario {
         }
         if let Some(thermal) = &self.temperature {
             thermal.validate(self.duration_s)?;
+        }
+        if let Some(errors) = &self.magnetometer.errors {
+            errors
+                .hard_iron_nt
+                .check("magnetometer.errors.hard_iron_nT")?;
+            errors.scale.check("magnetometer.errors.scale")?;
+            errors.soft_iron.check("magnetometer.errors.soft_iron")?;
+            (errors.nonorthogonality_deg).check("magnetometer.errors.nonorthogonality_deg")?;
+            (errors.current_bias_nt_per_a).check("magnetometer.errors.current_bias_nT_per_A")?;
+        }
+        for (i, channel) in self.currents.iter().enumerate() {
+            channel.validate(i)?;
+            if self.currents[..i].iter().any(|c| c.name == channel.name) {
+                return Err(invalid(
+                    &format!("currents[{i}].name"),
+                    "a second channel of this name",
+                ));
+            }
         }
         Ok(())
     }

@@ -49,6 +49,7 @@ pub const PDCAL: Rules = Rules {
         ),
         ("pdcal-dataset", &["pdcal-effects", "pdcal-ephem"]),
         ("pdcal-import", &["pdcal-dataset", "pdcal-ephem"]),
+        ("pdcal-magcal", &["pdcal-ephem"]),
         (
             "pdcal-sim",
             &[
@@ -102,6 +103,7 @@ pub const PDCAL: Rules = Rules {
                 "pdcal-evaluate",
                 "pdcal-diagnose",
                 "pdcal-report",
+                "pdcal-magcal",
             ],
         ),
         (
@@ -127,6 +129,7 @@ pub const PDCAL: Rules = Rules {
                 "pdcal-filter",
                 "pdcal-evaluate",
                 "pdcal-diagnose",
+                "pdcal-magcal",
             ],
         ),
         (
