@@ -200,6 +200,30 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
         "| runs whose residuals are `consistent` | {consistent} / {} | - | - |",
         r.len()
     );
+    if r.iter().any(|x| !x.repeatability.is_empty()) {
+        let count = |v: &str| r.iter().filter(|x| x.repeatability == v).count();
+        let _ = writeln!(
+            s,
+            "| repeatability verdict: repeatable / not-repeatable / not-checked | {} / {} / {} | - | - |",
+            count("repeatable"),
+            count("not-repeatable"),
+            count("not-checked")
+        );
+        let warned = r.iter().filter(|x| !x.differing.is_empty()).count();
+        let warnings: usize = r.iter().map(|x| x.differing.len()).sum();
+        let _ = writeln!(
+            s,
+            "| runs with a repeatability warning (warnings, all seeds: {warnings}) | {warned} / {} | - | - |",
+            r.len()
+        );
+        let bias: usize = r.iter().map(|x| x.bias_change_warnings).sum();
+        let with_bias = r.iter().filter(|x| x.bias_change_warnings > 0).count();
+        let _ = writeln!(
+            s,
+            "| runs with a gyro-bias change beyond its walk (warnings: {bias}) | {with_bias} / {} | - | - |",
+            r.len()
+        );
+    }
     let (m, wi, _) = stats(r.iter().map(|x| x.attitude_about_sun_inside));
     let _ = writeln!(
         s,

@@ -16,6 +16,7 @@ pub mod import;
 pub mod joint;
 pub mod mounting;
 pub mod output;
+pub mod repeatability;
 pub mod rows;
 pub mod schema;
 pub mod sim_calibrate;

@@ -49,6 +49,13 @@ pub struct SeedResult {
     pub attitude_about_sun_inside: f64,
     /// Attitude errors across the Sun line inside their 3 sigma.
     pub attitude_across_sun_inside: f64,
+    /// With several sets, the repeatability verdict (`repeatable`, `not-repeatable`,
+    /// `not-checked`); empty for one set.
+    pub repeatability: String,
+    /// The parameters whose sets differ (one repeatability warning each).
+    pub differing: Vec<String>,
+    /// Gyro-bias changes between consecutive sets beyond the walk (warnings).
+    pub bias_change_warnings: usize,
 }
 
 /// Which rows a downlink keeps: `passes:ON/PERIOD` keeps ON seconds of every PERIOD
@@ -199,8 +206,14 @@ pub fn run_seed(
         Some(references) => references,
         None => pdcal_filter::step_references(&joint.meta, &joint.telemetry)?,
     };
-    let outcome =
-        crate::calibrate::run_with_references(&joint.meta, &telemetry, references, config, albedo)?;
+    let outcome = crate::calibrate::run_with_references(
+        &joint.meta,
+        &telemetry,
+        references,
+        config,
+        albedo,
+        &joint.sets,
+    )?;
     let truth = joint_truth(&sims, &joint);
     let s: Summary = summary(&joint.meta, &outcome);
     // The calibration as reported: a quantity the data did not determine at its prior.
@@ -260,6 +273,18 @@ pub fn run_seed(
         by_status: eval.consistency.by_status,
         attitude_about_sun_inside: eval.consistency.attitude_about_sun_within_3sigma,
         attitude_across_sun_inside: eval.consistency.attitude_across_sun_within_3sigma,
+        repeatability: s
+            .repeatability
+            .as_ref()
+            .map_or(String::new(), |r| r.verdict.as_str().to_owned()),
+        differing: s
+            .repeatability
+            .as_ref()
+            .map_or(Vec::new(), |r| r.differing.clone()),
+        bias_change_warnings: s
+            .repeatability
+            .as_ref()
+            .map_or(0, |r| r.bias_warnings.len()),
     };
     Ok(SeedRun {
         result,

@@ -341,6 +341,11 @@ impl Spread {
 pub struct Photodiodes {
     /// Intended mounting, `pdNN` order, degrees (dataset.ron's `photodiodes`).
     pub nominal: Vec<NominalMount>,
+    /// The mounting dataset.ron states instead of `nominal`, when the two differ (a head
+    /// mounted rotated from its drawing): the true normals are drawn around `nominal`, the
+    /// calibration is told `assumed`. Absent: dataset.ron states `nominal`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub assumed: Option<Vec<NominalMount>>,
     /// Hard field-of-view half angle of the true sensor (a recessed mount), degrees: beyond
     /// it neither direct sunlight nor albedo reaches the diode ([`pdcal_photodiode::Photodiode`]'s
     /// FOV gate). Absent: the cosine law holds to 90 deg (then `fov-rolloff` is the way to
@@ -389,6 +394,18 @@ pub struct Magnetometer {
     /// Sample period, s.
     #[serde(default = "default_period")]
     pub sample_period_s: f64,
+}
+
+/// A mounting's angles: azimuth finite, elevation within [-90, 90] deg.
+fn check_mount(m: &NominalMount, at: &str) -> Result<(), ScenarioError> {
+    if !(m.azimuth_deg.is_finite() && m.elevation_deg.is_finite() && m.elevation_deg.abs() <= 90.0)
+    {
+        return Err(invalid(
+            at,
+            "azimuth must be finite and elevation within [-90, 90] deg",
+        ));
+    }
+    Ok(())
 }
 
 impl Scenario {
@@ -501,16 +518,19 @@ impl Scenario {
                 format!("needs 1 to 999 entries, has {n}"),
             ));
         }
-        for (i, m) in pd.nominal.iter().enumerate() {
-            if !(m.azimuth_deg.is_finite()
-                && m.elevation_deg.is_finite()
-                && m.elevation_deg.abs() <= 90.0)
-            {
+        if let Some(assumed) = &pd.assumed {
+            if assumed.len() != n {
                 return Err(invalid(
-                    &format!("photodiodes.nominal[{i}]"),
-                    "azimuth must be finite and elevation within [-90, 90] deg",
+                    "photodiodes.assumed",
+                    format!("has {} entries, nominal has {n}", assumed.len()),
                 ));
             }
+            for (i, m) in assumed.iter().enumerate() {
+                check_mount(m, &format!("photodiodes.assumed[{i}]"))?;
+            }
+        }
+        for (i, m) in pd.nominal.iter().enumerate() {
+            check_mount(m, &format!("photodiodes.nominal[{i}]"))?;
             if let Some(panel) = &m.panel
                 && !pdcal_dataset::is_panel_name(panel)
             {
