@@ -801,6 +801,27 @@ mod tests {
     }
 
     #[test]
+    fn an_assumed_mounting_is_what_dataset_ron_states() {
+        let text = include_str!("../../../fixtures/scenarios/weak/pyramid-head-rotated.ron");
+        let s = Scenario::from_ron_str(text).unwrap();
+        let assumed = s.photodiodes.assumed.clone().unwrap();
+        for (a, n) in assumed.iter().zip(&s.photodiodes.nominal) {
+            // The head turned 15 deg about its boresight (+z): azimuths 15 deg on.
+            let turn = (a.azimuth_deg - n.azimuth_deg).rem_euclid(360.0);
+            assert!((turn - 15.0).abs() < 1e-9, "{a:?} {n:?}");
+            assert_eq!(a.elevation_deg, n.elevation_deg);
+        }
+        let out = crate::simulate(&s, 1).unwrap();
+        assert_eq!(out.meta.photodiodes, assumed);
+        let mut short = s.clone();
+        short.photodiodes.assumed.as_mut().unwrap().pop();
+        assert_eq!(field_of(short.validate()), "photodiodes.assumed");
+        let mut bad = s;
+        bad.photodiodes.assumed.as_mut().unwrap()[2].elevation_deg = 91.0;
+        assert_eq!(field_of(bad.validate()), "photodiodes.assumed[2]");
+    }
+
+    #[test]
     fn bad_tle_checksum_is_rejected() {
         let mut s = Scenario::rax2_like().unwrap();
         let ScenarioOrbit::Tle { line1, line2 } = s.orbit.clone();
