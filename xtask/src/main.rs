@@ -47,6 +47,10 @@ enum Task {
         /// apart, jointly; the table compares with the best set calibrated alone.
         #[arg(long, default_value_t = 1)]
         sets: usize,
+        /// A seed that ends with an error is listed under the table (with the error)
+        /// instead of stopping the run: for weak-data scenarios whose filter may fail.
+        #[arg(long)]
+        keep_going: bool,
     },
     /// Simulate rax2-like with albedo and dark offsets hidden, diagnose from `cosine`.
     DiagnoseDemo,
@@ -66,12 +70,14 @@ fn main() -> ExitCode {
             config,
             cut,
             sets,
+            keep_going,
         } => monte_carlo::run(
             seeds,
             &scenario,
             photodiode_only,
             config.as_deref(),
             (cut, sets),
+            keep_going,
         ),
         Task::DiagnoseDemo => diagnose_demo::run(std::path::Path::new("out/diagnose-demo")),
         Task::Bench => bench(),

@@ -11,13 +11,15 @@ use pdcal::sim_calibrate::{SET_SPACING_DAYS, SeedResult, run_seed};
 use pdcal_filter::Mode;
 use rayon::prelude::*;
 
-/// Runs seeds `1..=n` and prints/writes the table.
+/// Runs seeds `1..=n` and prints/writes the table; with `keep_going`, a seed that ends
+/// with an error is listed under the table instead of stopping the run.
 pub fn run(
     n: u64,
     scenario_name: &str,
     photodiode_only: bool,
     config_file: Option<&std::path::Path>,
     (cut, sets): (Option<Cut>, usize),
+    keep_going: bool,
 ) -> Result<()> {
     let scenario = pdcal::simulate::load_scenario(scenario_name)?;
     let mut config = match config_file {
@@ -32,7 +34,7 @@ pub fn run(
     bar.set_style(ProgressStyle::with_template(
         "{bar:40} {pos}/{len} seeds, {elapsed} elapsed, eta {eta}",
     )?);
-    let mut results: Vec<SeedResult> = (1..=n)
+    let outcomes: Vec<Result<SeedResult>> = (1..=n)
         .into_par_iter()
         .map(|seed| {
             let r = run_seed(&scenario, seed, &config, &albedo, (cut, sets))
@@ -41,8 +43,17 @@ pub fn run(
             bar.inc(1);
             r
         })
-        .collect::<Result<_>>()?;
+        .collect();
     bar.finish_and_clear();
+    let mut results = Vec::new();
+    let mut failed = Vec::new();
+    for outcome in outcomes {
+        match outcome {
+            Ok(r) => results.push(r),
+            Err(e) if keep_going => failed.push(format!("{e:#}")),
+            Err(e) => return Err(e),
+        }
+    }
     results.sort_by_key(|r| r.seed);
     let mut mode = if photodiode_only {
         "photodiode-only"
@@ -56,7 +67,17 @@ pub fn run(
     if sets > 1 {
         mode = format!("{mode}, {sets} sets {SET_SPACING_DAYS} days apart calibrated jointly");
     }
-    let table = table(&scenario.name, &mode, &results);
+    let mut table = table(&scenario.name, &mode, &results);
+    if !failed.is_empty() {
+        let _ = writeln!(
+            table,
+            "\nSeeds that ended with an error ({} of {n}, not in the table):\n",
+            failed.len()
+        );
+        for why in &failed {
+            let _ = writeln!(table, "- {why}");
+        }
+    }
     print!("{table}");
     let mut tag = match cut {
         Some(cut) => format!("-passes-{}-{}", cut.on_s, cut.period_s),
@@ -96,7 +117,12 @@ fn stats(values: impl Iterator<Item = f64> + Clone) -> (f64, f64, f64) {
 pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
     let mut s = String::new();
     let seeds = r.len();
-    let _ = writeln!(s, "### {scenario}, {mode} mode, seeds 1..={seeds}\n");
+    let last = r.iter().map(|x| x.seed).max().unwrap_or(0);
+    let which = match last == seeds as u64 {
+        true => format!("seeds 1..={seeds}"),
+        false => format!("{seeds} seeds of 1..={last}"),
+    };
+    let _ = writeln!(s, "### {scenario}, {mode} mode, {which}\n");
     let _ = writeln!(s, "| figure of merit | mean | worst | bound |");
     let _ = writeln!(s, "|---|---|---|---|");
     let (m, _, w) = stats(r.iter().map(|x| x.worst_normal_deg));
