@@ -242,6 +242,19 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
             "| runs with a repeatability warning (warnings, all seeds: {warnings}) | {warned} / {} | - | - |",
             r.len()
         );
+        let beyond: usize = r.iter().map(|x| x.repeat_tests_beyond_3.0).sum();
+        let tests: usize = r.iter().map(|x| x.repeat_tests_beyond_3.1).sum();
+        let sum_sq: f64 = r.iter().map(|x| x.repeat_tests_beyond_3.2).sum();
+        let _ = writeln!(
+            s,
+            "| single repeatability tests with abs(z) > 3 (pooled {beyond}/{tests}; 0.27 % if the sigmas are honest) | {:.3} % | - | - |",
+            100.0 * beyond as f64 / tests.max(1) as f64
+        );
+        let _ = writeln!(
+            s,
+            "| RMS of the single tests' z (1 if the sigmas are honest) | {:.3} | - | - |",
+            (sum_sq / tests.max(1) as f64).sqrt()
+        );
         let bias: usize = r.iter().map(|x| x.bias_change_warnings).sum();
         let with_bias = r.iter().filter(|x| x.bias_change_warnings > 0).count();
         let _ = writeln!(
