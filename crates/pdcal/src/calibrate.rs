@@ -167,8 +167,7 @@ pub fn run_with_references(
     );
     let repeatability = repeatability_of(meta, telemetry, &references, sets, config, albedo);
     if let Some(r) = &repeatability {
-        crate::repeatability::judge_consistency(r, &mut consistency);
-        warnings.extend(r.warnings.iter().chain(&r.bias_warnings).cloned());
+        r.apply(&mut consistency, &mut warnings);
     }
     Ok(Outcome {
         residuals: crate::schema::residual_summary(&run.residuals),
@@ -387,8 +386,7 @@ pub fn run_sets(
         None => None,
     };
     if let Some(r) = &repeatability {
-        crate::repeatability::judge_consistency(r, &mut consistency);
-        warnings.extend(r.warnings.iter().chain(&r.bias_warnings).cloned());
+        r.apply(&mut consistency, &mut warnings);
     }
     let set_repeatability = |k: usize| repeatability.as_ref().and_then(|r| r.sets.get(k).cloned());
     let outcome = Outcome {

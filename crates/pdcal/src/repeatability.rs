@@ -180,19 +180,23 @@ pub struct PairDifference {
     pub normalised_difference: f64,
 }
 
-/// Makes the consistency verdict of a run whose sets are not repeatable `inconsistent`,
-/// with a reason naming the parameters that differ: a model that fits each set but not
-/// the same constants across them is not consistent with the data.
-pub fn judge_consistency(r: &Repeatability, c: &mut pdcal_filter::Consistency) {
-    if r.verdict != RepeatVerdict::NotRepeatable {
-        return;
+impl Repeatability {
+    /// Adds the warnings to the run's `warnings` and makes the consistency verdict of a run
+    /// whose sets are not repeatable `inconsistent`, with a reason naming the parameters
+    /// that differ: a model that fits each set but not the same constants across them is
+    /// not consistent with the data.
+    pub fn apply(&self, c: &mut pdcal_filter::Consistency, warnings: &mut Vec<String>) {
+        warnings.extend(self.warnings.iter().chain(&self.bias_warnings).cloned());
+        if self.verdict != RepeatVerdict::NotRepeatable {
+            return;
+        }
+        c.verdict = pdcal_filter::Verdict::Inconsistent;
+        c.reasons.push(format!(
+            "the data sets' own estimates disagree beyond {:.2} sigma (repeatability): {}",
+            self.threshold_sigmas,
+            self.differing.join(", ")
+        ));
     }
-    c.verdict = pdcal_filter::Verdict::Inconsistent;
-    c.reasons.push(format!(
-        "the data sets' own estimates disagree beyond {:.2} sigma (repeatability): {}",
-        r.threshold_sigmas,
-        r.differing.join(", ")
-    ));
 }
 
 /// Sidak's two-sided threshold on `|z|` that holds the family-wise false-alarm rate of
@@ -810,6 +814,40 @@ mod tests {
         assert_eq!(row.verdict, "not determined by set 2");
         assert!(row.estimate.is_none() && row.sigma.is_none());
         assert_eq!(r.verdict, RepeatVerdict::Repeatable);
+    }
+
+    #[test]
+    fn a_run_that_does_not_repeat_is_not_consistent() {
+        let consistent = || pdcal_filter::Consistency {
+            verdict: pdcal_filter::Verdict::Consistent,
+            reasons: Vec::new(),
+            max_rms_over_noise: 3.0,
+            sensors: Vec::new(),
+            photodiodes: Vec::new(),
+        };
+        let run = |c3: f64| {
+            let sets = [
+                set("a", 0.0, (0.7, 0.01), Status::Calibrated, 0.0),
+                set("b", 1.0, (0.7, 0.01), Status::Calibrated, 0.0),
+                set("c", 2.0, (c3, 0.01), Status::Calibrated, 0.0),
+            ];
+            let (mut c, mut warnings) = (consistent(), vec!["earlier".to_owned()]);
+            compare(&sets, &NO_WALK, PRIOR).apply(&mut c, &mut warnings);
+            (c, warnings)
+        };
+        let (c, warnings) = run(0.7);
+        assert_eq!(c.verdict, pdcal_filter::Verdict::Consistent);
+        assert_eq!(warnings, ["earlier"]);
+        let (c, warnings) = run(0.8);
+        assert_eq!(c.verdict, pdcal_filter::Verdict::Inconsistent);
+        assert_eq!(warnings.len(), 2);
+        assert!(warnings[1].starts_with("repeatability: pd01 scale_V differs"));
+        assert_eq!(c.reasons.len(), 1);
+        assert!(
+            c.reasons[0].ends_with("(repeatability): pd01 scale_V"),
+            "{}",
+            c.reasons[0]
+        );
     }
 
     #[test]
