@@ -821,6 +821,7 @@ mod tests {
         let consistent = || pdcal_filter::Consistency {
             verdict: pdcal_filter::Verdict::Consistent,
             reasons: Vec::new(),
+            notes: Vec::new(),
             max_rms_over_noise: 3.0,
             sensors: Vec::new(),
             photodiodes: Vec::new(),
