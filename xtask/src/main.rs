@@ -54,6 +54,10 @@ enum Task {
         /// calibrate the photodiodes with it applied (`--mag-cal`).
         #[arg(long)]
         magcal: bool,
+        /// A seed that ends with an error is listed under the table (with the error)
+        /// instead of stopping the run: for weak-data scenarios whose filter may fail.
+        #[arg(long)]
+        keep_going: bool,
     },
     /// Magnetometer calibration over seeds against the simulator's truth (docs/magcal.md):
     /// parameters within 3 sigma, residual against the noise, regressors kept and missed.
@@ -90,6 +94,7 @@ fn main() -> ExitCode {
             cut,
             sets,
             magcal,
+            keep_going,
         } => monte_carlo::run(
             seeds,
             &scenario,
@@ -97,6 +102,7 @@ fn main() -> ExitCode {
             config.as_deref(),
             (cut, sets),
             magcal,
+            keep_going,
         ),
         Task::MagcalValidate {
             seeds,

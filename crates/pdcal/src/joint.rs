@@ -300,3 +300,89 @@ fn concat(parts: &[(f64, &Telemetry)]) -> Telemetry {
     }
     out
 }
+
+/// Each set's own estimate for the repeatability check ([`crate::repeatability`]): a
+/// forward pass over the set's rows alone (the run's machinery, no smoother: the last row's
+/// forward estimate is the set's whole information), from the same configuration and mode
+/// as the joint run, with the statuses judged from its own covariance and residuals.
+/// `meta` and `telemetry` are the joint run's (mountings corrected, screened), `references`
+/// one per joint row. A set whose own pass fails is kept with the reason.
+pub fn own_estimates(
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+    references: &[StepReference],
+    sets: &[SetSpan],
+    (config, mode): (&pdcal_filter::FilterConfig, &pdcal_filter::Mode),
+    albedo: &pdcal_albedo::AlbedoModel,
+) -> Vec<crate::repeatability::SetInput> {
+    sets.iter()
+        .map(|span| {
+            let rows = span.first_row..span.first_row + span.rows;
+            let end_s = telemetry.t_s.get(rows.end.wrapping_sub(1)).copied();
+            crate::repeatability::SetInput {
+                name: span.name.clone(),
+                end_s: end_s.unwrap_or(span.offset_s),
+                estimate: own_estimate(meta, telemetry, references, rows, (config, mode), albedo),
+            }
+        })
+        .collect()
+}
+
+/// The forward pass of one set's `rows` ([`own_estimates`]), or why it failed.
+fn own_estimate(
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+    references: &[StepReference],
+    rows: std::ops::Range<usize>,
+    (config, mode): (&pdcal_filter::FilterConfig, &pdcal_filter::Mode),
+    albedo: &pdcal_albedo::AlbedoModel,
+) -> Result<crate::repeatability::SetEstimate, String> {
+    let part = telemetry.select_rows(|k| rows.contains(&k));
+    let refs = references.get(rows).ok_or("no references for its rows")?;
+    let inputs = pdcal_filter::RunInputs {
+        meta,
+        telemetry: &part,
+        references: pdcal_filter::References::Stored(refs),
+        albedo: Some(albedo),
+    };
+    let mut filter = config.clone();
+    filter.smoother = false;
+    let sigmas = filter.resolve(meta.noise.as_ref());
+    let mut sink = VerdictSink(pdcal_filter::ConsistencyAccumulator::new(
+        meta.photodiodes.len(),
+        sigmas.photodiode_v,
+        sigmas.mag_nt,
+    ));
+    let model = pdcal_filter::paper_model(pdcal_filter::nominal_photodiodes(meta), &filter);
+    let run = pdcal_filter::calibrate_streaming(
+        &inputs,
+        &filter,
+        mode,
+        model,
+        pdcal_filter::Algebra::Structured,
+        pdcal_filter::SMOOTHER_BLOCK_ROWS,
+        &mut sink,
+    )
+    .map_err(|e| format!("its own pass failed: {e}"))?;
+    let evidence = pdcal_filter::identifiability::Evidence::of_run(&run, sink.0.finish().verdict);
+    Ok(crate::repeatability::SetEstimate {
+        photodiodes: pdcal_filter::identifiability::judge_photodiodes(&evidence),
+        gyro_bias: pdcal_filter::identifiability::judge_gyro_bias(&evidence),
+        calibration: run.calibration,
+    })
+}
+
+/// A run's sink that keeps only the consistency of its residuals.
+struct VerdictSink(pdcal_filter::ConsistencyAccumulator);
+
+impl pdcal_filter::RunSink for VerdictSink {
+    fn forward(
+        &mut self,
+        _: &pdcal_filter::StepEstimate,
+        residuals: &[pdcal_filter::ResidualRecord],
+    ) {
+        residuals.iter().for_each(|r| self.0.push(r));
+    }
+
+    fn smoothed(&mut self, _: &[pdcal_filter::StepEstimate]) {}
+}

@@ -17,6 +17,7 @@ pub mod joint;
 pub mod magcal;
 pub mod mounting;
 pub mod output;
+pub mod repeatability;
 pub mod rows;
 pub mod schema;
 pub mod sim_calibrate;

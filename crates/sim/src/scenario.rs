@@ -465,6 +465,11 @@ impl Spread {
 pub struct Photodiodes {
     /// Intended mounting, `pdNN` order, degrees (dataset.ron's `photodiodes`).
     pub nominal: Vec<NominalMount>,
+    /// The mounting dataset.ron states instead of `nominal`, when the two differ (a head
+    /// mounted rotated from its drawing): the true normals are drawn around `nominal`, the
+    /// calibration is told `assumed`. Absent: dataset.ron states `nominal`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub assumed: Option<Vec<NominalMount>>,
     /// Hard field-of-view half angle of the true sensor (a recessed mount), degrees: beyond
     /// it neither direct sunlight nor albedo reaches the diode ([`pdcal_photodiode::Photodiode`]'s
     /// FOV gate). Absent: the cosine law holds to 90 deg (then `fov-rolloff` is the way to
@@ -517,6 +522,18 @@ pub struct Magnetometer {
     /// ideal sensor (beyond `mag-bias`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub errors: Option<MagErrors>,
+}
+
+/// A mounting's angles: azimuth finite, elevation within [-90, 90] deg.
+fn check_mount(m: &NominalMount, at: &str) -> Result<(), ScenarioError> {
+    if !(m.azimuth_deg.is_finite() && m.elevation_deg.is_finite() && m.elevation_deg.abs() <= 90.0)
+    {
+        return Err(invalid(
+            at,
+            "azimuth must be finite and elevation within [-90, 90] deg",
+        ));
+    }
+    Ok(())
 }
 
 impl Scenario {
@@ -629,16 +646,19 @@ impl Scenario {
                 format!("needs 1 to 999 entries, has {n}"),
             ));
         }
-        for (i, m) in pd.nominal.iter().enumerate() {
-            if !(m.azimuth_deg.is_finite()
-                && m.elevation_deg.is_finite()
-                && m.elevation_deg.abs() <= 90.0)
-            {
+        if let Some(assumed) = &pd.assumed {
+            if assumed.len() != n {
                 return Err(invalid(
-                    &format!("photodiodes.nominal[{i}]"),
-                    "azimuth must be finite and elevation within [-90, 90] deg",
+                    "photodiodes.assumed",
+                    format!("has {} entries, nominal has {n}", assumed.len()),
                 ));
             }
+            for (i, m) in assumed.iter().enumerate() {
+                check_mount(m, &format!("photodiodes.assumed[{i}]"))?;
+            }
+        }
+        for (i, m) in pd.nominal.iter().enumerate() {
+            check_mount(m, &format!("photodiodes.nominal[{i}]"))?;
             if let Some(panel) = &m.panel
                 && !pdcal_dataset::is_panel_name(panel)
             {
@@ -924,6 +944,27 @@ mod tests {
         let mut s = base.clone();
         s.epoch_utc = "yesterday".into();
         assert_eq!(field_of(s.validate()), "epoch_utc");
+    }
+
+    #[test]
+    fn an_assumed_mounting_is_what_dataset_ron_states() {
+        let text = include_str!("../../../fixtures/scenarios/weak/pyramid-head-rotated.ron");
+        let s = Scenario::from_ron_str(text).unwrap();
+        let assumed = s.photodiodes.assumed.clone().unwrap();
+        for (a, n) in assumed.iter().zip(&s.photodiodes.nominal) {
+            // The head turned 15 deg about its boresight (+z): azimuths 15 deg on.
+            let turn = (a.azimuth_deg - n.azimuth_deg).rem_euclid(360.0);
+            assert!((turn - 15.0).abs() < 1e-9, "{a:?} {n:?}");
+            assert_eq!(a.elevation_deg, n.elevation_deg);
+        }
+        let out = crate::simulate(&s, 1).unwrap();
+        assert_eq!(out.meta.photodiodes, assumed);
+        let mut short = s.clone();
+        short.photodiodes.assumed.as_mut().unwrap().pop();
+        assert_eq!(field_of(short.validate()), "photodiodes.assumed");
+        let mut bad = s;
+        bad.photodiodes.assumed.as_mut().unwrap()[2].elevation_deg = 91.0;
+        assert_eq!(field_of(bad.validate()), "photodiodes.assumed[2]");
     }
 
     #[test]

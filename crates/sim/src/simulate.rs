@@ -583,7 +583,11 @@ fn dataset_meta(scenario: &Scenario, epoch_utc: EpochUtc) -> DatasetMeta {
             line1: line1.clone(),
             line2: line2.clone(),
         },
-        photodiodes: scenario.photodiodes.nominal.clone(),
+        photodiodes: scenario
+            .photodiodes
+            .assumed
+            .clone()
+            .unwrap_or_else(|| scenario.photodiodes.nominal.clone()),
         noise: Some(NoiseHints {
             gyro_rad_s: Some(scenario.gyro.noise_rad_s),
             mag_nt: Some(scenario.magnetometer.noise_nt),
