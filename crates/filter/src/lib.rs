@@ -87,6 +87,7 @@
 //! is `O(n^3)` (Cholesky of the predicted covariance, `n` right-hand sides, two products).
 
 mod algebra;
+pub mod bias_fit;
 pub mod calibration;
 pub mod config;
 pub mod consistency;
@@ -107,6 +108,7 @@ pub mod segments;
 mod sequential;
 pub mod smoother;
 
+pub use bias_fit::{BiasSource, InitialBias};
 pub use calibration::{Calibration, ParameterEstimate, PdCalibration};
 pub use config::{FilterConfig, Mode, ParameterSigma, SensorSigmas};
 pub use consistency::{Consistency, ConsistencyAccumulator, Verdict};

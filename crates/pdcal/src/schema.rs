@@ -38,6 +38,11 @@ pub struct Summary {
     pub gyro_bias_rad_s: [f64; 3],
     /// How well the data determined each gyro-bias axis.
     pub gyro_bias_status: [Judged; 3],
+    /// The gyro bias the filter started from at the first acquisition and where it came
+    /// from: `fit` (the batch fit of the first segment's vectors and gyro, with its sigma)
+    /// or `prior` (`initial_bias_sigma_deg_s`, with why the fit was not used); null when
+    /// no segment was acquired.
+    pub initial_bias: Option<pdcal_filter::InitialBias>,
     /// Sun-vector magnitude with initial and calibrated parameters.
     pub sun_vector_magnitude: MagnitudeSummary,
     /// Mean angle between the initial and calibrated Sun directions.
@@ -422,6 +427,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         })
         .collect();
     let sv = &outcome.sun_vector;
+    let initial_bias = run.segments.iter().find_map(|s| s.initial_bias.clone());
     Summary {
         format_version: OUTPUT_FORMAT_VERSION,
         dataset: meta.name.clone(),
@@ -437,6 +443,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         photodiodes,
         gyro_bias_rad_s: reported.gyro_bias_rad_s,
         gyro_bias_status: bias_status,
+        initial_bias: initial_bias.clone(),
         sun_vector_magnitude: MagnitudeSummary {
             initial: mean_std(&sv.magnitude_initial),
             calibrated: mean_std(&sv.magnitude_calibrated),
@@ -461,6 +468,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
             .iter()
             .cloned()
             .chain(bias_beyond_prior(&run.initial, &run.calibration))
+            .chain(initial_bias.as_ref().and_then(|b| bias_beyond_fit(b, &run.calibration)))
             .collect(),
         segment_rules: run.segment_rules,
         segments: run.segments.clone(),
@@ -490,6 +498,30 @@ fn bias_beyond_prior(initial: &Calibration, calibration: &Calibration) -> Vec<St
             })
         })
         .collect()
+}
+
+/// A warning when the first acquisition's bias came from the fit and the final estimate
+/// lies beyond 3 sigma of it on some axis: the fit, which held the first minutes' attitude,
+/// was off (a Sun vector worse than its sigma, a rate the gyro did not measure).
+fn bias_beyond_fit(initial: &pdcal_filter::InitialBias, calibration: &Calibration) -> Option<String> {
+    if initial.source != pdcal_filter::BiasSource::Fit {
+        return None;
+    }
+    let sigmas: Vec<f64> = (0..3)
+        .map(|k| {
+            let change = calibration.gyro_bias_rad_s[k].to_degrees() - initial.bias_deg_s[k];
+            change.abs() / initial.sigma_deg_s[k]
+        })
+        .collect();
+    let worst = sigmas.iter().copied().fold(0.0, f64::max);
+    (worst > 3.0).then(|| {
+        format!(
+            "gyro bias: the final estimate lies {worst:.1} sigma from the fit at the first \
+             acquisition ({:.3}, {:.3}, {:.3} deg/s): the first segment's attitude leaned on \
+             a wrong bias",
+            initial.bias_deg_s[0], initial.bias_deg_s[1], initial.bias_deg_s[2]
+        )
+    })
 }
 
 /// The photodiode's status reason: each quantity that is not `calibrated`, with its own.
