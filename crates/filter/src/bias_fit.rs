@@ -26,7 +26,7 @@
 use std::ops::Range;
 
 use nalgebra::{Matrix3, Matrix6, SymmetricEigen, Vector3, Vector6};
-use pdcal_attitude::mekf::{apply_error, propagate, state_transition};
+use pdcal_attitude::mekf::{apply_error, error_vector, propagate, state_transition};
 use pdcal_attitude::{Quat, skew};
 use pdcal_dataset::Telemetry;
 use pdcal_photodiode::{Photodiode, SunEstimate, SunVectorOptions, estimate_sun_vector};
@@ -50,8 +50,9 @@ const NO_DECREASE: f64 = 1e-9;
 /// Gauss-Newton iterations per window length.
 const MAX_ITERATIONS: usize = 50;
 
-/// A predicted decrease of the cost (half a chi-square) below this ends the iterations.
-const CONVERGED: f64 = 1e-12;
+/// A predicted decrease of the cost (half a chi-square) below this ends the iterations: it
+/// moves the optimum by about a thousandth of its sigma.
+const CONVERGED: f64 = 1e-6;
 
 /// What the fit reads.
 pub struct FitInputs<'a> {
@@ -147,8 +148,30 @@ pub struct InitialBias {
     pub reason: Option<String>,
 }
 
+/// A point of the fit: the attitude at the window's first row and the bias.
+#[derive(Clone, Copy)]
+struct Point {
+    q0: Quat,
+    bias: Vector3<f64>,
+}
+
+impl Point {
+    /// The point moved by `step` (attitude error, bias change) times `scale`, the attitude
+    /// multiplicatively as the linearisation assumes.
+    fn moved(&self, step: &Vector6<f64>, scale: f64) -> Point {
+        let a = Vector3::new(step[0], step[1], step[2]) * scale;
+        let db = Vector3::new(step[3], step[4], step[5]) * scale;
+        Point {
+            q0: apply_error(&self.q0, &a),
+            bias: self.bias + db,
+        }
+    }
+}
+
 /// A vector sample: window step, measured body unit vector, reference unit vector, sigma.
 struct Sample {
+    /// The photodiode Sun vector (else the magnetometer's field).
+    sun: bool,
     step: usize,
     body: Vector3<f64>,
     inertial: Vector3<f64>,
@@ -179,8 +202,10 @@ pub fn fit_bias(
             samples.len()
         )));
     }
-    let mut x = Vector6::zeros();
-    x.fixed_rows_mut::<3>(3).copy_from(&prior.bias_rad_s);
+    let mut x = Point {
+        q0: prior.q0,
+        bias: prior.bias_rad_s,
+    };
     let Some(priors) = prior_information(prior) else {
         return Ok(Err("a singular prior covariance".to_owned()));
     };
@@ -197,7 +222,7 @@ pub fn fit_bias(
         }
         n = (2 * n).min(samples.len());
     }
-    let normal = normal_equations(&window, &samples, prior, &x);
+    let normal = normal_equations(&window, &samples, &x);
     Ok(conclude(&samples, &window, prior, &priors, &x, &normal))
 }
 
@@ -216,9 +241,9 @@ fn iterate(
     samples: &[Sample],
     prior: &FitPrior,
     priors: &(Matrix3<f64>, Matrix3<f64>),
-    x: &mut Vector6<f64>,
+    x: &mut Point,
 ) -> bool {
-    let mut normal = normal_equations(window, samples, prior, x);
+    let mut normal = normal_equations(window, samples, x);
     let mut cost = add_priors(&mut normal, prior, priors, x);
     for _ in 0..MAX_ITERATIONS {
         let Some(step) = normal.matrix.cholesky().map(|c| c.solve(&normal.gradient)) else {
@@ -232,8 +257,8 @@ fn iterate(
         }
         let mut scale = 1.0;
         loop {
-            let trial = *x + step * scale;
-            let mut trial_normal = normal_equations(window, samples, prior, &trial);
+            let trial = x.moved(&step, scale);
+            let mut trial_normal = normal_equations(window, samples, &trial);
             let trial_cost = add_priors(&mut trial_normal, prior, priors, &trial);
             if trial_cost.is_finite() && trial_cost <= cost {
                 *x = trial;
@@ -262,12 +287,10 @@ struct Normal {
 fn normal_equations(
     window: &Window,
     samples: &[Sample],
-    prior: &FitPrior,
-    x: &Vector6<f64>,
+    x: &Point,
 ) -> Normal {
-    let attitude0 = Vector3::new(x[0], x[1], x[2]);
-    let bias = Vector3::new(x[3], x[4], x[5]);
-    let mut q = apply_error(&prior.q0, &attitude0);
+    let bias = x.bias;
+    let mut q = x.q0;
     let mut phi = Matrix6::identity();
     let mut normal = Normal {
         matrix: Matrix6::zeros(),
@@ -300,10 +323,12 @@ fn add_priors(
     normal: &mut Normal,
     prior: &FitPrior,
     (info_attitude, info_bias): &(Matrix3<f64>, Matrix3<f64>),
-    x: &Vector6<f64>,
+    x: &Point,
 ) -> f64 {
-    let attitude = Vector3::new(x[0], x[1], x[2]);
-    let bias = Vector3::new(x[3], x[4], x[5]) - prior.bias_rad_s;
+    // The attitude's offset from its prior as an error vector; its Jacobian taken as the
+    // identity (exact at the prior, and the prior is wide where the offset is large).
+    let attitude = error_vector(&x.q0, &prior.q0);
+    let bias = x.bias - prior.bias_rad_s;
     let mut m = normal.matrix.fixed_view_mut::<3, 3>(0, 0);
     m += info_attitude;
     let mut m = normal.matrix.fixed_view_mut::<3, 3>(3, 3);
@@ -325,7 +350,7 @@ fn conclude(
     window: &Window,
     prior: &FitPrior,
     (info_attitude, info_bias): &(Matrix3<f64>, Matrix3<f64>),
-    x: &Vector6<f64>,
+    x: &Point,
     normal: &Normal,
 ) -> Result<BiasFit, String> {
     let m = &normal.matrix;
@@ -338,21 +363,21 @@ fn conclude(
     let data = bb - ab.transpose() * aa_inv * ab;
     let dof = 2 * samples.len() - 6;
     let variance_factor = (normal.chi2 / dof as f64).max(1.0);
-    let bias = Vector3::new(x[3], x[4], x[5]);
+    let floor = systematic_floor(samples, window, x);
+    let bias = x.bias;
     let pull = info_bias * (bias - prior.bias_rad_s);
     let eigen = SymmetricEigen::new(0.5 * (data + data.transpose()));
     let mut rows = Vec::new();
     for (k, &lambda) in eigen.eigenvalues.iter().enumerate() {
         let u: Vector3<f64> = eigen.eigenvectors.column(k).into_owned();
         let prior_sigma = (u.transpose() * prior.bias_cov * u)[0].sqrt();
-        let determined = lambda > 0.0
-            && (variance_factor / lambda).sqrt() <= DETERMINED_FRACTION * prior_sigma;
-        if determined {
+        let variance = variance_factor / lambda + floor;
+        if lambda > 0.0 && variance.sqrt() <= DETERMINED_FRACTION * prior_sigma {
             rows.push(BiasRow {
                 direction: u,
                 // The data-only estimate along u: the optimum less the prior's pull.
                 value_rad_s: u.dot(&bias) + u.dot(&pull) / lambda,
-                variance: 2.0 * variance_factor / lambda,
+                variance: 2.0 * variance,
             });
         }
     }
@@ -371,6 +396,30 @@ fn conclude(
         span_s: window.t_s[last] - window.t_s[0],
         variance_factor,
     })
+}
+
+/// The bias variance that errors of the vectors which change with their direction in the
+/// body frame leave, whatever the number of samples: an uncalibrated Sun vector is off by
+/// up to its sigma, and that error changes by about its sigma per radian the Sun moves
+/// through the body frame, so it reads as a rate error of `sigma |w x v|`. Per kind of
+/// vector, the mean of `(sigma |(w - b) x v|)^2` over its samples; the smaller of the kinds
+/// (the bias rests on the better one).
+fn systematic_floor(samples: &[Sample], window: &Window, x: &Point) -> f64 {
+    let mean = |sun: bool| {
+        let terms: Vec<f64> = samples
+            .iter()
+            .filter(|s| s.sun == sun)
+            .map(|s| {
+                let rate = window.rate_rad_s[s.step.min(window.rate_rad_s.len() - 1)] - x.bias;
+                (s.sigma_rad * rate.cross(&s.body).norm()).powi(2)
+            })
+            .collect();
+        (!terms.is_empty()).then(|| terms.iter().sum::<f64>() / terms.len() as f64)
+    };
+    match (mean(true), mean(false)) {
+        (Some(a), Some(b)) => a.min(b),
+        (a, b) => a.or(b).unwrap_or(0.0),
+    }
 }
 
 /// The window's row times and interval rates: each row's rate interpolated linearly
@@ -434,6 +483,7 @@ fn samples(
             && let Some(sun) = sun_vector(inputs, k, reference.sun_distance_factor())?
         {
             out.push(Sample {
+                sun: true,
                 step,
                 body: sun,
                 inertial: reference.sun_gcrf_unit,
@@ -447,6 +497,7 @@ fn samples(
             && reference.b_gcrf_nt.norm() > 0.0
         {
             out.push(Sample {
+                sun: false,
                 step,
                 body: b.normalize(),
                 inertial: reference.b_gcrf_nt.normalize(),
