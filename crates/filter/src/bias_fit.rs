@@ -284,11 +284,7 @@ struct Normal {
     chi2: f64,
 }
 
-fn normal_equations(
-    window: &Window,
-    samples: &[Sample],
-    x: &Point,
-) -> Normal {
+fn normal_equations(window: &Window, samples: &[Sample], x: &Point) -> Normal {
     let bias = x.bias;
     let mut q = x.q0;
     let mut phi = Matrix6::identity();
@@ -429,11 +425,12 @@ fn systematic_floor(samples: &[Sample], window: &Window, x: &Point) -> f64 {
 fn window(inputs: &FitInputs<'_>, rows: Range<usize>) -> Option<Window> {
     let tel = inputs.telemetry;
     let t0 = tel.t_s[rows.start];
-    let rows = rows.start..rows.end.min(
-        (rows.start..rows.end)
-            .find(|&k| tel.t_s[k] - t0 > inputs.window_s)
-            .unwrap_or(rows.end),
-    );
+    let rows = rows.start
+        ..rows.end.min(
+            (rows.start..rows.end)
+                .find(|&k| tel.t_s[k] - t0 > inputs.window_s)
+                .unwrap_or(rows.end),
+        );
     let gyro: Vec<(f64, Vector3<f64>)> = rows
         .clone()
         .filter_map(|k| tel.gyro_rad_s[k].map(|w| (tel.t_s[k], w)))
@@ -469,11 +466,7 @@ fn rate_at(gyro: &[(f64, Vector3<f64>)], t: f64, hold_s: f64) -> Option<Vector3<
 /// The vector samples of the window's first `steps` rows from `first`: the photodiode Sun
 /// vector in full Sun (least squares through the current calibration, the albedo inside its
 /// sigma), the magnetometer's field when used.
-fn samples(
-    inputs: &FitInputs<'_>,
-    first: usize,
-    steps: usize,
-) -> Result<Vec<Sample>, FilterError> {
+fn samples(inputs: &FitInputs<'_>, first: usize, steps: usize) -> Result<Vec<Sample>, FilterError> {
     let tel = inputs.telemetry;
     let mut out = Vec::new();
     for step in 0..steps {

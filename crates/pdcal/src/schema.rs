@@ -468,7 +468,11 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
             .iter()
             .cloned()
             .chain(bias_beyond_prior(&run.initial, &run.calibration))
-            .chain(initial_bias.as_ref().and_then(|b| bias_beyond_fit(b, &run.calibration)))
+            .chain(
+                initial_bias
+                    .as_ref()
+                    .and_then(|b| bias_beyond_fit(b, &run.calibration)),
+            )
             .collect(),
         segment_rules: run.segment_rules,
         segments: run.segments.clone(),
@@ -503,7 +507,10 @@ fn bias_beyond_prior(initial: &Calibration, calibration: &Calibration) -> Vec<St
 /// A warning when the first acquisition's bias came from the fit and the final estimate
 /// lies beyond 3 sigma of it on some axis: the fit, which held the first minutes' attitude,
 /// was off (a Sun vector worse than its sigma, a rate the gyro did not measure).
-fn bias_beyond_fit(initial: &pdcal_filter::InitialBias, calibration: &Calibration) -> Option<String> {
+fn bias_beyond_fit(
+    initial: &pdcal_filter::InitialBias,
+    calibration: &Calibration,
+) -> Option<String> {
     if initial.source != pdcal_filter::BiasSource::Fit {
         return None;
     }
