@@ -29,7 +29,7 @@ use nalgebra::{Matrix3, Matrix6, SymmetricEigen, Vector3, Vector6};
 use pdcal_attitude::mekf::{apply_error, error_vector, propagate, state_transition};
 use pdcal_attitude::{Quat, skew};
 use pdcal_dataset::Telemetry;
-use pdcal_photodiode::{Photodiode, SunEstimate, SunVectorOptions, estimate_sun_vector};
+use pdcal_photodiode::{Photodiode, SunVectorOptions};
 use serde::Serialize;
 
 use crate::{FilterError, References};
@@ -520,8 +520,5 @@ fn sun_vector(
         sun_distance_factor,
         ..SunVectorOptions::default()
     };
-    Ok(match estimate_sun_vector(&pds, &outputs, None, &options)? {
-        SunEstimate::Observable(s) => Some(s.direction_body),
-        SunEstimate::NotObservable { .. } => None,
-    })
+    crate::init::sun_direction(&pds, &outputs, &vec![0.0; pds.len()], &options)
 }
