@@ -629,6 +629,37 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_final_bias_beyond_three_sigmas_of_the_fit_is_a_warning() {
+        let fit = |source| pdcal_filter::InitialBias {
+            source,
+            bias_deg_s: [1.0, -2.0, 0.5],
+            sigma_deg_s: [0.1, 0.2, 0.1],
+            directions: 3,
+            vectors: 24,
+            span_s: 120.0,
+            reason: None,
+        };
+        let final_at = |deg: [f64; 3]| Calibration {
+            format_version: 1,
+            photodiodes: Vec::new(),
+            gyro_bias_rad_s: deg.map(f64::to_radians),
+            gyro_bias_sigma_rad_s: [1e-4; 3],
+            parameters: Vec::new(),
+            status: Vec::new(),
+        };
+        let fitted = fit(pdcal_filter::BiasSource::Fit);
+        assert_eq!(bias_beyond_fit(&fitted, &final_at([1.25, -1.5, 0.6])), None);
+        let w = bias_beyond_fit(&fitted, &final_at([1.0, -2.0, 0.9])).unwrap();
+        assert!(
+            w.starts_with("gyro bias: the final estimate lies 4.0 sigma"),
+            "{w}"
+        );
+        // The prior is judged by the prior's own warning, not this one.
+        let prior = fit(pdcal_filter::BiasSource::Prior);
+        assert_eq!(bias_beyond_fit(&prior, &final_at([9.0, 9.0, 9.0])), None);
+    }
+
+    #[test]
     fn a_bias_beyond_three_prior_sigmas_is_a_warning() {
         let cal = |bias: [f64; 3], sigma: f64| Calibration {
             format_version: 1,
