@@ -88,6 +88,7 @@
 
 mod algebra;
 pub mod bias_fit;
+pub mod bounded;
 pub mod calibration;
 pub mod config;
 pub mod consistency;
@@ -109,6 +110,7 @@ mod sequential;
 pub mod smoother;
 
 pub use bias_fit::{BiasSource, InitialBias};
+pub use bounded::{Bounded, LISTED_ROWS};
 pub use calibration::{Calibration, ParameterEstimate, PdCalibration};
 pub use config::{FilterConfig, Mode, ParameterSigma, SensorSigmas};
 pub use consistency::{Consistency, ConsistencyAccumulator, Verdict};
@@ -127,7 +129,7 @@ pub use run::{
     CANCEL_POLL_ROWS, ForwardPass, RunInputs, RunSink, SMOOTHER_BLOCK_ROWS, calibrate,
     calibrate_streaming, calibrate_with_model, nominal_photodiodes, nominal_step_s, paper_model,
 };
-pub use screen::{Bounded, Channel, ChannelRejections, Rejections, RowList};
+pub use screen::{Channel, ChannelRejections, Rejections, RowList};
 pub use segments::{
     Acquisition, GapRules, SegmentBreak, SegmentConfig, SegmentReport, gyro_step_s, median_spacing,
 };
