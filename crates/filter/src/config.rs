@@ -76,8 +76,17 @@ pub struct FilterConfig {
     /// 0.03 deg per sqrt(month). Mountings do not move after launch; the walk only keeps
     /// the covariance from collapsing over days of data.
     pub normal_walk_deg_per_sqrt_h: f64,
-    /// Initial gyro-bias sigma per axis, deg/s. Default 0.5.
+    /// Initial gyro-bias sigma per axis, deg/s. Default 5: the turn-on bias of MEMS gyros
+    /// reaches several deg/s (issue 20's flight set: about 4 deg/s).
     pub initial_bias_sigma_deg_s: f64,
+    /// Fit the gyro bias from the data at each acquisition ([`crate::bias_fit`]): the first
+    /// `bias_fit_window_s` of the segment's vectors and gyro, the directions the data
+    /// determine fused into the filter. Default true.
+    pub bias_from_data: bool,
+    /// Length of the bias fit's window from the acquisition row, s. Default 120: the Sun
+    /// moves through the body frame at the body's rate, and a slow tumble (0.5 deg/s) needs
+    /// a minute or two to sweep the Sun line far enough for the bias along it.
+    pub bias_fit_window_s: f64,
     /// Initial scale sigma as a fraction of the initial C. Default 0.15 (pre-flight guesses
     /// were off by 4-13 %, and C = max output carries albedo and noise).
     pub initial_scale_sigma_fraction: f64,
@@ -169,7 +178,9 @@ impl Default for FilterConfig {
             gyro_bias_walk_rad_s_sqrt_s: 2e-6,
             scale_walk_fraction_per_sqrt_h: 1e-4,
             normal_walk_deg_per_sqrt_h: 0.001,
-            initial_bias_sigma_deg_s: 0.5,
+            initial_bias_sigma_deg_s: 5.0,
+            bias_from_data: true,
+            bias_fit_window_s: 120.0,
             initial_scale_sigma_fraction: 0.15,
             initial_normal_sigma_deg: 10.0,
             initial_sun_sigma_deg: 10.0,
@@ -239,6 +250,7 @@ impl FilterConfig {
             ("gyro_sigma_rad_s", self.gyro_sigma_rad_s.unwrap_or(1.0)),
             ("gyro_noise_inflation", self.gyro_noise_inflation),
             ("initial_bias_sigma_deg_s", self.initial_bias_sigma_deg_s),
+            ("bias_fit_window_s", self.bias_fit_window_s),
             (
                 "initial_scale_sigma_fraction",
                 self.initial_scale_sigma_fraction,

@@ -408,6 +408,42 @@ impl Filter {
         self.last = None;
     }
 
+    /// Fuses a batch fit's scalar measurements of the bias ([`crate::bias_fit::BiasRow`]:
+    /// `u . b = y` with variance `r`) as Kalman updates of the whole state (Eqs. 4-7 with
+    /// `H = [0, u^T, 0]`), so the calibration states move with their correlation to the
+    /// bias. Refused whole, the state unchanged, when a row's innovation lies beyond the
+    /// gate (`nu^2 > g^2 (u^T P u + r)`, at the state before the fit): the fit then
+    /// contradicts what the filter holds. True when fused.
+    pub fn fuse_bias(&mut self, rows: &[crate::bias_fit::BiasRow]) -> Result<bool, FilterError> {
+        let gate2 = self.noise.gate_sigmas.powi(2);
+        let p_bb = self.p.fixed_view::<3, 3>(BIAS, BIAS).into_owned();
+        let contradicts = rows.iter().any(|row| {
+            let nu = row.value_rad_s - row.direction.dot(&self.bias);
+            let spread = (row.direction.transpose() * p_bb * row.direction)[0] + row.variance;
+            nu * nu > gate2 * spread
+        });
+        if contradicts {
+            return Ok(false);
+        }
+        self.scratch.dx.fill(0.0);
+        let idx = [BIAS, BIAS + 1, BIAS + 2];
+        for row in rows {
+            let u = row.direction;
+            let h_dx: f64 = (0..3).map(|k| u[k] * self.scratch.dx[BIAS + k]).sum();
+            let nu = row.value_rad_s - u.dot(&self.bias) - h_dx;
+            dense::joseph_update(
+                &mut self.p,
+                &mut self.scratch.dx,
+                &idx,
+                u.as_slice(),
+                nu,
+                row.variance,
+            );
+        }
+        self.reset()?;
+        Ok(true)
+    }
+
     /// Diagonal calibration-state process noise over `dt_s` into `scratch.cal_noise`
     /// (entries 0..6 stay zero).
     fn fill_calibration_noise(&mut self, dt_s: f64) {

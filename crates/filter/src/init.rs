@@ -329,7 +329,9 @@ fn nearest_row(
     }
 }
 
-fn sun_direction(
+/// The least-squares Sun direction of the photodiodes' outputs less `known`, when
+/// observable.
+pub(crate) fn sun_direction(
     photodiodes: &[Photodiode],
     outputs: &[f64],
     known: &[f64],

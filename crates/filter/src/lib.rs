@@ -87,6 +87,7 @@
 //! is `O(n^3)` (Cholesky of the predicted covariance, `n` right-hand sides, two products).
 
 mod algebra;
+pub mod bias_fit;
 pub mod bounded;
 pub mod calibration;
 pub mod config;
@@ -108,6 +109,7 @@ pub mod segments;
 mod sequential;
 pub mod smoother;
 
+pub use bias_fit::{BiasSource, InitialBias};
 pub use bounded::{Bounded, LISTED_ROWS};
 pub use calibration::{Calibration, ParameterEstimate, PdCalibration};
 pub use config::{FilterConfig, Mode, ParameterSigma, SensorSigmas};

@@ -8,6 +8,7 @@ use pdcal_attitude::{GyroNoise, Quat, normal_from_az_el};
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_photodiode::{Albedo, DirectSun, MeasurementModel, Photodiode};
 
+use crate::bias_fit::{BiasSource, FitInputs, FitPrior, InitialBias, fit_bias};
 use crate::calibration::Calibration;
 use crate::config::{E_AM0_W_M2, FilterConfig, Mode, SensorSigmas};
 use crate::error::check_len;
@@ -15,7 +16,7 @@ use crate::filter::{
     Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Sensor, StateView,
 };
 use crate::guard::RepairLog;
-use crate::init::{StartInputs, find_start, initial_scales};
+use crate::init::{Start, StartInputs, find_start, initial_scales};
 use crate::layout::{ATTITUDE, BIAS, StateLayout};
 use crate::output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
 use crate::screen::{Channel, Rejections, ScreenTolerances, find_outliers, remove_outliers};
@@ -579,6 +580,7 @@ impl<'a> ForwardPass<'a> {
                     self.at.last_gyro_t_s = start.gyro_t_s;
                     self.at.acquiring = false;
                     self.at.window.clear();
+                    self.current.initial_bias = Some(self.initialise_bias(&start, end)?);
                     self.at.acquired_sigma_deg = self.attitude_sigma_deg(start.index);
                     return Ok(Ok(()));
                 }
@@ -609,6 +611,67 @@ impl<'a> ForwardPass<'a> {
                 .join("; "),
         };
         Ok(Err(text))
+    }
+
+    /// At an acquisition: the bias fitted over the segment's first rows (before `end`) and
+    /// fused into the filter when `bias_from_data` is on and the fit is accepted
+    /// ([`crate::bias_fit`]); what the segment's bias is after it, and where it came from.
+    fn initialise_bias(&mut self, start: &Start, end: usize) -> Result<InitialBias, FilterError> {
+        let fit = if self.config.bias_from_data {
+            let photodiodes = self.current_photodiodes();
+            let prior = FitPrior {
+                q0: start.q,
+                attitude_cov: start.attitude_cov,
+                bias_rad_s: self.filter.bias_rad_s(),
+                bias_cov: self
+                    .filter
+                    .covariance()
+                    .fixed_view::<3, 3>(BIAS, BIAS)
+                    .into_owned(),
+            };
+            let inputs = FitInputs {
+                telemetry: &self.telemetry,
+                references: self.references,
+                photodiodes: &photodiodes,
+                used: &self.used,
+                use_mag: self.use_mag,
+                sun_sigma_rad: self.config.initial_sun_sigma_deg.to_radians(),
+                mag_sigma_nt: self.sigmas.mag_nt,
+                min_sun_fraction: self.min_sun_fraction,
+                gyro_hold_s: self.rules.gyro_hold_s,
+                window_s: self.config.bias_fit_window_s,
+            };
+            fit_bias(&inputs, start.index..end, &prior)?
+        } else {
+            Err("bias_from_data is off".to_owned())
+        };
+        let fused = match fit {
+            Ok(fit) if self.filter.fuse_bias(&fit.rows)? => Ok(fit),
+            Ok(_) => Err("the fit contradicts the bias held beyond the gate".to_owned()),
+            Err(why) => Err(why),
+        };
+        let p = self.filter.covariance();
+        let bias = self.filter.bias_rad_s();
+        let sigma = |k: usize| p[(BIAS + k, BIAS + k)].sqrt().to_degrees();
+        let mut initial = InitialBias {
+            source: BiasSource::Prior,
+            bias_deg_s: [0, 1, 2].map(|k| bias[k].to_degrees()),
+            sigma_deg_s: [0, 1, 2].map(sigma),
+            directions: 0,
+            vectors: 0,
+            span_s: 0.0,
+            reason: None,
+        };
+        match fused {
+            Ok(fit) => {
+                initial.source = BiasSource::Fit;
+                initial.directions = fit.rows.len();
+                initial.vectors = fit.vectors;
+                initial.span_s = fit.span_s;
+            }
+            Err(why) => initial.reason = Some(why),
+        }
+        Ok(initial)
     }
 
     /// The first row after the gap that ends the data segment holding row `first` (the

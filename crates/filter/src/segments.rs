@@ -260,6 +260,9 @@ pub struct SegmentReport {
     pub skipped: Option<String>,
     /// Why the attitude was declared lost, when it was.
     pub lost: Option<String>,
+    /// The gyro bias at the acquisition and where it came from (the fit of
+    /// [`crate::bias_fit`] or the prior); `None` for a skipped segment.
+    pub initial_bias: Option<crate::bias_fit::InitialBias>,
 }
 
 impl SegmentReport {
@@ -278,6 +281,7 @@ impl SegmentReport {
             ended_by: SegmentBreak::End,
             skipped: None,
             lost: None,
+            initial_bias: None,
         }
     }
 

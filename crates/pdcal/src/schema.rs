@@ -40,6 +40,11 @@ pub struct Summary {
     pub gyro_bias_rad_s: [f64; 3],
     /// How well the data determined each gyro-bias axis.
     pub gyro_bias_status: [Judged; 3],
+    /// The gyro bias the filter started from at the first acquisition and where it came
+    /// from: `fit` (the batch fit of the first segment's vectors and gyro, with its sigma)
+    /// or `prior` (`initial_bias_sigma_deg_s`, with why the fit was not used); null when
+    /// no segment was acquired.
+    pub initial_bias: Option<pdcal_filter::InitialBias>,
     /// Sun-vector magnitude with initial and calibrated parameters.
     pub sun_vector_magnitude: MagnitudeSummary,
     /// Mean angle between the initial and calibrated Sun directions.
@@ -419,6 +424,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         })
         .collect();
     let sv = &outcome.sun_vector;
+    let initial_bias = run.segments.iter().find_map(|s| s.initial_bias.clone());
     Summary {
         format_version: OUTPUT_FORMAT_VERSION,
         dataset: meta.name.clone(),
@@ -429,6 +435,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         photodiodes,
         gyro_bias_rad_s: reported.gyro_bias_rad_s,
         gyro_bias_status: bias_status,
+        initial_bias: initial_bias.clone(),
         sun_vector_magnitude: MagnitudeSummary {
             initial: mean_std(&sv.magnitude_initial),
             calibrated: mean_std(&sv.magnitude_calibrated),
@@ -453,6 +460,11 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
             .iter()
             .cloned()
             .chain(bias_beyond_prior(&run.initial, &run.calibration))
+            .chain(
+                initial_bias
+                    .as_ref()
+                    .and_then(|b| bias_beyond_fit(b, &run.calibration)),
+            )
             .collect(),
         segment_rules: run.segment_rules,
         segments: run.segments.clone(),
@@ -483,6 +495,33 @@ fn bias_beyond_prior(initial: &Calibration, calibration: &Calibration) -> Vec<St
             })
         })
         .collect()
+}
+
+/// A warning when the first acquisition's bias came from the fit and the final estimate
+/// lies beyond 3 sigma of it on some axis: the fit, which held the first minutes' attitude,
+/// was off (a Sun vector worse than its sigma, a rate the gyro did not measure).
+fn bias_beyond_fit(
+    initial: &pdcal_filter::InitialBias,
+    calibration: &Calibration,
+) -> Option<String> {
+    if initial.source != pdcal_filter::BiasSource::Fit {
+        return None;
+    }
+    let sigmas: Vec<f64> = (0..3)
+        .map(|k| {
+            let change = calibration.gyro_bias_rad_s[k].to_degrees() - initial.bias_deg_s[k];
+            change.abs() / initial.sigma_deg_s[k]
+        })
+        .collect();
+    let worst = sigmas.iter().copied().fold(0.0, f64::max);
+    (worst > 3.0).then(|| {
+        format!(
+            "gyro bias: the final estimate lies {worst:.1} sigma from the fit at the first \
+             acquisition ({:.3}, {:.3}, {:.3} deg/s): the first segment's attitude leaned on \
+             a wrong bias",
+            initial.bias_deg_s[0], initial.bias_deg_s[1], initial.bias_deg_s[2]
+        )
+    })
 }
 
 /// The photodiode's status reason: each quantity that is not `calibrated`, with its own.
@@ -611,6 +650,37 @@ fn attitude_observed(mode: ModeUsed) -> &'static str {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_final_bias_beyond_three_sigmas_of_the_fit_is_a_warning() {
+        let fit = |source| pdcal_filter::InitialBias {
+            source,
+            bias_deg_s: [1.0, -2.0, 0.5],
+            sigma_deg_s: [0.1, 0.2, 0.1],
+            directions: 3,
+            vectors: 24,
+            span_s: 120.0,
+            reason: None,
+        };
+        let final_at = |deg: [f64; 3]| Calibration {
+            format_version: 1,
+            photodiodes: Vec::new(),
+            gyro_bias_rad_s: deg.map(f64::to_radians),
+            gyro_bias_sigma_rad_s: [1e-4; 3],
+            parameters: Vec::new(),
+            status: Vec::new(),
+        };
+        let fitted = fit(pdcal_filter::BiasSource::Fit);
+        assert_eq!(bias_beyond_fit(&fitted, &final_at([1.25, -1.5, 0.6])), None);
+        let w = bias_beyond_fit(&fitted, &final_at([1.0, -2.0, 0.9])).unwrap();
+        assert!(
+            w.starts_with("gyro bias: the final estimate lies 4.0 sigma"),
+            "{w}"
+        );
+        // The prior is judged by the prior's own warning, not this one.
+        let prior = fit(pdcal_filter::BiasSource::Prior);
+        assert_eq!(bias_beyond_fit(&prior, &final_at([9.0, 9.0, 9.0])), None);
+    }
 
     #[test]
     fn a_bias_beyond_three_prior_sigmas_is_a_warning() {

@@ -172,6 +172,25 @@ fn calibrate_and_evaluate_outputs_carry_the_contract_keys() {
             .is_some_and(|s| !s.is_empty())
     );
     assert!(summary["segment_rules"]["gap_threshold_s"].is_f64());
+    // Where the first acquisition's gyro bias came from, and each segment's.
+    let initial_bias = &summary["initial_bias"];
+    assert_eq!(
+        keys(initial_bias),
+        [
+            "bias_deg_s",
+            "directions",
+            "reason",
+            "sigma_deg_s",
+            "source",
+            "span_s",
+            "vectors"
+        ]
+    );
+    let source = initial_bias["source"].as_str().unwrap();
+    assert!(source == "fit" || source == "prior", "{source}");
+    assert_eq!(initial_bias["reason"].is_null(), source == "fit");
+    assert_eq!(initial_bias["sigma_deg_s"].as_array().unwrap().len(), 3);
+    assert!(summary["segments"][0].get("initial_bias").is_some());
 }
 
 /// Outputs are written whole or not at all: a failing calibration leaves no directory.
