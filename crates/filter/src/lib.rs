@@ -118,9 +118,9 @@ pub use filter::{
 pub use guard::{CovarianceRepair, RepairKind, RepairLog};
 pub use layout::StateLayout;
 pub use output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
-pub use references::{References, orbit_source, reference_model, step_references};
 /// The per-row reference model [`reference_model`] returns.
 pub use pdcal_ephem::ReferenceModel;
+pub use references::{References, orbit_source, reference_model, step_references};
 pub use run::{
     CANCEL_POLL_ROWS, ForwardPass, RunInputs, RunSink, SMOOTHER_BLOCK_ROWS, calibrate,
     calibrate_streaming, calibrate_with_model, nominal_photodiodes, nominal_step_s, paper_model,
