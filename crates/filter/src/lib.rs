@@ -100,6 +100,7 @@ pub mod init;
 pub mod layout;
 pub mod mounting;
 pub mod output;
+pub mod rate;
 pub mod references;
 pub mod run;
 pub mod screen;
@@ -108,7 +109,7 @@ mod sequential;
 pub mod smoother;
 
 pub use calibration::{Calibration, ParameterEstimate, PdCalibration};
-pub use config::{FilterConfig, Mode, ParameterSigma, SensorSigmas};
+pub use config::{Dynamics, FilterConfig, Mode, ParameterSigma, SensorSigmas};
 pub use consistency::{Consistency, ConsistencyAccumulator, Verdict};
 pub use error::FilterError;
 pub use filter::{
