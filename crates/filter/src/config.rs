@@ -153,6 +153,9 @@ pub struct FilterConfig {
     /// With `dynamics: Auto`, the dynamics run when the gyro's median spacing exceeds this,
     /// s (or there is no gyro). Default 2 s: a gyro at 1 Hz keeps the gyro-driven MEKF.
     pub dynamics_gyro_step_s: f64,
+    /// With dynamics and no gyro, the initial body-rate sigma per axis, deg/s (the rate
+    /// starts at zero and the vector measurements find it). Default 10 deg/s.
+    pub initial_rate_sigma_deg_s: f64,
 }
 
 /// Whether the filter integrates the rigid-body dynamics ([`crate::rate`]).
@@ -216,6 +219,7 @@ impl Default for FilterConfig {
             dynamics: Dynamics::Auto,
             torque_noise_n_m_sqrt_s: 1e-5,
             dynamics_gyro_step_s: 2.0,
+            initial_rate_sigma_deg_s: 10.0,
         }
     }
 }
@@ -286,6 +290,7 @@ impl FilterConfig {
             ),
             ("torque_noise_n_m_sqrt_s", self.torque_noise_n_m_sqrt_s),
             ("dynamics_gyro_step_s", self.dynamics_gyro_step_s),
+            ("initial_rate_sigma_deg_s", self.initial_rate_sigma_deg_s),
         ];
         for (field, value) in positive {
             if !(value > 0.0 && value.is_finite()) {

@@ -302,6 +302,8 @@ pub struct ForwardPass<'a> {
     rules: GapRules,
     use_mag: bool,
     average_gyro: bool,
+    /// The telemetry has gyro samples.
+    has_gyro: bool,
     min_sun_fraction: f64,
     mode_used: ModeUsed,
     start: usize,
@@ -484,7 +486,7 @@ impl<'a> ForwardPass<'a> {
             filter.enable_dynamics(
                 rate_model,
                 Vector3::zeros(),
-                config.initial_bias_sigma_deg_s.to_radians(),
+                config.initial_rate_sigma_deg_s.to_radians(),
                 sigmas.gyro_rad_s,
             );
         }
@@ -497,6 +499,7 @@ impl<'a> ForwardPass<'a> {
             rules,
             use_mag,
             average_gyro: config.average_gyro,
+            has_gyro: tel.gyro_rad_s.iter().any(Option::is_some),
             min_sun_fraction: config.min_sun_fraction,
             mode_used,
             start: 0,
@@ -570,6 +573,8 @@ impl<'a> ForwardPass<'a> {
                     bias_rad_s: self.filter.bias_rad_s(),
                     bias_sigma_rad_s: bias_var.sqrt(),
                     rules: self.rules,
+                    rate_without_gyro: (self.filter.has_dynamics() && !self.has_gyro)
+                        .then(|| self.filter.rate_body_rad_s()),
                 },
                 first..end,
                 &self.config,
@@ -591,11 +596,13 @@ impl<'a> ForwardPass<'a> {
                     self.at.fresh = true;
                     self.at.last_gyro = Some(start.gyro_rad_s);
                     self.at.last_gyro_t_s = start.gyro_t_s;
-                    let bias_sigma = bias_var.sqrt();
-                    self.filter.set_rate(
-                        start.gyro_rad_s - self.filter.bias_rad_s(),
-                        bias_sigma.hypot(self.sigmas.gyro_rad_s),
-                    );
+                    if self.has_gyro {
+                        let bias_sigma = bias_var.sqrt();
+                        self.filter.set_rate(
+                            start.gyro_rad_s - self.filter.bias_rad_s(),
+                            bias_sigma.hypot(self.sigmas.gyro_rad_s),
+                        );
+                    }
                     self.at.acquiring = false;
                     self.at.window.clear();
                     self.at.acquired_sigma_deg = self.attitude_sigma_deg(start.index);
@@ -844,8 +851,15 @@ impl<'a> ForwardPass<'a> {
             Some(SegmentBreak::Lost)
         } else {
             let t = &self.telemetry.t_s;
-            t.get(k + 1)
-                .and_then(|&t_next| self.rules.breaks(t[k], t_next, self.at.last_gyro_t_s))
+            t.get(k + 1).and_then(|&t_next| {
+                // The dynamics carry the attitude through a silent gyro.
+                let t_gyro = if self.filter.has_dynamics() {
+                    t_next
+                } else {
+                    self.at.last_gyro_t_s
+                };
+                self.rules.breaks(t[k], t_next, t_gyro)
+            })
         };
         if let Some(ended_by) = ended_by {
             self.close_segment(k, ended_by);
@@ -1030,6 +1044,17 @@ fn dynamics_model(
                 && (!has_gyro || rules.gyro_step_s > config.dynamics_gyro_step_s)
         }
     };
+    if !has_gyro && !(wanted && meta.inertia_kg_m2.is_some()) {
+        let why = if meta.inertia_kg_m2.is_none() {
+            "and dataset.ron has no inertia_kg_m2 (the filter needs a gyro or, with the \
+             inertia, the rigid-body dynamics to carry the attitude between samples)"
+        } else {
+            "and the filter config turns the dynamics off (dynamics: Off)"
+        };
+        return Err(FilterError::Missing(format!(
+            "telemetry.csv has no gyro sample {why}"
+        )));
+    }
     if !wanted {
         return Ok(None);
     }
