@@ -508,26 +508,8 @@ impl Filter {
             s.rows.entry(BIAS + k, 1.0);
             s.rows.entry(r.idx[6 + k], 1.0);
         }
-        let gate2 = self.noise.gate_sigmas.powi(2);
-        s.dx.fill(0.0);
-        match self.algebra {
-            Algebra::Structured => {
-                sequential::update(
-                    self.p.as_slice(),
-                    &s.rows,
-                    gate2,
-                    &mut s.pending,
-                    &mut s.work,
-                    s.dx.as_mut_slice(),
-                    &mut s.outcome,
-                );
-                algebra::apply_pending(self.p.as_mut_slice(), &mut s.pending);
-            }
-            Algebra::Dense => {
-                dense::sequential_update(&mut self.p, &s.rows, gate2, &mut s.dx, &mut s.outcome)
-            }
-        }
-        if s.outcome.iter().any(|o| o.accepted) {
+        self.run_rows();
+        if self.scratch.outcome.iter().any(|o| o.accepted) {
             self.reset()?;
         }
         Ok(())
@@ -909,9 +891,9 @@ impl Filter {
         }
     }
 
-    /// Runs the step's rows through the algebra, records each and counts it. Whether any
-    /// was accepted.
-    fn apply_rows(&mut self) -> bool {
+    /// The rows in `scratch.rows` through the algebra: the correction into `scratch.dx`,
+    /// the covariance updated, each row's fate in `scratch.outcome`.
+    fn run_rows(&mut self) {
         let s = &mut self.scratch;
         let gate2 = self.noise.gate_sigmas.powi(2);
         s.dx.fill(0.0);
@@ -932,6 +914,13 @@ impl Filter {
                 dense::sequential_update(&mut self.p, &s.rows, gate2, &mut s.dx, &mut s.outcome)
             }
         }
+    }
+
+    /// Runs the step's rows through the algebra, records each and counts it. Whether any
+    /// was accepted.
+    fn apply_rows(&mut self) -> bool {
+        self.run_rows();
+        let s = &mut self.scratch;
         let mut any = false;
         for (o, &(sensor, measured)) in s.outcome.iter().zip(&s.sources) {
             self.records.push(UpdateRecord {

@@ -1044,7 +1044,8 @@ fn dynamics_model(
                 && (!has_gyro || rules.gyro_step_s > config.dynamics_gyro_step_s)
         }
     };
-    if !has_gyro && !(wanted && meta.inertia_kg_m2.is_some()) {
+    let carried = wanted && meta.inertia_kg_m2.is_some();
+    if !has_gyro && !carried {
         let why = if meta.inertia_kg_m2.is_none() {
             "and dataset.ron has no inertia_kg_m2 (the filter needs a gyro or, with the \
              inertia, the rigid-body dynamics to carry the attitude between samples)"
