@@ -175,27 +175,16 @@ pub struct EpochUtc {
 
 impl EpochUtc {
     /// Parses `YYYY-MM-DDTHH:MM:SS[.fraction][Z| UTC]` (a space may replace the `T`); the
-    /// time is UTC, so offsets like `+02:00` are refused.
-    ///
-    /// Hand-parsed rather than `Epoch::from_str` because hifitime also accepts other time
-    /// scales and unwraps internally on some malformed text, and this reader must never panic.
+    /// time is UTC, so offsets like `+02:00` are refused. The one ISO 8601 parser of the
+    /// workspace reads it ([`pdcal_ephem::time::parse_utc`], which also knows the leap
+    /// seconds) once the forms dataset.ron allows are brought to its `...THH:MM:SSZ`.
     pub fn parse(text: &str) -> Result<Self, ErrorKind> {
-        let bad = |reason: &str| ErrorKind::BadEpoch {
-            value: text.to_owned(),
-            reason: reason.to_owned(),
-        };
-        let fields = split_iso(text).ok_or_else(|| bad("expected YYYY-MM-DDTHH:MM:SS[.f]Z"))?;
-        let [year, month, day, hour, minute, second] = fields.0;
-        let epoch = Epoch::maybe_from_gregorian_utc(
-            year as i32,
-            month as u8,
-            day as u8,
-            hour as u8,
-            minute as u8,
-            second as u8,
-            fields.1,
-        )
-        .map_err(|e| bad(&e.to_string()))?;
+        let epoch = pdcal_ephem::time::parse_utc(&canonical_iso(text)).map_err(|e| {
+            ErrorKind::BadEpoch {
+                value: text.to_owned(),
+                reason: time_reason(e),
+            }
+        })?;
         Ok(Self {
             text: text.to_owned(),
             epoch,
@@ -219,49 +208,32 @@ impl From<EpochUtc> for String {
     }
 }
 
-/// Splits strict ISO 8601 text into (year, month, day, hour, minute, second) and nanoseconds.
-/// Every number is bounded by its digit count, so the casts in [`EpochUtc::parse`] are exact.
-fn split_iso(text: &str) -> Option<([u32; 6], u32)> {
+/// dataset.ron's epoch forms as `parse_utc` reads them: the zone `Z`, ` UTC` or none (UTC
+/// either way), and a space or a `T` between date and time.
+fn canonical_iso(text: &str) -> String {
     let body = text
         .strip_suffix('Z')
         .or_else(|| text.strip_suffix(" UTC"))
         .unwrap_or(text);
-    let b = body.as_bytes();
-    let shape_ok = b.len() >= 19
-        && b[4] == b'-'
-        && b[7] == b'-'
-        && (b[10] == b'T' || b[10] == b' ')
-        && b[13] == b':'
-        && b[16] == b':';
-    if !shape_ok {
-        return None;
+    let mut canonical = String::with_capacity(body.len() + 1);
+    for (i, c) in body.char_indices() {
+        canonical.push(if i == 10 && c == ' ' { 'T' } else { c });
     }
-    let number = |range: std::ops::Range<usize>| -> Option<u32> {
-        let digits = body.get(range)?;
-        digits
-            .bytes()
-            .all(|c| c.is_ascii_digit())
-            .then(|| digits.parse().ok())?
-    };
-    let fields = [
-        number(0..4)?,
-        number(5..7)?,
-        number(8..10)?,
-        number(11..13)?,
-        number(14..16)?,
-        number(17..19)?,
-    ];
-    let nanos = match body.get(19..)? {
-        "" => 0,
-        frac => {
-            let digits = frac.strip_prefix('.')?;
-            if digits.is_empty() || digits.len() > 9 {
-                return None;
-            }
-            number(20..body.len())? * 10u32.pow(9 - digits.len() as u32)
+    canonical.push('Z');
+    canonical
+}
+
+/// Why the time parser refused an epoch, without its quotation of the text (the message of
+/// `BadEpoch` quotes it).
+fn time_reason(e: pdcal_ephem::time::TimeError) -> String {
+    use pdcal_ephem::time::TimeError;
+    match e {
+        TimeError::Format { reason, .. } => {
+            format!("{reason} (expected YYYY-MM-DDTHH:MM:SS[.f]Z)")
         }
-    };
-    Some((fields, nanos))
+        TimeError::Invalid { reason, .. } => reason,
+        other => other.to_string(),
+    }
 }
 
 /// dataset.ron's fields as a program holds them, not yet checked: [`meta_from_fields`] turns
@@ -573,6 +545,20 @@ pub(crate) fn render_meta(meta: &DatasetMeta) -> Result<String, DatasetError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A leap second is a real instant of UTC: `23:59:60.5` on 2016-12-31 lies half a
+    /// second after `23:59:60` and 1.5 s before the next day; on a day without one it is
+    /// refused.
+    #[test]
+    fn a_leap_second_epoch_is_read_where_one_was_inserted() {
+        let leap = EpochUtc::parse("2016-12-31T23:59:60.5Z").unwrap().epoch();
+        let next_day = EpochUtc::parse("2017-01-01 00:00:00 UTC").unwrap().epoch();
+        assert!(((next_day - leap).to_seconds() - 0.5).abs() < 1e-9);
+        let before = EpochUtc::parse("2016-12-31T23:59:59Z").unwrap().epoch();
+        assert!(((next_day - before).to_seconds() - 2.0).abs() < 1e-9);
+        let e = EpochUtc::parse("2015-12-31T23:59:60Z").unwrap_err();
+        assert!(matches!(e, ErrorKind::BadEpoch { .. }), "{e}");
+    }
 
     #[test]
     fn epoch_forms() {

@@ -7,41 +7,12 @@ use nalgebra::Vector3;
 use pdcal_dataset::{Effect, EffectId};
 use pdcal_effects::REFERENCE_TEMPERATURE_C;
 use pdcal_photodiode::{FovRolloff, ShadowMode};
-use serde::Serialize;
 
+use crate::fit::{CandidateFit, candidate_fit, pd_entries_of, scored};
 use crate::forms::{self, MIN_CLIPPED_SAMPLES};
 use crate::model::ModelSpec;
 use crate::residuals::{PdSample, Residuals, in_umbra};
 use crate::stats::{Entry, WaldFit, hac_wald};
-
-/// One candidate's fit and score.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct CandidateFit {
-    /// Effect id.
-    pub id: EffectId,
-    /// The effect with its fitted parameters, as it would be added (for a change of a
-    /// term the model holds, `albedo-gain`, the fitted increment as the effect).
-    pub effect: Effect,
-    /// HAC Wald statistic of the signature's amplitudes (2x the log-likelihood gain).
-    pub wald: f64,
-    /// Parameters the effect adds (the BIC's k).
-    pub parameters: usize,
-    /// Observations carrying its signature.
-    pub samples: usize,
-    /// `wald/2 - k ln(N)/2`, nats; N = all scalar observations.
-    pub score: f64,
-    /// One line: what was fitted to what.
-    pub evidence: String,
-    /// The photodiode samples `(row, photodiode)` that carry the signature; empty for the
-    /// magnetometer and gyro candidates (all of that sensor's samples).
-    #[serde(skip)]
-    pub support: Vec<(usize, usize)>,
-    /// The effect's other form (`fov-rolloff`: Kelly or start/cutoff; `saturation`: per
-    /// photodiode or common), with its own fit and score; the diagnosis refits both when
-    /// both are significant and keeps the one whose refit leaves the smaller residuals.
-    #[serde(skip)]
-    pub alternative: Option<Box<CandidateFit>>,
-}
 
 /// Residual against a candidate's regressor, for the figures.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -138,13 +109,6 @@ pub fn score_one(
     fit_candidate(id, res, n_pd, max_lag).map(|f| scored(f, res))
 }
 
-/// `f` with its score: `wald/2 - k ln(N)/2`, N every scalar observation of `res`.
-pub(crate) fn scored(mut f: CandidateFit, res: &Residuals) -> CandidateFit {
-    let n_obs = (res.pd.len() + 3 * res.mag.len() + 3 * res.gyro.len()).max(2) as f64;
-    f.score = 0.5 * f.wald - 0.5 * f.parameters as f64 * n_obs.ln();
-    f
-}
-
 /// The catalogue's candidates: one fit per effect.
 fn fit_candidate(id: EffectId, res: &Residuals, n_pd: usize, lag: usize) -> Option<CandidateFit> {
     match id {
@@ -202,52 +166,8 @@ fn signed(mut fit: WaldFit) -> WaldFit {
     fit
 }
 
-pub(crate) fn candidate_fit(
-    effect: Effect,
-    fit: &WaldFit,
-    parameters: usize,
-    evidence: String,
-    support: Vec<(usize, usize)>,
-) -> CandidateFit {
-    CandidateFit {
-        id: effect.id(),
-        effect,
-        support,
-        alternative: None,
-        wald: fit.wald,
-        parameters,
-        samples: fit.samples,
-        score: 0.0,
-        evidence: format!(
-            "{evidence}; Wald {:.1} over {} samples",
-            fit.wald, fit.samples
-        ),
-    }
-}
-
 fn pd_var(res: &Residuals) -> f64 {
     res.sigma_pd_v * res.sigma_pd_v
-}
-
-/// The regression entries of a photodiode signature and the samples carrying it.
-pub(crate) fn pd_entries_of(
-    res: &Residuals,
-    signature: impl Fn(&PdSample) -> Option<(usize, f64)>,
-) -> (Vec<Entry>, Vec<(usize, usize)>) {
-    res.pd
-        .iter()
-        .filter_map(|p| {
-            signature(p).map(|(param, s)| {
-                let entry = Entry {
-                    row: p.row,
-                    param,
-                    r: p.residual_v,
-                    s,
-                };
-                (entry, (p.row, p.pd))
-            })
-        })
-        .unzip()
 }
 
 /// `albedo`: one gain on `C E_a/E_AM0` at the estimated normal (1 when albedo is missing).

@@ -9,7 +9,7 @@
 use pdcal_dataset::Effect;
 use pdcal_photodiode::KellyRolloff;
 
-use crate::candidates::{CandidateFit, candidate_fit, pd_entries_of, scored};
+use crate::fit::{CandidateFit, candidate_fit, pd_entries_of, scored};
 use crate::residuals::Residuals;
 use crate::stats::{Entry, hac_wald};
 

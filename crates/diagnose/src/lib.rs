@@ -50,25 +50,29 @@ pub mod candidates;
 pub mod consistency;
 mod diagnose;
 mod error;
+pub mod fit;
 mod forms;
 pub mod model;
 pub mod refit;
 pub mod residuals;
+mod run;
 pub mod significance;
 pub mod stats;
 
-pub use candidates::{
-    CandidateFit, Signature, candidate_ids, score_candidates, score_one, signature,
-};
+pub use candidates::{Signature, candidate_ids, score_candidates, score_one, signature};
 pub use consistency::{Misfit, misfit};
 pub use diagnose::{
-    Action, DEFAULT_MAX_LAG, DEFAULT_MIN_SHRINK, DEFAULT_THRESHOLD, DIAGNOSIS_FORMAT_VERSION,
-    DiagnoseConfig, DiagnoseInputs, Diagnosis, DiagnosisSummary, Dropped, FinalCheck, Gap,
-    Reformed, Rejected, Round, RoundSummary, Shrink, UNEXPLAINED, calibrate_and_residuals,
-    diagnose, diagnose_from, gap, shrink,
+    Action, DIAGNOSIS_FORMAT_VERSION, Diagnosis, DiagnosisSummary, Dropped, FinalCheck, Gap,
+    Reformed, Rejected, Round, RoundSummary, Shrink, UNEXPLAINED, diagnose, diagnose_from, gap,
+    shrink,
 };
 pub use error::DiagnoseError;
+pub use fit::CandidateFit;
 pub use model::{BaseModel, ModelSpec, changes_filter};
 pub use refit::innovation_log_likelihood_gain;
 pub use residuals::{Residuals, residuals};
+pub use run::{
+    DEFAULT_MAX_LAG, DEFAULT_MIN_SHRINK, DEFAULT_THRESHOLD, DiagnoseConfig, DiagnoseInputs,
+    calibrate_and_residuals,
+};
 pub use significance::{MIN_PARAMETER_SIGMAS, Significance, chi_square_sigmas};

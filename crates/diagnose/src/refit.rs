@@ -17,9 +17,9 @@ use std::collections::HashMap;
 use pdcal_filter::{CalibrationRun, ResidualRecord, Sensor};
 
 use crate::DiagnoseError;
-use crate::candidates::CandidateFit;
-use crate::diagnose::{DiagnoseConfig, DiagnoseInputs, forward_run};
+use crate::fit::CandidateFit;
 use crate::model::ModelSpec;
+use crate::run::{DiagnoseConfig, DiagnoseInputs, forward_run};
 use pdcal_dataset::Effect;
 
 /// Log-likelihood gain of the forward innovations of `with` over `base`, nats, over the

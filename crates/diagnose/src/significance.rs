@@ -10,7 +10,7 @@ use pdcal_dataset::{Effect, EffectId};
 use pdcal_filter::{CalibrationRun, ParameterEstimate};
 use serde::Serialize;
 
-use crate::candidates::CandidateFit;
+use crate::fit::CandidateFit;
 use crate::model::parameter_names;
 
 /// Least distance from the null, in sigmas, of a named effect's filter-estimated parameter.

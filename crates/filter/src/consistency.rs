@@ -102,6 +102,10 @@ pub struct Consistency {
     pub verdict: Verdict,
     /// Why it is inconsistent, or what could not be judged; one sentence each.
     pub reasons: Vec<String>,
+    /// What is true of a consistent run and worth knowing: a sensor class whose mean NIS
+    /// lies below its band has bounds wider than its residuals need (conservative, so not
+    /// an error, but its sigmas overstate the uncertainty). One sentence each.
+    pub notes: Vec<String>,
     /// The RMS bound, in noise sigmas ([`MAX_RMS_NOISE_RATIO`]).
     pub max_rms_over_noise: f64,
     /// Per sensor class (`photodiode`, `magnetometer`).
@@ -286,9 +290,11 @@ impl ConsistencyAccumulator {
         } else {
             Verdict::Inconsistent
         };
+        let notes = sensors.iter().filter_map(conservative_note).collect();
         Consistency {
             verdict,
             reasons,
+            notes,
             max_rms_over_noise: MAX_RMS_NOISE_RATIO,
             sensors,
             photodiodes,
@@ -347,6 +353,20 @@ fn channel_problems(c: &ChannelConsistency) -> Vec<String> {
         ));
     }
     out
+}
+
+/// A sentence when a sensor class's mean NIS over its held updates lies below its band.
+fn conservative_note(c: &ChannelConsistency) -> Option<String> {
+    let (nis, [low, _]) = (c.nis_mean?, c.nis_band?);
+    (c.held_updates >= MIN_JUDGED_UPDATES && nis < low).then(|| {
+        format!(
+            "{}: mean normalised innovation squared {nis:.3} below its 99.9 % band (>= \
+             {low:.2}): the filter's bounds are wider than the residuals need, and its sigmas \
+             overstate the uncertainty (a measurement variance larger than the misfit: the \
+             declared noise, albedo_sigma_w_m2)",
+            c.channel
+        )
+    })
 }
 
 /// More than 1 % outside and 3 sigma beyond the binomial expectation of 0.27 %.
@@ -500,6 +520,18 @@ mod tests {
                 .any(|r| r.contains("normalised innovation"))
         );
         assert!(c.reasons.iter().any(|r| r.contains("inside 3 sigma")));
+    }
+
+    #[test]
+    fn bounds_far_wider_than_the_residuals_are_consistent_with_a_note() {
+        // Residuals at the noise, predicted ten times wider: conservative, said.
+        let records = gaussian_records(3000, 0.01, 0.1, 13);
+        let c = judge(&records, 3, 0.01, 300.0);
+        assert_eq!(c.verdict, Verdict::Consistent, "{:?}", c.reasons);
+        assert_eq!(c.notes.len(), 1, "{:?}", c.notes);
+        assert!(c.notes[0].starts_with("photodiode: mean normalised innovation squared 0.01"));
+        let fitting = judge(&gaussian_records(3000, 0.01, 0.01, 13), 3, 0.01, 300.0);
+        assert!(fitting.notes.is_empty(), "{:?}", fitting.notes);
     }
 
     #[test]

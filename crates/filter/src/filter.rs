@@ -997,14 +997,17 @@ impl Filter {
 
     /// The multiplicative reset: `q <- dq(a) ⊗ q`, additive for bias, scales and parameters,
     /// normals rotated along the tangent correction and their bases recomputed; the error
-    /// state returns to zero. The first-order covariance change of the reset (rotation of the
-    /// error frames by the correction) is neglected, as usual for the MEKF.
+    /// state returns to zero. With a second vector the covariance change of the reset (the
+    /// rotation of the attitude error frame by the correction) is neglected, as usual for
+    /// the MEKF; with the Sun alone it is applied ([`Filter::rotate_attitude_error_frame`]).
     fn reset(&mut self) -> Result<(), FilterError> {
         let dx = &self.scratch.dx;
         // A step's correction is small: the series form (`apply_small_error`, the exact
         // `apply_error` above 0.1 rad).
         let a = Vector3::new(dx[ATTITUDE], dx[ATTITUDE + 1], dx[ATTITUDE + 2]);
+        let before = self.q.attitude_matrix();
         self.q = apply_small_error(&self.q, &a);
+        let turn = self.q.attitude_matrix() * before.transpose();
         self.bias += Vector3::new(dx[BIAS], dx[BIAS + 1], dx[BIAS + 2]);
         if let Some(r) = self.rate.as_mut() {
             let k = r.idx[6];
@@ -1016,7 +1019,33 @@ impl Filter {
             let p = self.model.parameter_mut(e.parameter)?;
             p.value += dx[e.state];
         }
+        if self.sun_only {
+            self.rotate_attitude_error_frame(&turn);
+        }
         Ok(())
+    }
+
+    /// The reset's rotation of the attitude error frame, `P_a. <- G P_a.` and
+    /// `P_.a <- P_.a G^T` with `G` the correction's rotation of body vectors. Kept when the
+    /// Sun is the only vector: the error about the Sun line is then large (up to a half
+    /// turn), and a reset that leaves `P` as it is (the usual first-order MEKF reset) keeps
+    /// that large variance about the *previous* Sun direction; the next rows see part of it
+    /// across the corrected one and "observe" the unobservable rotation, which shrinks its
+    /// sigma far below its error (spurious information). Rotated, the unobserved axis stays
+    /// on the estimate's Sun line. With a second vector the errors are small and `G - I` is
+    /// of their order, so the usual reset is kept there.
+    fn rotate_attitude_error_frame(&mut self, g: &Matrix3<f64>) {
+        // The rows rotated, then the columns mirrored from them, so that `P` stays exactly
+        // symmetric (the structured algebra reads one triangle).
+        let rows = g * self.p.fixed_rows::<3>(ATTITUDE);
+        self.p.fixed_rows_mut::<3>(ATTITUDE).copy_from(&rows);
+        let block = self.p.fixed_view::<3, 3>(ATTITUDE, ATTITUDE) * g.transpose();
+        let block = (block + block.transpose()) * 0.5;
+        self.p
+            .fixed_view_mut::<3, 3>(ATTITUDE, ATTITUDE)
+            .copy_from(&block);
+        let rows = self.p.fixed_rows::<3>(ATTITUDE).transpose();
+        self.p.fixed_columns_mut::<3>(ATTITUDE).copy_from(&rows);
     }
 
     /// The reset of the scales and normals, in three passes over the photodiodes: scales and

@@ -40,8 +40,8 @@ pub struct CovarianceRepair {
     pub kind: RepairKind,
 }
 
-/// The repairs of a run: the count and the first [`crate::screen::LISTED_ROWS`].
-pub type RepairLog = crate::screen::Bounded<CovarianceRepair>;
+/// The repairs of a run: the count and the first [`crate::bounded::LISTED_ROWS`].
+pub type RepairLog = crate::bounded::Bounded<CovarianceRepair>;
 
 /// Whether every diagonal entry is finite and positive (`O(n)`: the per-step test).
 pub(crate) fn diagonal_ok(p: &DMatrix<f64>) -> bool {

@@ -171,8 +171,15 @@ pub fn find_start(
         if reference.sun_fraction < config.min_sun_fraction {
             continue;
         }
+        // A scale the filter has driven to zero or below (a photodiode the data do not
+        // support) cannot turn an output into a direction: such a photodiode sits out the
+        // acquisition, as it sits out the filter's updates.
         let sampled: Vec<usize> = (0..inputs.photodiodes.len())
-            .filter(|&i| inputs.used[i] && tel.pd_v[i].get(k).is_some())
+            .filter(|&i| {
+                inputs.used[i]
+                    && inputs.photodiodes[i].scale_v > 0.0
+                    && tel.pd_v[i].get(k).is_some()
+            })
             .collect();
         if sampled.is_empty() {
             reached(1);

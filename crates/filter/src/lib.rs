@@ -87,6 +87,7 @@
 //! is `O(n^3)` (Cholesky of the predicted covariance, `n` right-hand sides, two products).
 
 mod algebra;
+pub mod bounded;
 pub mod calibration;
 pub mod config;
 pub mod consistency;
@@ -108,6 +109,7 @@ pub mod segments;
 mod sequential;
 pub mod smoother;
 
+pub use bounded::{Bounded, LISTED_ROWS};
 pub use calibration::{Calibration, ParameterEstimate, PdCalibration};
 pub use config::{Dynamics, FilterConfig, Mode, ParameterSigma, SensorSigmas};
 pub use consistency::{Consistency, ConsistencyAccumulator, Verdict};
@@ -126,7 +128,7 @@ pub use run::{
     CANCEL_POLL_ROWS, ForwardPass, RunInputs, RunSink, SMOOTHER_BLOCK_ROWS, calibrate,
     calibrate_streaming, calibrate_with_model, nominal_photodiodes, nominal_step_s, paper_model,
 };
-pub use screen::{Bounded, Channel, ChannelRejections, Rejections, RowList};
+pub use screen::{Channel, ChannelRejections, Rejections, RowList};
 pub use segments::{
     Acquisition, GapRules, SegmentBreak, SegmentConfig, SegmentReport, gyro_step_s, median_spacing,
 };

@@ -2,14 +2,16 @@
 //! Plain data; the driver writes the files (`estimates.csv`, `residuals.csv`,
 //! `calibration.ron`, `summary.json`).
 
+use std::f64::consts::PI;
+
 use nalgebra::DMatrix;
 use pdcal_attitude::Quat;
 
 use crate::calibration::Calibration;
 use crate::config::SensorSigmas;
-use crate::filter::{Sensor, UpdateCounts};
+use crate::filter::{Sensor, StateView, UpdateCounts};
 use crate::guard::RepairLog;
-use crate::layout::StateLayout;
+use crate::layout::{ATTITUDE, StateLayout};
 use crate::screen::Rejections;
 use crate::segments::{GapRules, SegmentReport};
 
@@ -113,4 +115,33 @@ pub struct CalibrationRun {
     /// Per photodiode, the time its accepted updates cover, s (each update counts the
     /// length of the step to its row): the sunlit time the calibration used.
     pub photodiode_time_used_s: Vec<f64>,
+}
+
+/// The estimate at one row from a state and its covariance (the forward filter's or the
+/// smoother's).
+pub(crate) fn step_estimate(
+    index: usize,
+    t_s: f64,
+    segment: usize,
+    q: Quat,
+    view: &StateView<'_>,
+    layout: &StateLayout,
+    fixed: Option<&Calibration>,
+) -> StepEstimate {
+    let sig = |k: usize| {
+        view.p[(ATTITUDE + k, ATTITUDE + k)]
+            .max(0.0)
+            .sqrt()
+            .to_degrees()
+    };
+    StepEstimate {
+        index,
+        t_s,
+        segment,
+        q,
+        attitude_sigma_deg: [sig(0), sig(1), sig(2)],
+        attitude_cov_offdiag_deg2: [(0, 1), (0, 2), (1, 2)]
+            .map(|(i, j)| view.p[(ATTITUDE + i, ATTITUDE + j)] * (180.0 / PI).powi(2)),
+        calibration: view.calibration(layout, fixed),
+    }
 }

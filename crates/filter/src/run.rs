@@ -1,7 +1,6 @@
 //! The offline run over a dataset: initialisation, forward filter, RTS smoother.
 
 use std::borrow::Cow;
-use std::f64::consts::PI;
 
 use nalgebra::{Matrix3, Vector3};
 use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView};
@@ -1151,7 +1150,7 @@ fn filter_estimate(
         extras: filter.extra_values(),
         p: filter.covariance(),
     };
-    step_estimate(
+    crate::output::step_estimate(
         index,
         t_s,
         segment,
@@ -1160,31 +1159,4 @@ fn filter_estimate(
         filter.layout(),
         fixed,
     )
-}
-
-pub(crate) fn step_estimate(
-    index: usize,
-    t_s: f64,
-    segment: usize,
-    q: Quat,
-    view: &StateView<'_>,
-    layout: &StateLayout,
-    fixed: Option<&Calibration>,
-) -> StepEstimate {
-    let sig = |k: usize| {
-        view.p[(ATTITUDE + k, ATTITUDE + k)]
-            .max(0.0)
-            .sqrt()
-            .to_degrees()
-    };
-    StepEstimate {
-        index,
-        t_s,
-        segment,
-        q,
-        attitude_sigma_deg: [sig(0), sig(1), sig(2)],
-        attitude_cov_offdiag_deg2: [(0, 1), (0, 2), (1, 2)]
-            .map(|(i, j)| view.p[(ATTITUDE + i, ATTITUDE + j)] * (180.0 / PI).powi(2)),
-        calibration: view.calibration(layout, fixed),
-    }
 }

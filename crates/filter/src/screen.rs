@@ -28,6 +28,7 @@
 
 use pdcal_dataset::Telemetry;
 
+use crate::bounded::{Bounded, LISTED_ROWS};
 use crate::config::{FilterConfig, SensorSigmas};
 use crate::filter::Sensor;
 
@@ -40,9 +41,6 @@ pub const WINDOW: usize = 4;
 /// flight frames or across a gap (there only the absurd-value test and the filter's
 /// innovation gate act).
 pub const NEIGHBOUR_REACH_S: f64 = 10.0;
-
-/// Rows listed per sensor and kind of rejection (the count is always complete).
-pub const LISTED_ROWS: usize = 100;
 
 /// A sensor as the rejection record names it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -71,35 +69,6 @@ impl From<Sensor> for Channel {
         match sensor {
             Sensor::Photodiode(i) => Channel::Photodiode(i),
             Sensor::Magnetometer(_) => Channel::Magnetometer,
-        }
-    }
-}
-
-/// A count with the first [`LISTED_ROWS`] items counted (rows, repairs): what a summary
-/// lists without growing with the data.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Bounded<T> {
-    /// How many were counted.
-    pub count: usize,
-    /// The first of them, in the order counted, at most [`LISTED_ROWS`].
-    pub first: Vec<T>,
-}
-
-impl<T> Default for Bounded<T> {
-    fn default() -> Self {
-        Bounded {
-            count: 0,
-            first: Vec::new(),
-        }
-    }
-}
-
-impl<T> Bounded<T> {
-    /// Counts `item`, keeping it if fewer than [`LISTED_ROWS`] are kept.
-    pub fn push(&mut self, item: T) {
-        self.count += 1;
-        if self.first.len() < LISTED_ROWS {
-            self.first.push(item);
         }
     }
 }

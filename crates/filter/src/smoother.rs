@@ -409,7 +409,7 @@ impl SmoothedState {
             extras: self.extras.clone(),
             p,
         };
-        crate::run::step_estimate(at.index, at.t_s, at.segment, self.q, &view, layout, fixed)
+        crate::output::step_estimate(at.index, at.t_s, at.segment, self.q, &view, layout, fixed)
     }
 }
 

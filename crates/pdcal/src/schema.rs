@@ -28,6 +28,8 @@ pub struct Summary {
     pub mode: &'static str,
     /// Whether magnetometer updates were made.
     pub magnetometer_used: bool,
+    /// Which attitude directions the data observe ([`attitude_observed`]).
+    pub attitude_observed: &'static str,
     /// The Sun's distance, AU, at which the scale factors are defined (always
     /// [`SCALE_REFERENCE_DISTANCE_AU`]): `scale_V` is the output at that distance and
     /// normal incidence, whatever the Sun's distance on the data set's dates.
@@ -426,13 +428,8 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         format_version: OUTPUT_FORMAT_VERSION,
         dataset: meta.name.clone(),
         mode: mode_name(run.mode),
-        magnetometer_used: matches!(
-            run.mode,
-            ModeUsed::Full
-                | ModeUsed::ScaleOnly {
-                    with_magnetometer: true
-                }
-        ),
+        magnetometer_used: magnetometer_used(run.mode),
+        attitude_observed: attitude_observed(run.mode),
         scale_reference_distance_au: SCALE_REFERENCE_DISTANCE_AU,
         photodiodes,
         gyro_bias_rad_s: reported.gyro_bias_rad_s,
@@ -583,6 +580,29 @@ pub struct DatasetSummary {
     pub residuals: ResidualSummary,
     /// The consistency verdict of its own residuals.
     pub consistency: pdcal_filter::Consistency,
+}
+
+/// Whether the run made magnetometer updates.
+fn magnetometer_used(mode: ModeUsed) -> bool {
+    matches!(
+        mode,
+        ModeUsed::Full
+            | ModeUsed::ScaleOnly {
+                with_magnetometer: true
+            }
+    )
+}
+
+/// Which attitude directions the data observe: `all` with the magnetometer; `across-sun-line`
+/// with the Sun as the only vector, where the rotation about the Sun line is informed by the
+/// albedo alone (the attitude is judged lost, gated and held on the two axes across the
+/// line, never on that rotation; its sigma grows as the gyro lets it).
+fn attitude_observed(mode: ModeUsed) -> &'static str {
+    if magnetometer_used(mode) {
+        "all"
+    } else {
+        "across-sun-line"
+    }
 }
 
 #[cfg(test)]

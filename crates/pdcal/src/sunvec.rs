@@ -87,7 +87,14 @@ pub fn metrics_along(
         .map(|(p, used)| *used && p.scale_sigma_v <= UNCALIBRATED_SCALE_SIGMA_FRACTION * p.scale_v)
         .collect();
     let initial = photodiodes(&run.initial, noise_v, hemisphere);
-    let calibrated = photodiodes(&run.calibration, noise_v, hemisphere);
+    let mut calibrated = photodiodes(&run.calibration, noise_v, hemisphere);
+    // A photodiode left out reads 0 V and is never lit; one whose scale the filter drove
+    // through zero keeps its initial scale here so that the estimator accepts the set.
+    for ((pd, first), ok) in calibrated.iter_mut().zip(&initial).zip(&calibrated_ok) {
+        if !ok {
+            pd.scale_v = first.scale_v;
+        }
+    }
     let m = meta.photodiodes.len();
     let mut out = SunVectorMetrics::default();
     let mut view = AlbedoView::new();

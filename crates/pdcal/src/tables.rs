@@ -115,13 +115,15 @@ pub fn consistency_table(c: &Consistency) -> Table {
             ]
         })
         .collect();
-    let title = match c.reasons.is_empty() {
+    let said: Vec<&str> = c
+        .reasons
+        .iter()
+        .chain(&c.notes)
+        .map(String::as_str)
+        .collect();
+    let title = match said.is_empty() {
         true => format!("Consistency: {}", c.verdict.as_str()),
-        false => format!(
-            "Consistency: {} ({})",
-            c.verdict.as_str(),
-            c.reasons.join("; ")
-        ),
+        false => format!("Consistency: {} ({})", c.verdict.as_str(), said.join("; ")),
     };
     Table::new(&title, &header, rows)
 }
