@@ -5,11 +5,14 @@
 //!   writes it to `out/sim-calibrate/<scenario>/`.
 //! - `diagnose-demo`: simulates rax2-like with albedo and dark offsets hidden, diagnoses
 //!   it from the `cosine` base, prints the rounds and gaps; outputs in `out/diagnose-demo/`.
+//! - `magcal-validate [--seeds N] [--scenario FILE] [--duration-s S] [--every-s S]`: the
+//!   magnetometer calibration over seeds against the simulator's truth (docs/magcal.md).
 //! - `bench`: runs the criterion benches that `docs/performance.md` quotes.
 //! - `make-import-fixture`: rewrites `fixtures/import/` (export.csv and its maps) from the
 //!   simulator, seeded (`xtask::import_fixture`).
 
 mod diagnose_demo;
+mod magcal_validate;
 mod monte_carlo;
 
 use std::process::ExitCode;
@@ -47,6 +50,30 @@ enum Task {
         /// apart, jointly; the table compares with the best set calibrated alone.
         #[arg(long, default_value_t = 1)]
         sets: usize,
+        /// Calibrate each seed's magnetometer from its own data first (`pdcal magcal`) and
+        /// calibrate the photodiodes with it applied (`--mag-cal`).
+        #[arg(long)]
+        magcal: bool,
+        /// A seed that ends with an error is listed under the table (with the error)
+        /// instead of stopping the run: for weak-data scenarios whose filter may fail.
+        #[arg(long)]
+        keep_going: bool,
+    },
+    /// Magnetometer calibration over seeds against the simulator's truth (docs/magcal.md):
+    /// parameters within 3 sigma, residual against the noise, regressors kept and missed.
+    MagcalValidate {
+        /// Number of seeds (1..=N).
+        #[arg(long, default_value_t = 20)]
+        seeds: u64,
+        /// Scenario RON file (with magnetometer errors and currents).
+        #[arg(long, default_value = "fixtures/scenarios/magcal/rax2-like-magcal.ron")]
+        scenario: String,
+        /// Override the scenario's duration, s.
+        #[arg(long)]
+        duration_s: Option<f64>,
+        /// Keep one row every this many seconds (sparse data).
+        #[arg(long)]
+        every_s: Option<f64>,
     },
     /// Simulate rax2-like with albedo and dark offsets hidden, diagnose from `cosine`.
     DiagnoseDemo,
@@ -66,13 +93,23 @@ fn main() -> ExitCode {
             config,
             cut,
             sets,
+            magcal,
+            keep_going,
         } => monte_carlo::run(
             seeds,
             &scenario,
             photodiode_only,
             config.as_deref(),
             (cut, sets),
+            magcal,
+            keep_going,
         ),
+        Task::MagcalValidate {
+            seeds,
+            scenario,
+            duration_s,
+            every_s,
+        } => magcal_validate::run(seeds, &scenario, duration_s, every_s),
         Task::DiagnoseDemo => diagnose_demo::run(std::path::Path::new("out/diagnose-demo")),
         Task::Bench => bench(),
         Task::MakeImportFixture => make_import_fixture(),

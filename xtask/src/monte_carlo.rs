@@ -11,13 +11,16 @@ use pdcal::sim_calibrate::{SET_SPACING_DAYS, SeedResult, run_seed};
 use pdcal_filter::Mode;
 use rayon::prelude::*;
 
-/// Runs seeds `1..=n` and prints/writes the table.
+/// Runs seeds `1..=n` and prints/writes the table; with `keep_going`, a seed that ends
+/// with an error is listed under the table instead of stopping the run.
 pub fn run(
     n: u64,
     scenario_name: &str,
     photodiode_only: bool,
     config_file: Option<&std::path::Path>,
     (cut, sets): (Option<Cut>, usize),
+    magcal: bool,
+    keep_going: bool,
 ) -> Result<()> {
     let scenario = pdcal::simulate::load_scenario(scenario_name)?;
     let mut config = match config_file {
@@ -27,12 +30,13 @@ pub fn run(
     if photodiode_only {
         config.mode = Mode::PhotodiodeOnly;
     }
+    config.fit_mag_cal = magcal;
     let albedo = albedo_model()?;
     let bar = ProgressBar::new(n);
     bar.set_style(ProgressStyle::with_template(
         "{bar:40} {pos}/{len} seeds, {elapsed} elapsed, eta {eta}",
     )?);
-    let mut results: Vec<SeedResult> = (1..=n)
+    let outcomes: Vec<Result<SeedResult>> = (1..=n)
         .into_par_iter()
         .map(|seed| {
             let r = run_seed(&scenario, seed, &config, &albedo, (cut, sets))
@@ -41,8 +45,17 @@ pub fn run(
             bar.inc(1);
             r
         })
-        .collect::<Result<_>>()?;
+        .collect();
     bar.finish_and_clear();
+    let mut results = Vec::new();
+    let mut failed = Vec::new();
+    for outcome in outcomes {
+        match outcome {
+            Ok(r) => results.push(r),
+            Err(e) if keep_going => failed.push(format!("{e:#}")),
+            Err(e) => return Err(e),
+        }
+    }
     results.sort_by_key(|r| r.seed);
     let mut mode = if photodiode_only {
         "photodiode-only"
@@ -56,7 +69,20 @@ pub fn run(
     if sets > 1 {
         mode = format!("{mode}, {sets} sets {SET_SPACING_DAYS} days apart calibrated jointly");
     }
-    let table = table(&scenario.name, &mode, &results);
+    if magcal {
+        mode = format!("{mode}, magnetometer calibrated first (pdcal magcal)");
+    }
+    let mut table = table(&scenario.name, &mode, &results);
+    if !failed.is_empty() {
+        let _ = writeln!(
+            table,
+            "\nSeeds that ended with an error ({} of {n}, not in the table):\n",
+            failed.len()
+        );
+        for why in &failed {
+            let _ = writeln!(table, "- {why}");
+        }
+    }
     print!("{table}");
     let mut tag = match cut {
         Some(cut) => cut.tag(),
@@ -64,6 +90,9 @@ pub fn run(
     };
     if sets > 1 {
         tag = format!("{tag}-{sets}-sets");
+    }
+    if magcal {
+        tag = format!("{tag}-magcal");
     }
     let dir = PathBuf::from("out/sim-calibrate").join(format!(
         "{}-{}{tag}",
@@ -96,7 +125,12 @@ fn stats(values: impl Iterator<Item = f64> + Clone) -> (f64, f64, f64) {
 pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
     let mut s = String::new();
     let seeds = r.len();
-    let _ = writeln!(s, "### {scenario}, {mode} mode, seeds 1..={seeds}\n");
+    let last = r.iter().map(|x| x.seed).max().unwrap_or(0);
+    let which = match last == seeds as u64 {
+        true => format!("seeds 1..={seeds}"),
+        false => format!("{seeds} seeds of 1..={last}"),
+    };
+    let _ = writeln!(s, "### {scenario}, {mode} mode, {which}\n");
     let _ = writeln!(s, "| figure of merit | mean | worst | bound |");
     let _ = writeln!(s, "|---|---|---|---|");
     let (m, _, w) = stats(r.iter().map(|x| x.worst_normal_deg));
@@ -200,6 +234,43 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
         "| runs whose residuals are `consistent` | {consistent} / {} | - | - |",
         r.len()
     );
+    if r.iter().any(|x| !x.repeatability.is_empty()) {
+        let count = |v: &str| r.iter().filter(|x| x.repeatability == v).count();
+        let _ = writeln!(
+            s,
+            "| repeatability verdict: repeatable / not-repeatable / not-checked | {} / {} / {} | - | - |",
+            count("repeatable"),
+            count("not-repeatable"),
+            count("not-checked")
+        );
+        let warned = r.iter().filter(|x| !x.differing.is_empty()).count();
+        let warnings: usize = r.iter().map(|x| x.differing.len()).sum();
+        let _ = writeln!(
+            s,
+            "| runs with a repeatability warning (warnings, all seeds: {warnings}) | {warned} / {} | - | - |",
+            r.len()
+        );
+        let beyond: usize = r.iter().map(|x| x.repeat_tests_beyond_3.0).sum();
+        let tests: usize = r.iter().map(|x| x.repeat_tests_beyond_3.1).sum();
+        let sum_sq: f64 = r.iter().map(|x| x.repeat_tests_beyond_3.2).sum();
+        let _ = writeln!(
+            s,
+            "| single repeatability tests with abs(z) > 3 (pooled {beyond}/{tests}; 0.27 % if the sigmas are honest) | {:.3} % | - | - |",
+            100.0 * beyond as f64 / tests.max(1) as f64
+        );
+        let _ = writeln!(
+            s,
+            "| RMS of the single tests' z (1 if the sigmas are honest) | {:.3} | - | - |",
+            (sum_sq / tests.max(1) as f64).sqrt()
+        );
+        let bias: usize = r.iter().map(|x| x.bias_change_warnings).sum();
+        let with_bias = r.iter().filter(|x| x.bias_change_warnings > 0).count();
+        let _ = writeln!(
+            s,
+            "| runs with a gyro-bias change beyond its walk (warnings: {bias}) | {with_bias} / {} | - | - |",
+            r.len()
+        );
+    }
     let (m, wi, _) = stats(r.iter().map(|x| x.attitude_about_sun_inside));
     let _ = writeln!(
         s,

@@ -55,6 +55,7 @@
 //! hand-made ([`publish`]) because `tempfile` creates it with mode 0700.
 
 pub mod bounded;
+mod current;
 mod error;
 mod files;
 pub mod manifest;
@@ -69,6 +70,7 @@ mod telemetry;
 mod temperature;
 mod truth;
 
+pub use current::{CURRENT_RANGE_A, CurrentColumn, current_column, is_current_name};
 pub use error::{DatasetError, ErrorKind, QUOTE_MAX_CHARS, TextFault, clip, decode_text, quote};
 pub use files::{
     Dataset, DatasetWriter, LIBRARY_WRITE_COMMAND, begin_dataset, begin_dataset_as, read_dataset,
@@ -90,7 +92,7 @@ pub use temperature::{
     panel_temperature_column, photodiode_temperature_column,
 };
 pub use truth::{
-    TruePd, TruthConstants, TruthSeries, truth_columns, truth_constants_from_str,
+    TrueMagnetometer, TruePd, TruthConstants, TruthSeries, truth_columns, truth_constants_from_str,
     truth_series_from_str,
 };
 

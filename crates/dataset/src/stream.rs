@@ -26,6 +26,8 @@ pub struct TelemetryLayout {
     pub positions: bool,
     /// The `temp_*_C` headers, in column order.
     pub temperatures: Vec<String>,
+    /// The `cur_<name>_A` headers, in column order.
+    pub currents: Vec<String>,
 }
 
 /// telemetry.csv being written into a staging directory, one row at a time.
@@ -39,13 +41,16 @@ pub struct TelemetryStream {
 }
 
 impl TelemetryStream {
-    /// Appends one row; its photodiode and temperature counts must be the layout's.
+    /// Appends one row; its photodiode, temperature and current counts must be the layout's.
     pub fn push(&mut self, row: &TelemetryRow) -> Result<(), DatasetError> {
         let lay = &self.layout;
-        if row.pd_v.len() != lay.photodiodes || row.temperature_c.len() != lay.temperatures.len() {
+        if row.pd_v.len() != lay.photodiodes
+            || row.temperature_c.len() != lay.temperatures.len()
+            || row.current_a.len() != lay.currents.len()
+        {
             let kind = ErrorKind::WrongLength {
-                expected: lay.photodiodes + lay.temperatures.len(),
-                found: row.pd_v.len() + row.temperature_c.len(),
+                expected: lay.photodiodes + lay.temperatures.len() + lay.currents.len(),
+                found: row.pd_v.len() + row.temperature_c.len() + row.current_a.len(),
             };
             return Err(DatasetError::whole_file(&self.file, kind).named("row"));
         }
@@ -79,6 +84,7 @@ impl DatasetWriter {
             layout.photodiodes,
             layout.positions,
             &layout.temperatures,
+            &layout.currents,
         );
         text.push('\n');
         out.write_all(text.as_bytes())

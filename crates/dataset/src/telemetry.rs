@@ -5,6 +5,7 @@ use std::path::Path;
 
 use nalgebra::Vector3;
 
+use crate::current::{CURRENT_RANGE_A, CurrentColumn, current_key};
 use crate::error::{DatasetError, ErrorKind};
 use crate::meta::{DatasetMeta, OrbitSpec};
 use crate::samples::Samples;
@@ -52,6 +53,8 @@ pub struct Telemetry {
     /// The `temp_*_C` columns in file order, degrees Celsius; empty when there are none.
     /// [`Telemetry::photodiode_temperatures`] says which photodiode reads which.
     pub temperature_c: Vec<TemperatureColumn>,
+    /// The `cur_<name>_A` columns in file order, amperes; empty when there are none.
+    pub current_a: Vec<CurrentColumn>,
 }
 
 impl Telemetry {
@@ -82,6 +85,14 @@ impl Telemetry {
                 .temperature_c
                 .iter()
                 .map(|c| TemperatureColumn {
+                    name: c.name.clone(),
+                    values: rows.iter().map(|&k| c.values[k]).collect(),
+                })
+                .collect(),
+            current_a: self
+                .current_a
+                .iter()
+                .map(|c| CurrentColumn {
                     name: c.name.clone(),
                     values: rows.iter().map(|&k| c.values[k]).collect(),
                 })
@@ -133,6 +144,7 @@ struct Layout {
     pd: Vec<usize>,
     r: Option<[usize; 3]>,
     temperature: Vec<usize>,
+    current: Vec<usize>,
 }
 
 /// The photodiode index of a `pd<digits>_V` header, if it has that shape.
@@ -174,12 +186,23 @@ fn layout<R: Read>(rows: &CsvRows<'_, R>, meta: &DatasetMeta) -> Result<Layout, 
     }
     let mut pd_count = 0;
     let mut temperature = Vec::new();
+    let mut current = Vec::new();
     for (col, h) in rows.header.iter().enumerate() {
         if pd_index(h).is_some() {
             pd_count += 1;
         } else if let Some(key) = temperature_key(h) {
             check_temperature_header(rows, meta, col, h, key)?;
             temperature.push(col);
+        } else if let Some(key) = current_key(h) {
+            if key.is_err() {
+                let kind = ErrorKind::UnknownColumn {
+                    name: h.clone(),
+                    hint: "; current columns are cur_<name>_A (<name>: a-z, 0-9, _; amperes)"
+                        .to_owned(),
+                };
+                return Err(rows.header_error(col, kind));
+            }
+            current.push(col);
         } else if !known(h) {
             let kind = ErrorKind::UnknownColumn {
                 name: h.clone(),
@@ -241,6 +264,7 @@ fn layout<R: Read>(rows: &CsvRows<'_, R>, meta: &DatasetMeta) -> Result<Layout, 
             .collect::<Result<_, _>>()?,
         r,
         temperature,
+        current,
     })
 }
 
@@ -363,6 +387,12 @@ pub(crate) fn telemetry_from_rows<R: Read>(
                 values: Vec::new(),
             })
             .collect(),
+        current_a: (lay.current.iter())
+            .map(|&col| CurrentColumn {
+                name: rows.header[col].clone(),
+                values: Vec::new(),
+            })
+            .collect(),
         ..Telemetry::default()
     };
     visit_rows(&mut rows, &lay, |row| {
@@ -379,6 +409,9 @@ pub(crate) fn telemetry_from_rows<R: Read>(
         }
         for (value, temp) in row.temperature_c.iter().zip(tm.temperature_c.iter_mut()) {
             temp.values.push(*value);
+        }
+        for (value, cur) in row.current_a.iter().zip(tm.current_a.iter_mut()) {
+            cur.values.push(*value);
         }
     })?;
     if tm.is_empty() {
@@ -412,6 +445,7 @@ fn visit_rows<R: Read>(
     let mut row = TelemetryRow {
         pd_v: vec![None; lay.pd.len()],
         temperature_c: vec![None; lay.temperature.len()],
+        current_a: vec![None; lay.current.len()],
         ..TelemetryRow::default()
     };
     let mut previous = None;
@@ -448,6 +482,23 @@ fn visit_rows<R: Read>(
             }
             *temp = value;
         }
+        for (&col, cur) in lay.current.iter().zip(row.current_a.iter_mut()) {
+            let value = rows.opt(line, col)?;
+            if let Some(v) = value
+                && !(CURRENT_RANGE_A.0..=CURRENT_RANGE_A.1).contains(&v)
+            {
+                let kind = ErrorKind::OutOfRange {
+                    value: v,
+                    rule: format!(
+                        "a current must lie within {} .. {} A (milliamperes or counts: convert them \
+                         with pdcal import's units)",
+                        CURRENT_RANGE_A.0, CURRENT_RANGE_A.1
+                    ),
+                };
+                return Err(rows.cell_error(line, col, kind));
+            }
+            *cur = value;
+        }
         each(&row);
     }
     Ok(())
@@ -469,11 +520,19 @@ pub struct TelemetryRow {
     pub r_gcrf_km: Option<Vector3<f64>>,
     /// The temperature columns' values, degrees Celsius, in column order.
     pub temperature_c: Vec<Option<f64>>,
+    /// The current columns' values, amperes, in column order.
+    pub current_a: Vec<Option<f64>>,
 }
 
 /// telemetry.csv's header: `t_s`, gyro, magnetometer (if any), `pd01_V`.., position (if
-/// any), the temperature columns in their order.
-pub(crate) fn header(mag: bool, photodiodes: usize, r: bool, temperatures: &[String]) -> String {
+/// any), the temperature columns in their order, the current columns in theirs.
+pub(crate) fn header(
+    mag: bool,
+    photodiodes: usize,
+    r: bool,
+    temperatures: &[String],
+    currents: &[String],
+) -> String {
     let mut header: Vec<String> = vec![columns::T_S.into()];
     header.extend(columns::GYRO.map(String::from));
     if mag {
@@ -484,6 +543,7 @@ pub(crate) fn header(mag: bool, photodiodes: usize, r: bool, temperatures: &[Str
         header.extend(columns::R.map(String::from));
     }
     header.extend(temperatures.iter().cloned());
+    header.extend(currents.iter().cloned());
     header.join(",")
 }
 
@@ -500,6 +560,7 @@ pub(crate) fn push_telemetry_row(out: &mut String, row: &TelemetryRow, mag: bool
         cells.extend(split(row.r_gcrf_km));
     }
     cells.extend(row.temperature_c.iter().copied());
+    cells.extend(row.current_a.iter().copied());
     push_row(out, cells);
 }
 
@@ -544,6 +605,9 @@ pub(crate) fn check_shape(tm: &Telemetry, meta: &DatasetMeta) -> Result<(), Data
     for column in &tm.temperature_c {
         lengths.push((column.name.clone(), column.values.len()));
     }
+    for column in &tm.current_a {
+        lengths.push((column.name.clone(), column.values.len()));
+    }
     for (name, len) in lengths {
         if len != tm.len() {
             let kind = ErrorKind::WrongLength {
@@ -560,8 +624,9 @@ pub(crate) fn check_shape(tm: &Telemetry, meta: &DatasetMeta) -> Result<(), Data
 /// Call [`check_shape`] first.
 pub(crate) fn render_telemetry(tm: &Telemetry) -> String {
     let names: Vec<String> = tm.temperature_c.iter().map(|c| c.name.clone()).collect();
+    let currents: Vec<String> = tm.current_a.iter().map(|c| c.name.clone()).collect();
     let (mag, r) = (tm.mag_nt.is_some(), tm.r_gcrf_km.is_some());
-    let mut out = header(mag, tm.pd_v.len(), r, &names);
+    let mut out = header(mag, tm.pd_v.len(), r, &names, &currents);
     out.push('\n');
     let mut row = TelemetryRow::default();
     for k in 0..tm.len() {
@@ -574,6 +639,12 @@ pub(crate) fn render_telemetry(tm: &Telemetry) -> String {
         row.temperature_c.clear();
         row.temperature_c.extend(
             tm.temperature_c
+                .iter()
+                .map(|c| c.values.get(k).copied().flatten()),
+        );
+        row.current_a.clear();
+        row.current_a.extend(
+            tm.current_a
                 .iter()
                 .map(|c| c.values.get(k).copied().flatten()),
         );

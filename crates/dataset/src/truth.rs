@@ -98,6 +98,25 @@ pub struct TruthConstants {
     pub photodiodes: Vec<TruePd>,
     /// What the truth contained beyond the base model; each effect at most once.
     pub effects: Vec<Effect>,
+    /// The magnetometer's true errors, when the simulator gave it any (docs/magcal.md).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub magnetometer: Option<TrueMagnetometer>,
+}
+
+/// The magnetometer's true errors: `m = T B + b + sum_j c_j u_j + noise` in the sensor's
+/// axes (docs/magcal.md; the calibration determines `(T T^T)^(1/2)`, not `T`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrueMagnetometer {
+    /// `T` by rows: scale, soft iron and non-orthogonality.
+    pub matrix: [[f64; 3]; 3],
+    /// Hard-iron bias `b`, nT (file name `bias_nT`).
+    #[serde(rename = "bias_nT")]
+    pub bias_nt: [f64; 3],
+    /// `c_j` of each channel that drives the sensor, by column name (`cur_px_A`), nT/A
+    /// (file name `current_bias_nT_per_A`).
+    #[serde(rename = "current_bias_nT_per_A")]
+    pub current_bias_nt_per_a: Vec<(String, [f64; 3])>,
 }
 
 /// True parameters of one photodiode.

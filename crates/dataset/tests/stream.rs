@@ -39,6 +39,7 @@ fn rows() -> Vec<TelemetryRow> {
             pd_v: vec![Some(0.1 * f64::from(k)), (k != 3).then_some(1.0 / 3.0)],
             r_gcrf_km: None,
             temperature_c: vec![],
+            current_a: vec![(k != 1).then_some(0.125 * f64::from(k))],
         })
         .collect()
 }
@@ -49,6 +50,7 @@ fn layout() -> TelemetryLayout {
         magnetometer: true,
         positions: false,
         temperatures: vec![],
+        currents: vec!["cur_px_A".into()],
     }
 }
 

@@ -104,6 +104,23 @@ pub struct Evidence<'a> {
     pub verdict: Verdict,
 }
 
+impl<'a> Evidence<'a> {
+    /// What `run` gives to judge its quantities, with the consistency `verdict` of its
+    /// residuals.
+    pub fn of_run(run: &'a crate::output::CalibrationRun, verdict: Verdict) -> Self {
+        Evidence {
+            initial: &run.initial,
+            calibration: &run.calibration,
+            used: &run.used_photodiodes,
+            time_used_s: &run.photodiode_time_used_s,
+            covariance: &run.final_covariance,
+            layout: &run.layout,
+            normals_estimated: !matches!(run.mode, crate::output::ModeUsed::ScaleOnly { .. }),
+            verdict,
+        }
+    }
+}
+
 /// The statuses of every photodiode, pdNN order.
 pub fn judge_photodiodes(e: &Evidence<'_>) -> Vec<PdIdentifiability> {
     (0..e.calibration.photodiodes.len())

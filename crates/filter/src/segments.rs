@@ -363,6 +363,7 @@ mod tests {
             pd_v: vec![],
             r_gcrf_km: None,
             temperature_c: vec![],
+            current_a: vec![],
             t_s,
         }
     }

@@ -93,6 +93,9 @@ pub fn layout(map: &ImportMap) -> TelemetryLayout {
         magnetometer: spec.mag.is_some(),
         positions: matches!(spec.orbit, OrbitMap::Positions { .. }),
         temperatures: temperature_names(spec),
+        currents: (spec.currents.iter())
+            .map(|c| pdcal_dataset::current_column(&c.name))
+            .collect(),
     }
 }
 
@@ -114,6 +117,12 @@ pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Importe
                 values: Vec::new(),
             })
             .collect(),
+        current_a: (lay.currents.iter())
+            .map(|name| pdcal_dataset::CurrentColumn {
+                name: name.clone(),
+                values: Vec::new(),
+            })
+            .collect(),
         ..Telemetry::default()
     };
     let converted = convert_stream(map, csv_file, bytes, |row| {
@@ -130,6 +139,9 @@ pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Importe
             r.push(row.r_gcrf_km);
         }
         for (column, value) in tm.temperature_c.iter_mut().zip(&row.temperature_c) {
+            column.values.push(*value);
+        }
+        for (column, value) in tm.current_a.iter_mut().zip(&row.current_a) {
             column.values.push(*value);
         }
         Ok(())
@@ -241,13 +253,15 @@ pub fn convert_stream<R: Read>(
     let n_pd = spec.photodiodes.len();
     let has_mag = spec.mag.is_some();
     let has_r = matches!(spec.orbit, OrbitMap::Positions { .. });
-    // Channel order of `columns`: gyro xyz, mag xyz, orbit xyz, photodiodes, temperatures.
+    // Channel order of `columns`: gyro xyz, mag xyz, orbit xyz, photodiodes, temperatures,
+    // currents.
     let slots = Slots {
         mag: has_mag.then_some(3),
         r: has_r.then_some(if has_mag { 6 } else { 3 }),
         pd: 3 + 3 * usize::from(has_mag) + 3 * usize::from(has_r),
         n_pd,
         n_temp: spec.temperatures.len(),
+        n_cur: spec.currents.len(),
     };
 
     let mut report = ImportReport {
@@ -263,6 +277,7 @@ pub fn convert_stream<R: Read>(
     let mut out_row = TelemetryRow {
         pd_v: vec![None; n_pd],
         temperature_c: vec![None; spec.temperatures.len()],
+        current_a: vec![None; spec.currents.len()],
         ..TelemetryRow::default()
     };
     let mut emit = |g: &Group,
@@ -451,6 +466,8 @@ struct Slots {
     pd: usize,
     n_pd: usize,
     n_temp: usize,
+    /// Current channels (after the temperatures).
+    n_cur: usize,
 }
 
 /// The rows of one time: the first row's values, or under `Average` the running means of
@@ -461,7 +478,7 @@ struct Group {
     gyro: Mean3,
     mag: Mean3,
     r: Mean3,
-    /// Photodiodes, then temperatures.
+    /// Photodiodes, then temperatures, then currents.
     scalars: Vec<Mean>,
 }
 
@@ -513,7 +530,7 @@ impl Group {
             gyro: Mean3::default(),
             mag: Mean3::default(),
             r: Mean3::default(),
-            scalars: vec![Mean::default(); slots.n_pd + slots.n_temp],
+            scalars: vec![Mean::default(); slots.n_pd + slots.n_temp + slots.n_cur],
         }
     }
 
@@ -536,11 +553,15 @@ impl Group {
         row.gyro_rad_s = self.gyro.get();
         row.mag_nt = slots.mag.and(self.mag.get());
         row.r_gcrf_km = slots.r.and(self.r.get());
-        let (pd, temp) = self.scalars.split_at(slots.n_pd);
+        let (pd, rest) = self.scalars.split_at(slots.n_pd);
+        let (temp, cur) = rest.split_at(slots.n_temp.min(rest.len()));
         for (out, mean) in row.pd_v.iter_mut().zip(pd) {
             *out = mean.get();
         }
         for (out, mean) in row.temperature_c.iter_mut().zip(temp) {
+            *out = mean.get();
+        }
+        for (out, mean) in row.current_a.iter_mut().zip(cur) {
             *out = mean.get();
         }
     }
@@ -645,6 +666,19 @@ impl Channel {
                 ErrorKind::ImplausibleTemperature {
                     value: cell.to_owned(),
                     celsius: value,
+                    low,
+                    high,
+                    context: what(),
+                },
+            ));
+        }
+        let (low, high) = pdcal_dataset::CURRENT_RANGE_A;
+        if self.quantity == Quantity::Current && !(low..=high).contains(&value) {
+            return Err((
+                at,
+                ErrorKind::ImplausibleCurrent {
+                    value: cell.to_owned(),
+                    amperes: value,
                     low,
                     high,
                     context: what(),

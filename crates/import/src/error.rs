@@ -144,6 +144,28 @@ pub enum ErrorKind {
         /// What is wrong.
         reason: String,
     },
+    /// A current column whose name cannot make a `cur_<name>_A` header.
+    #[error("{reason}")]
+    BadCurrentName {
+        /// What is wrong.
+        reason: String,
+    },
+    /// A current outside the dataset's plausible range: a unit or conversion mistake.
+    #[error(
+        "{value} converts to {amperes} A, outside {low} .. {high} A{context}: a unit or conversion mistake (mA given as A?)"
+    )]
+    ImplausibleCurrent {
+        /// The cell as written.
+        value: String,
+        /// Its value in amperes.
+        amperes: f64,
+        /// The range's lower end, A.
+        low: f64,
+        /// The range's upper end, A.
+        high: f64,
+        /// What the map reads the cell as.
+        context: String,
+    },
     /// A temperature outside the dataset's plausible range: a unit or conversion mistake.
     #[error(
         "{value} converts to {celsius:.2} C, outside {low} .. {high} C{context}: a unit or conversion mistake (kelvin given as C?)"

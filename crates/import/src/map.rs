@@ -37,6 +37,10 @@ pub struct MapSpec {
     /// Temperature columns, each of one photodiode or of one panel's photodiodes.
     #[serde(default)]
     pub temperatures: Vec<TemperatureColumnMap>,
+    /// Current columns (panel and battery currents, torquer commands), each becoming
+    /// telemetry.csv's `cur_<name>_A`.
+    #[serde(default)]
+    pub currents: Vec<CurrentColumnMap>,
     /// Where the orbit comes from.
     pub orbit: OrbitMap,
     /// Noise hints copied into dataset.ron (same fields and units).
@@ -336,6 +340,43 @@ impl TemperatureColumnMap {
     }
 }
 
+/// One current column: its conversion (`A`, `mA` or counts) and the channel's name, which
+/// becomes telemetry.csv's `cur_<name>_A`.
+// Column's fields are repeated, as in PhotodiodeColumn (see TemperatureColumnMap).
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CurrentColumnMap {
+    /// The channel's name: ASCII `a-z`, `0-9`, `_` (`px`, `battery`, `torquer_z`).
+    pub name: String,
+    /// As [`Column::column`].
+    #[serde(default)]
+    pub column: Option<String>,
+    /// As [`Column::columns`].
+    #[serde(default)]
+    pub columns: Option<Vec<(String, f64)>>,
+    /// As [`Column::unit`] (`A`, `mA`).
+    #[serde(default)]
+    pub unit: Option<String>,
+    /// As [`Column::counts`].
+    #[serde(default)]
+    pub counts: Option<Counts>,
+    /// As [`Column::sentinels`].
+    #[serde(default)]
+    pub sentinels: Vec<Sentinel>,
+}
+
+impl CurrentColumnMap {
+    fn as_column(&self) -> Column {
+        Column {
+            column: self.column.clone(),
+            columns: self.columns.clone(),
+            unit: self.unit.clone(),
+            counts: self.counts.clone(),
+            sentinels: self.sentinels.clone(),
+        }
+    }
+}
+
 /// Where the orbit comes from.
 // One per map, read once: boxing the columns would only make the RON types harder to read.
 #[allow(clippy::large_enum_variant)]
@@ -430,6 +471,7 @@ pub fn parse_map(file: &Path, bytes: &[u8]) -> Result<ImportMap, ImportError> {
         check_column(&map, &path, &column, quantity)?;
     }
     check_temperatures(&map, &spec)?;
+    check_currents(&map, &spec)?;
     check_as_dataset(&map, &spec)?;
     if let OrbitMap::Tle { line1, line2 } = &spec.orbit
         && let Err(e) = pdcal_ephem::TleOrbit::from_lines(line1, line2)
@@ -507,6 +549,9 @@ pub(crate) fn columns(spec: &MapSpec) -> Vec<(String, Column, Quantity)> {
             t.as_column(),
             Quantity::Temperature,
         ));
+    }
+    for (i, c) in spec.currents.iter().enumerate() {
+        out.push((format!("currents[{i}]"), c.as_column(), Quantity::Current));
     }
     out
 }
@@ -668,6 +713,33 @@ fn check_sentinels(
         })
         .map(|o| line_col(map.text, o));
     Err(ImportError::maybe_at(map.file, place, kind).named(path))
+}
+
+/// Each current column's name is a valid channel name, and no two are the same (they would
+/// be one telemetry.csv column).
+fn check_currents(map: &Locator<'_>, spec: &MapSpec) -> Result<(), ImportError> {
+    let mut names = std::collections::HashSet::new();
+    for (i, c) in spec.currents.iter().enumerate() {
+        let reason = if !pdcal_dataset::is_current_name(&c.name) {
+            format!(
+                "{} is not a channel name (a-z, 0-9, _): it becomes the column cur_<name>_A",
+                quote(&c.name)
+            )
+        } else if !names.insert(c.name.as_str()) {
+            format!("a second current named {}", quote(&c.name))
+        } else {
+            continue;
+        };
+        let at = c.as_column().first_name().and_then(|n| map.column(n));
+        let place = at
+            .and_then(|o| map.key_after(o, "name").or(Some(o)))
+            .map(|o| line_col(map.text, o));
+        let kind = ErrorKind::BadCurrentName { reason };
+        return Err(
+            ImportError::maybe_at(map.file, place, kind).named(format!("currents[{i}].name"))
+        );
+    }
+    Ok(())
 }
 
 /// Each temperature column names exactly one photodiode of the map or one panel some

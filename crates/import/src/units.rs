@@ -13,6 +13,8 @@ pub enum Quantity {
     Length,
     /// Temperature, to degrees Celsius.
     Temperature,
+    /// Electric current, to amperes.
+    Current,
 }
 
 impl Quantity {
@@ -24,6 +26,7 @@ impl Quantity {
             Quantity::Voltage => "voltage",
             Quantity::Length => "length",
             Quantity::Temperature => "temperature",
+            Quantity::Current => "current",
         }
     }
 
@@ -37,6 +40,7 @@ impl Quantity {
             Quantity::Voltage => &[("V", 1.0), ("mV", 1.0e-3)],
             Quantity::Length => &[("km", 1.0), ("m", 1.0e-3)],
             Quantity::Temperature => &[("C", 1.0), ("K", 1.0)],
+            Quantity::Current => &[("A", 1.0), ("mA", 1.0e-3)],
         }
     }
 
@@ -88,5 +92,7 @@ mod tests {
         assert!((293.15 * f(t, "K") + t.zero("K") - 20.0).abs() < 1e-12);
         assert_eq!(t.zero("C"), 0.0);
         assert_eq!(Quantity::Voltage.zero("V"), 0.0);
+        assert!((f(Quantity::Current, "mA") * 250.0 - 0.25).abs() < 1e-15);
+        assert_eq!(Quantity::Current.factor("ma"), None);
     }
 }

@@ -463,3 +463,58 @@ fn a_temperature_column_names_one_photodiode_or_panel() {
         assert!(e.contains(expected), "{e}");
     }
 }
+
+#[test]
+fn current_columns_become_the_dataset_columns_in_amperes() {
+    let currents = r#"    currents: [
+        (name: "px", column: "i1", unit: "mA"),
+        (name: "battery", column: "i2", unit: "A"),
+        (name: "torquer_z", column: "i3", counts: (gain: 0.002, offset: -0.5, unit: "A"), sentinels: [4095]),
+    ],
+"#;
+    let map = map_with(currents, "", "");
+    let csv = "\
+adc0,wz,unix,wx,wy,bx,by,bz,adc1,i1,i2,i3
+1500,0.01,1320431385,1.8,0,300,0.2,25,1250,250,1.5,300
+1500,0.01,1320431386,1.8,0,300,0.2,25,1250,,0.25,4095
+";
+    let imported = import(&map, csv).unwrap();
+    let columns = &imported.dataset.telemetry.current_a;
+    let names: Vec<&str> = columns.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(names, ["cur_px_A", "cur_battery_A", "cur_torquer_z_A"]);
+    // 250 mA = 0.25 A; 0.002 * 300 - 0.5 = 0.1 A; an empty cell and a sentinel are empty.
+    assert!((columns[0].values[0].unwrap() - 0.25).abs() < 1e-15);
+    assert_eq!(columns[1].values[0], Some(1.5));
+    assert!((columns[2].values[0].unwrap() - 0.1).abs() < 1e-15);
+    assert_eq!((columns[0].values[1], columns[2].values[1]), (None, None));
+    // Milliamperes in an ampere column: refused at the cell, with the unit hint.
+    let bad = csv.replace(",1.5,", ",1500,");
+    let e = error(&map, &bad).to_string();
+    assert!(e.starts_with("export.csv:2:11 (i2):"), "{e}");
+    assert!(e.contains("mA given as A?"), "{e}");
+}
+
+#[test]
+fn a_current_column_needs_a_channel_name() {
+    for (entry, expected) in [
+        (
+            r#"    currents: [(name: "Px", column: "i1", unit: "A")],
+"#,
+            "\"Px\" is not a channel name",
+        ),
+        (
+            r#"    currents: [(name: "px", column: "i1", unit: "A"), (name: "px", column: "i2", unit: "A")],
+"#,
+            "a second current named \"px\"",
+        ),
+        (
+            r#"    currents: [(name: "px", column: "i1", unit: "uA")],
+"#,
+            "unit \"uA\" is not a unit of current: use one of A, mA",
+        ),
+    ] {
+        let e = error(&map_with(entry, "", ""), CSV).to_string();
+        assert!(e.starts_with("map.ron:20:"), "{e}");
+        assert!(e.contains(expected), "{e}");
+    }
+}

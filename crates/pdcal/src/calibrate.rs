@@ -25,6 +25,11 @@ pub struct RunConfig {
     pub filter: FilterConfig,
     /// Full, photodiode-only or scale-only with a prior.
     pub mode: Mode,
+    /// A magnetometer calibration (`--mag-cal`) applied to the telemetry before the filter.
+    pub mag_cal: Option<pdcal_magcal::MagCalibration>,
+    /// Calibrate the magnetometer from each run's own data first (`pdcal magcal`) and apply
+    /// that (the Monte Carlo's `--magcal`); ignored when `mag_cal` is given.
+    pub fit_mag_cal: bool,
 }
 
 impl Default for RunConfig {
@@ -32,6 +37,8 @@ impl Default for RunConfig {
         Self {
             filter: FilterConfig::default(),
             mode: Mode::Full,
+            mag_cal: None,
+            fit_mag_cal: false,
         }
     }
 }
@@ -47,6 +54,7 @@ pub fn load_config(path: &Path) -> Result<RunConfig> {
             return Ok(RunConfig {
                 filter: FilterConfig::default(),
                 mode: Mode::ScaleOnly { prior },
+                ..RunConfig::default()
             });
         }
         // A calibration.ron with a bad value gets the calibration's own message, not the
@@ -68,7 +76,7 @@ pub fn load_config(path: &Path) -> Result<RunConfig> {
         FilterConfig::from_ron_str(&text).with_context(|| format!("{}", path.display()))?;
     Ok(RunConfig {
         filter,
-        mode: Mode::Full,
+        ..RunConfig::default()
     })
 }
 
@@ -115,17 +123,19 @@ pub fn run(
     albedo: &AlbedoModel,
 ) -> Result<Outcome> {
     let references = pdcal_filter::step_references(meta, telemetry)?;
-    run_with_references(meta, telemetry, references, config, albedo)
+    run_with_references(meta, telemetry, references, config, albedo, &[])
 }
 
 /// [`run`] with the references given: a joint calibration's ([`crate::joint::Joint`]),
-/// each row's from its own set's orbit.
+/// each row's from its own set's orbit, and its `sets` (with several, their repeatability
+/// is checked, [`crate::repeatability`]).
 pub fn run_with_references(
     meta: &DatasetMeta,
     telemetry: &Telemetry,
     references: Vec<pdcal_filter::StepReference>,
     config: &RunConfig,
     albedo: &AlbedoModel,
+    sets: &[crate::joint::SetSpan],
 ) -> Result<Outcome> {
     let mut warnings = crate::checks::check_telemetry(telemetry)?;
     let mountings = crate::mounting::check(meta, telemetry, (&references).into(), &config.filter)?;
@@ -157,20 +167,53 @@ pub fn run_with_references(
         albedo,
         &config.filter,
     )?;
+    let mut consistency = pdcal_filter::consistency::judge(
+        &run.residuals,
+        meta.photodiodes.len(),
+        run.sensor_sigmas.photodiode_v,
+        run.sensor_sigmas.mag_nt,
+    );
+    let repeatability = repeatability_of(meta, telemetry, &references, sets, config, albedo);
+    if let Some(r) = &repeatability {
+        r.apply(&mut consistency, &mut warnings);
+    }
     Ok(Outcome {
         residuals: crate::schema::residual_summary(&run.residuals),
-        consistency: pdcal_filter::consistency::judge(
-            &run.residuals,
-            meta.photodiodes.len(),
-            run.sensor_sigmas.photodiode_v,
-            run.sensor_sigmas.mag_nt,
-        ),
+        consistency,
         run,
         sun_vector,
         runtime_s,
         warnings,
         datasets: Vec::new(),
         mountings,
+        repeatability,
+    })
+}
+
+/// The repeatability of a joint calibration's `sets` ([`crate::repeatability`]), from each
+/// set's own pass over `meta` and `telemetry` (as the joint run saw them); `None` for one set.
+fn repeatability_of(
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+    references: &[pdcal_filter::StepReference],
+    sets: &[crate::joint::SetSpan],
+    config: &RunConfig,
+    albedo: &AlbedoModel,
+) -> Option<crate::repeatability::Repeatability> {
+    (sets.len() > 1).then(|| {
+        let own = crate::joint::own_estimates(
+            meta,
+            telemetry,
+            references,
+            sets,
+            (&config.filter, &config.mode),
+            albedo,
+        );
+        crate::repeatability::compare(
+            &own,
+            &crate::repeatability::Walks::of(&config.filter),
+            config.filter.initial_bias_sigma_deg_s.to_radians(),
+        )
     })
 }
 
@@ -212,7 +255,33 @@ pub fn run_dirs_forced(
 ) -> Result<(Outcome, crate::schema::Summary)> {
     let dir = OutputDir::create_forced(out, "calibrate", force)?;
     // Only meta and telemetry: calibrate never reads truth.*.
-    run_sets(crate::joint::read(datasets)?, dir, config, None)
+    let mut sets = crate::joint::read(datasets)?;
+    let Some(cal) = &config.mag_cal else {
+        return run_sets(sets, dir, config, None);
+    };
+    let mut config = config.clone();
+    let mut worst_sigma_nt: f64 = 0.0;
+    for (path, meta, telemetry) in &mut sets {
+        let sigma = with_mag_cal(&config, cal, meta, telemetry)
+            .with_context(|| format!("--mag-cal on {}", path.display()))?;
+        worst_sigma_nt = worst_sigma_nt.max(sigma);
+    }
+    config.filter.mag_sigma_nt = Some(worst_sigma_nt);
+    run_sets(sets, dir, &config, None)
+}
+
+/// Corrects `telemetry`'s magnetometer with `cal` and returns the magnetometer noise the
+/// filter should then use: the configured (or hinted) sigma and the correction's own
+/// uncertainty added in quadrature (docs/magcal.md).
+pub fn with_mag_cal(
+    config: &RunConfig,
+    cal: &pdcal_magcal::MagCalibration,
+    meta: &DatasetMeta,
+    telemetry: &mut Telemetry,
+) -> Result<f64> {
+    let cal_sigma = crate::magcal::apply(telemetry, cal)?;
+    let base = config.filter.resolve(meta.noise.as_ref()).mag_nt;
+    Ok(base.hypot(cal_sigma))
 }
 
 /// The largest number of photodiodes `calibrate` and `diagnose` accept
@@ -345,11 +414,20 @@ pub fn run_sets(
         &albedo,
         &config.filter,
     )?;
+    let mut consistency = streamed.consistency;
+    let repeatability = match stored.as_deref() {
+        Some(stored) => repeatability_of(&meta, &telemetry, stored, &joint.sets, config, &albedo),
+        None => None,
+    };
+    if let Some(r) = &repeatability {
+        r.apply(&mut consistency, &mut warnings);
+    }
+    let set_repeatability = |k: usize| repeatability.as_ref().and_then(|r| r.sets.get(k).cloned());
     let outcome = Outcome {
         run,
         sun_vector,
         residuals: streamed.residual_summary,
-        consistency: streamed.consistency,
+        consistency,
         runtime_s,
         warnings,
         // Listed for a joint calibration only: one set is the summary itself.
@@ -360,14 +438,17 @@ pub fn run_sets(
                 .into_iter()
                 .zip(streamed.set_residuals)
                 .zip(streamed.set_consistency)
-                .map(|((span, residuals), consistency)| DatasetSummary {
+                .enumerate()
+                .map(|(k, ((span, residuals), consistency))| DatasetSummary {
                     span,
                     residuals,
                     consistency,
+                    repeatability: set_repeatability(k),
                 })
                 .collect(),
         },
         mountings,
+        repeatability,
     };
     let summary = crate::schema::summary(&meta, &outcome);
     crate::files::write_summary_and_figures(dir, &telemetry, &outcome, &summary, None)?;

@@ -72,6 +72,10 @@ pub enum Command {
         /// scale-factors-only run.
         #[arg(long)]
         config: Option<PathBuf>,
+        /// A magcal.ron of `pdcal magcal`: the magnetometer is corrected with it before the
+        /// filter, and its uncertainty added to the magnetometer noise.
+        #[arg(long)]
+        mag_cal: Option<PathBuf>,
         /// Replace an earlier output of this command in OUT even where its files were
         /// changed since pdcal wrote them (never files pdcal did not write).
         #[arg(long)]
@@ -83,6 +87,20 @@ pub enum Command {
         dataset: PathBuf,
         /// The calibrate command's output directory.
         out: PathBuf,
+    },
+    /// Calibrate the magnetometer without attitude (field magnitude against IGRF-14, hard
+    /// and soft iron, current-driven biases): writes magcal.ron, magcal.json, the corrected
+    /// dataset OUT/dataset/, figures and index.html.
+    Magcal {
+        /// Dataset directory (dataset.ron, telemetry.csv with mag_* and optional cur_*_A).
+        dataset: PathBuf,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+        /// Replace an earlier output of this command in OUT even where its files were
+        /// changed since pdcal wrote them (never files pdcal did not write).
+        #[arg(long)]
+        force: bool,
     },
     /// Find the effects the model is missing, add them, show the gap shrink: writes
     /// diagnosis.json, report.md, figures and index.html in OUT_DIR.
@@ -159,12 +177,14 @@ pub fn run(cli: Cli) -> Result<()> {
             datasets,
             out,
             config,
+            mag_cal,
             force,
         }) => {
-            let config = match config {
+            let mut config = match config {
                 Some(path) => crate::calibrate::load_config(&path)?,
                 None => crate::calibrate::RunConfig::default(),
             };
+            config.mag_cal = mag_cal.as_deref().map(crate::magcal::load).transpose()?;
             let (outcome, summary) =
                 crate::calibrate::run_dirs_forced(&datasets, &out, &config, force)?;
             print_warnings(&outcome.warnings);
@@ -187,6 +207,29 @@ pub fn run(cli: Cli) -> Result<()> {
             print_warnings(&outcome.warnings);
             print!("{}", crate::diagnose::console_summary(&outcome));
             eprintln!("diagnosis -> {}", out.display());
+            Ok(())
+        }
+        Some(Command::Magcal {
+            dataset,
+            out,
+            force,
+        }) => {
+            let outcome = crate::magcal::run_dir_forced(&dataset, &out, force)?;
+            print_warnings(&outcome.warnings);
+            let cal = &outcome.calibration;
+            println!(
+                "magnetometer: field-magnitude residual {:.1} nT -> {:.1} nT over {} rows ({} rejected); regressors kept: {}",
+                cal.residual_rms_before_nt,
+                cal.residual_rms_after_nt,
+                cal.rows_used,
+                cal.rejected_rows.len(),
+                if cal.regressors.is_empty() {
+                    "none".to_owned()
+                } else {
+                    cal.regressors.join(", ")
+                }
+            );
+            eprintln!("magcal -> {}", out.display());
             Ok(())
         }
         Some(Command::Evaluate { dataset, out }) => {

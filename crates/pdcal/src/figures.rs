@@ -464,11 +464,15 @@ pub fn write_index(
     if let Some(extra) = evaluation {
         rows.extend(extra.iter().cloned());
     }
-    let tables = [
-        crate::tables::photodiode_table(summary),
-        crate::tables::consistency_table(&summary.consistency),
-        crate::tables::segment_table(summary),
-    ];
+    let tables: Vec<pdcal_report::Table> = [
+        Some(crate::tables::photodiode_table(summary)),
+        Some(crate::tables::consistency_table(&summary.consistency)),
+        crate::tables::repeatability_table(summary),
+        Some(crate::tables::segment_table(summary)),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
     pdcal_report::index_html_with_tables(
         dir,
         &format!("pdcal: {}", summary.dataset),

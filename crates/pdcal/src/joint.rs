@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use pdcal_dataset::{DatasetMeta, OrbitSpec, Samples, Telemetry, TemperatureColumn};
+use pdcal_dataset::{CurrentColumn, DatasetMeta, OrbitSpec, Samples, Telemetry, TemperatureColumn};
 use pdcal_filter::StepReference;
 use serde::Serialize;
 
@@ -235,10 +235,16 @@ fn concat(parts: &[(f64, &Telemetry)]) -> Telemetry {
     let all_positions = parts.iter().all(|(_, t)| t.r_gcrf_km.is_some());
     let m = parts.first().map_or(0, |(_, t)| t.pd_v.len());
     let mut names: Vec<String> = Vec::new();
+    let mut currents: Vec<String> = Vec::new();
     for (_, t) in parts {
         for c in &t.temperature_c {
             if !names.contains(&c.name) {
                 names.push(c.name.clone());
+            }
+        }
+        for c in &t.current_a {
+            if !currents.contains(&c.name) {
+                currents.push(c.name.clone());
             }
         }
     }
@@ -251,6 +257,13 @@ fn concat(parts: &[(f64, &Telemetry)]) -> Telemetry {
         temperature_c: names
             .iter()
             .map(|name| TemperatureColumn {
+                name: name.clone(),
+                values: Vec::new(),
+            })
+            .collect(),
+        current_a: currents
+            .iter()
+            .map(|name| CurrentColumn {
                 name: name.clone(),
                 values: Vec::new(),
             })
@@ -278,6 +291,98 @@ fn concat(parts: &[(f64, &Telemetry)]) -> Telemetry {
                 None => column.values.extend(std::iter::repeat_n(None, rows)),
             }
         }
+        for column in &mut out.current_a {
+            match t.current_a.iter().find(|c| c.name == column.name) {
+                Some(theirs) => column.values.extend_from_slice(&theirs.values),
+                None => column.values.extend(std::iter::repeat_n(None, rows)),
+            }
+        }
     }
     out
+}
+
+/// Each set's own estimate for the repeatability check ([`crate::repeatability`]): a
+/// forward pass over the set's rows alone (the run's machinery, no smoother: the last row's
+/// forward estimate is the set's whole information), from the same configuration and mode
+/// as the joint run, with the statuses judged from its own covariance and residuals.
+/// `meta` and `telemetry` are the joint run's (mountings corrected, screened), `references`
+/// one per joint row. A set whose own pass fails is kept with the reason.
+pub fn own_estimates(
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+    references: &[StepReference],
+    sets: &[SetSpan],
+    (config, mode): (&pdcal_filter::FilterConfig, &pdcal_filter::Mode),
+    albedo: &pdcal_albedo::AlbedoModel,
+) -> Vec<crate::repeatability::SetInput> {
+    sets.iter()
+        .map(|span| {
+            let rows = span.first_row..span.first_row + span.rows;
+            let end_s = telemetry.t_s.get(rows.end.wrapping_sub(1)).copied();
+            crate::repeatability::SetInput {
+                name: span.name.clone(),
+                end_s: end_s.unwrap_or(span.offset_s),
+                estimate: own_estimate(meta, telemetry, references, rows, (config, mode), albedo),
+            }
+        })
+        .collect()
+}
+
+/// The forward pass of one set's `rows` ([`own_estimates`]), or why it failed.
+fn own_estimate(
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+    references: &[StepReference],
+    rows: std::ops::Range<usize>,
+    (config, mode): (&pdcal_filter::FilterConfig, &pdcal_filter::Mode),
+    albedo: &pdcal_albedo::AlbedoModel,
+) -> Result<crate::repeatability::SetEstimate, String> {
+    let part = telemetry.select_rows(|k| rows.contains(&k));
+    let refs = references.get(rows).ok_or("no references for its rows")?;
+    let inputs = pdcal_filter::RunInputs {
+        meta,
+        telemetry: &part,
+        references: pdcal_filter::References::Stored(refs),
+        albedo: Some(albedo),
+    };
+    let mut filter = config.clone();
+    filter.smoother = false;
+    let sigmas = filter.resolve(meta.noise.as_ref());
+    let mut sink = VerdictSink(pdcal_filter::ConsistencyAccumulator::new(
+        meta.photodiodes.len(),
+        sigmas.photodiode_v,
+        sigmas.mag_nt,
+    ));
+    let model = pdcal_filter::paper_model(pdcal_filter::nominal_photodiodes(meta), &filter);
+    let run = pdcal_filter::calibrate_streaming(
+        &inputs,
+        &filter,
+        mode,
+        model,
+        pdcal_filter::Algebra::Structured,
+        pdcal_filter::SMOOTHER_BLOCK_ROWS,
+        &mut sink,
+    )
+    .map_err(|e| format!("its own pass failed: {e}"))?;
+    let evidence = pdcal_filter::identifiability::Evidence::of_run(&run, sink.0.finish().verdict);
+    Ok(crate::repeatability::SetEstimate {
+        photodiodes: pdcal_filter::identifiability::judge_photodiodes(&evidence),
+        gyro_bias: pdcal_filter::identifiability::judge_gyro_bias(&evidence),
+        calibration: run.calibration,
+    })
+}
+
+/// A run's sink that keeps only the consistency of its residuals.
+struct VerdictSink(pdcal_filter::ConsistencyAccumulator);
+
+impl pdcal_filter::RunSink for VerdictSink {
+    fn forward(
+        &mut self,
+        _: &pdcal_filter::StepEstimate,
+        residuals: &[pdcal_filter::ResidualRecord],
+    ) {
+        residuals.iter().for_each(|r| self.0.push(r));
+    }
+
+    fn smoothed(&mut self, _: &[pdcal_filter::StepEstimate]) {}
 }

@@ -70,6 +70,10 @@ pub struct Summary {
     /// time line and its own photodiode residual statistics.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub datasets: Vec<DatasetSummary>,
+    /// With several data sets: whether each set's own estimates agree with the others'
+    /// (verdict, threshold, warnings; per set in `datasets[k].repeatability`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub repeatability: Option<crate::repeatability::Repeatability>,
     /// Photodiodes whose data contradict their nominal mounting or polarity: what dataset.ron
     /// says, what the data support, and what the calibration did (`crate::mounting`).
     pub mounting_findings: Vec<pdcal_filter::mounting::MountingFinding>,
@@ -368,16 +372,7 @@ pub fn mode_name(mode: ModeUsed) -> &'static str {
 /// Builds `summary.json`'s content.
 pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
     let run = &outcome.run;
-    let evidence = Evidence {
-        initial: &run.initial,
-        calibration: &run.calibration,
-        used: &run.used_photodiodes,
-        time_used_s: &run.photodiode_time_used_s,
-        covariance: &run.final_covariance,
-        layout: &run.layout,
-        normals_estimated: !matches!(run.mode, ModeUsed::ScaleOnly { .. }),
-        verdict: outcome.consistency.verdict,
-    };
+    let evidence = Evidence::of_run(run, outcome.consistency.verdict);
     let determination = pdcal_filter::identifiability::judge_photodiodes(&evidence);
     let bias_status = pdcal_filter::identifiability::judge_gyro_bias(&evidence);
     let mut reported = pdcal_filter::identifiability::reported_calibration(
@@ -462,6 +457,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         segment_rules: run.segment_rules,
         segments: run.segments.clone(),
         datasets: outcome.datasets.clone(),
+        repeatability: outcome.repeatability.clone(),
         mounting_findings: outcome.mountings.clone(),
         reported,
     }
@@ -567,6 +563,9 @@ pub struct Outcome {
     /// Photodiodes whose data contradict their nominal mounting or polarity, and what the
     /// calibration did about each ([`crate::mounting`]).
     pub mountings: Vec<pdcal_filter::mounting::MountingFinding>,
+    /// With several data sets, whether their own estimates agree
+    /// ([`crate::repeatability`]).
+    pub repeatability: Option<crate::repeatability::Repeatability>,
 }
 
 /// One data set of a calibration and the statistics of its own photodiode residuals
@@ -580,6 +579,10 @@ pub struct DatasetSummary {
     pub residuals: ResidualSummary,
     /// The consistency verdict of its own residuals.
     pub consistency: pdcal_filter::Consistency,
+    /// Its own estimate of every parameter against the other sets'
+    /// ([`crate::repeatability`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub repeatability: Option<crate::repeatability::SetRepeatability>,
 }
 
 /// Whether the run made magnetometer updates.

@@ -49,6 +49,17 @@ pub struct SeedResult {
     pub attitude_about_sun_inside: f64,
     /// Attitude errors across the Sun line inside their 3 sigma.
     pub attitude_across_sun_inside: f64,
+    /// With several sets, the repeatability verdict (`repeatable`, `not-repeatable`,
+    /// `not-checked`); empty for one set.
+    pub repeatability: String,
+    /// The parameters whose sets differ (one repeatability warning each).
+    pub differing: Vec<String>,
+    /// Gyro-bias changes between consecutive sets beyond the walk (warnings).
+    pub bias_change_warnings: usize,
+    /// The single repeatability tests of the calibration parameters (pairs and
+    /// set-against-the-others) whose `|z|` exceeds 3, how many tests there were, and the
+    /// sum of their `z^2`.
+    pub repeat_tests_beyond_3: (usize, usize, f64),
 }
 
 /// What a downlink keeps and what the filter is told, comma-separated parts:
@@ -323,12 +334,29 @@ pub fn run_seed(
     if matches!(config.mode, Mode::PhotodiodeOnly) {
         telemetry.mag_nt = None;
     }
+    let fitted = (config.fit_mag_cal && config.mag_cal.is_none() && telemetry.mag_nt.is_some())
+        .then(|| crate::magcal::run(&joint.meta, &telemetry))
+        .transpose()?
+        .map(|outcome| outcome.calibration);
+    let cal = fitted.or_else(|| config.mag_cal.clone());
+    let mut config = config.clone();
+    if let Some(cal) = &cal {
+        let sigma = crate::calibrate::with_mag_cal(&config, cal, &joint.meta, &mut telemetry)?;
+        config.filter.mag_sigma_nt = Some(sigma);
+    }
+    let config = &config;
     let references = match joint.references.clone() {
         Some(references) => references,
         None => pdcal_filter::step_references(&joint.meta, &joint.telemetry)?,
     };
-    let outcome =
-        crate::calibrate::run_with_references(&joint.meta, &telemetry, references, config, albedo)?;
+    let outcome = crate::calibrate::run_with_references(
+        &joint.meta,
+        &telemetry,
+        references,
+        config,
+        albedo,
+        &joint.sets,
+    )?;
     let truth = joint_truth(&sims, &joint);
     let s: Summary = summary(&joint.meta, &outcome);
     // The calibration as reported: a quantity the data did not determine at its prior.
@@ -388,11 +416,53 @@ pub fn run_seed(
         by_status: eval.consistency.by_status,
         attitude_about_sun_inside: eval.consistency.attitude_about_sun_within_3sigma,
         attitude_across_sun_inside: eval.consistency.attitude_across_sun_within_3sigma,
+        repeatability: s
+            .repeatability
+            .as_ref()
+            .map_or(String::new(), |r| r.verdict.as_str().to_owned()),
+        differing: s
+            .repeatability
+            .as_ref()
+            .map_or(Vec::new(), |r| r.differing.clone()),
+        bias_change_warnings: s
+            .repeatability
+            .as_ref()
+            .map_or(0, |r| r.bias_warnings.len()),
+        repeat_tests_beyond_3: s.repeatability.as_ref().map_or((0, 0, 0.0), tests_beyond_3),
     };
     Ok(SeedRun {
         result,
         evaluation: eval,
     })
+}
+
+/// The calibration parameters' repeatability tests with `|z| > 3`, all of them, and their
+/// sum of `z^2`: each set-against-the-others once, each pair once (from its earlier set's
+/// side).
+fn tests_beyond_3(r: &crate::repeatability::Repeatability) -> (usize, usize, f64) {
+    let z: Vec<f64> = r
+        .sets
+        .iter()
+        .enumerate()
+        .flat_map(|(k, set)| {
+            set.parameters
+                .iter()
+                .filter(|p| !p.parameter.starts_with("gyro_bias"))
+                .flat_map(move |p| {
+                    p.vs_other_sets.into_iter().chain(
+                        p.vs_sets
+                            .iter()
+                            .filter(move |d| d.set > k + 1)
+                            .map(|d| d.normalised_difference),
+                    )
+                })
+        })
+        .collect();
+    (
+        z.iter().filter(|z| z.abs() > 3.0).count(),
+        z.len(),
+        z.iter().map(|z| z * z).sum(),
+    )
 }
 
 /// One seed's run: the figures of merit of `results.json` and the evaluation they come from

@@ -9,6 +9,7 @@ use pdcal_report::Table;
 use pdcal_filter::Consistency;
 use pdcal_filter::identifiability::Status;
 
+use crate::repeatability::Repeatability;
 use crate::schema::Summary;
 
 /// The photodiode table.
@@ -211,14 +212,102 @@ pub fn text(table: &Table) -> String {
     s
 }
 
-/// The printed summary of `pdcal calibrate`: the photodiode table and the segments.
+/// The printed summary of `pdcal calibrate`: the photodiode table, the consistency, the
+/// repeatability of a joint run (its verdict and one line per warning) and the segments.
 pub fn console_summary(summary: &Summary) -> String {
     format!(
-        "{}\n{}\n{}",
+        "{}\n{}\n{}{}",
         text(&photodiode_table(summary)),
         text(&consistency_table(&summary.consistency)),
+        repeatability_lines(summary),
         text(&shortened(segment_table(summary), CONSOLE_SEGMENTS))
     )
+}
+
+/// The repeatability verdict of a joint run in one line, then one line per warning (the
+/// per-set detail is in summary.json and index.html); empty for one data set.
+pub fn repeatability_lines(summary: &Summary) -> String {
+    let Some(r) = &summary.repeatability else {
+        return String::new();
+    };
+    let mut s = format!("{}\n", repeatability_title(r, summary.datasets.len()));
+    for w in r.warnings.iter().chain(&r.bias_warnings) {
+        let _ = writeln!(s, "  {w}");
+    }
+    s.push('\n');
+    s
+}
+
+fn repeatability_title(r: &Repeatability, sets: usize) -> String {
+    format!(
+        "Repeatability across the {sets} data sets: {} ({} comparisons, threshold {:.2} sigma \
+         for {:.2} % family-wise false alarms; each set's own estimates in summary.json \
+         datasets[k].repeatability)",
+        r.verdict.as_str().to_uppercase(),
+        r.comparisons,
+        r.threshold_sigmas,
+        100.0 * r.family_false_alarm_rate
+    )
+}
+
+/// Each parameter's own estimate per data set (`+- 1 sigma`, and its normalised difference
+/// from the other sets, or from the previous set for the gyro bias), and which sets differ.
+pub fn repeatability_table(summary: &Summary) -> Option<Table> {
+    let r = summary.repeatability.as_ref()?;
+    let sets: Vec<&crate::repeatability::SetRepeatability> = summary
+        .datasets
+        .iter()
+        .filter_map(|d| d.repeatability.as_ref())
+        .collect();
+    let mut header = vec!["parameter".to_owned()];
+    header.extend((1..=sets.len()).map(|k| format!("set {k}")));
+    header.push("verdict".to_owned());
+    let parameters = sets.first().map_or(0, |s| s.parameters.len());
+    let rows = (0..parameters)
+        .map(|j| {
+            let mut row = vec![sets[0].parameters[j].parameter.clone()];
+            row.extend(sets.iter().map(|s| repeat_cell(&s.parameters[j])));
+            let differ: Vec<String> = sets
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| matches!(s.parameters[j].verdict.as_str(), "differs" | "changed"))
+                .map(|(k, _)| (k + 1).to_string())
+                .collect();
+            row.push(match differ.is_empty() {
+                true => "-".to_owned(),
+                false => format!("differs in sets {}", differ.join(", ")),
+            });
+            row
+        })
+        .collect();
+    let header: Vec<&str> = header.iter().map(String::as_str).collect();
+    Some(Table::new(
+        &repeatability_title(r, sets.len()),
+        &header,
+        rows,
+    ))
+}
+
+/// A set's own estimate of a parameter, `+- 1 sigma`, with its normalised difference from
+/// the others; or why there is none.
+fn repeat_cell(p: &crate::repeatability::ParameterRepeat) -> String {
+    let (Some(x), Some(sigma)) = (p.estimate, p.sigma) else {
+        return "not determined".to_owned();
+    };
+    let z = p
+        .vs_other_sets
+        .or_else(|| (p.vs_sets.len() == 1).then(|| p.vs_sets[0].normalised_difference));
+    let value = if p.parameter.ends_with("_rad_s") {
+        format!("{:.4} +- {:.4} deg/s", x.to_degrees(), sigma.to_degrees())
+    } else if p.parameter.ends_with("_V") {
+        format!("{x:.4} +- {sigma:.4}")
+    } else {
+        format!("{x:.2} +- {sigma:.2}")
+    };
+    match z {
+        Some(z) => format!("{value} (z {z:+.1})"),
+        None => value,
+    }
 }
 
 /// Segments the printed summary shows at most (the first and last half of them): the

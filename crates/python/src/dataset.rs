@@ -229,6 +229,7 @@ fn truth_from_dict(truth: &Bound<'_, PyDict>) -> PyResult<(TruthSeries, TruthCon
         TruthConstants {
             photodiodes,
             effects,
+            magnetometer: None,
         },
     ))
 }

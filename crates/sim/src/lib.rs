@@ -70,5 +70,7 @@ mod random;
 pub mod scenario;
 mod simulate;
 
-pub use scenario::{BUILTIN_NAMES, Scenario, ScenarioError, Thermal};
+pub use scenario::{
+    BUILTIN_NAMES, CurrentChannel, CurrentSource, MagErrors, Scenario, ScenarioError, Thermal,
+};
 pub use simulate::{SimError, SimOutput, simulate, simulate_downlink, truth_model};

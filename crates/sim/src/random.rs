@@ -32,6 +32,8 @@ pub(crate) enum Stream {
     PhotodiodeNoise = 7,
     /// Temperature sensor noise.
     TemperatureNoise = 8,
+    /// True magnetometer errors (hardware, like the photodiodes).
+    MagHardware = 9,
 }
 
 /// Streams per downlink: room for every [`Stream`] with spares.
@@ -53,7 +55,7 @@ impl Seed {
     /// The generator of one stream.
     pub(crate) fn stream(self, which: Stream) -> ChaCha8Rng {
         let number = match which {
-            Stream::TruePhotodiodes => which as u64,
+            Stream::TruePhotodiodes | Stream::MagHardware => which as u64,
             _ => which as u64 + STREAMS_PER_DOWNLINK * self.downlink,
         };
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed);

@@ -88,6 +88,130 @@ pub struct Scenario {
     /// and whose true values drive the `temperature` effect. Absent: no temperature columns.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub temperature: Option<Thermal>,
+    /// Telemetry current channels, written as `cur_<name>_A` columns; those that drive the
+    /// magnetometer add `c_j u_j` to it (`magnetometer.errors`). Absent: no current columns.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub currents: Vec<CurrentChannel>,
+}
+
+/// One telemetry current channel (a `cur_<name>_A` column).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CurrentChannel {
+    /// The channel's name: `a-z`, `0-9`, `_` (the column is `cur_<name>_A`).
+    pub name: String,
+    /// What the current follows.
+    pub source: CurrentSource,
+    /// Whether it drives a magnetometer bias (`c_j` drawn from
+    /// `magnetometer.errors.current_bias_nT_per_A`); a channel that does not is a control.
+    #[serde(default)]
+    pub drives_mag: bool,
+}
+
+/// How a channel's current evolves.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum CurrentSource {
+    /// A body-mounted solar panel: `max_A nu max(0, n . s_body)`, `n` its outward normal,
+    /// `s_body` the Sun direction, `nu` the lit fraction of the solar disc.
+    Panel {
+        /// Outward normal, body frame (normalized when used).
+        normal: (f64, f64, f64),
+        /// Current facing the full Sun, A (file name `max_A`).
+        #[serde(rename = "max_A")]
+        max_a: f64,
+    },
+    /// A torquer driven on and off: `amplitude_A` for the first half of every period, 0 for
+    /// the second.
+    Square {
+        /// Current when on, A (file name `amplitude_A`).
+        #[serde(rename = "amplitude_A")]
+        amplitude_a: f64,
+        /// Period, s.
+        period_s: f64,
+    },
+}
+
+impl CurrentChannel {
+    /// The current at `t_s` with the body Sun direction `sun_body` and lit fraction `nu`, A.
+    pub fn current_a(&self, t_s: f64, sun_body: &nalgebra::Vector3<f64>, nu: f64) -> f64 {
+        match self.source {
+            CurrentSource::Panel { normal, max_a } => {
+                let n = nalgebra::Vector3::new(normal.0, normal.1, normal.2).normalize();
+                max_a * nu * n.dot(sun_body).max(0.0)
+            }
+            CurrentSource::Square {
+                amplitude_a,
+                period_s,
+            } => {
+                if (t_s / period_s).fract() < 0.5 {
+                    amplitude_a
+                } else {
+                    0.0
+                }
+            }
+        }
+    }
+
+    fn validate(&self, i: usize) -> Result<(), ScenarioError> {
+        let field = |f: &str| format!("currents[{i}].{f}");
+        if !pdcal_dataset::is_current_name(&self.name) {
+            return Err(invalid(
+                &field("name"),
+                "a-z, 0-9, _ only (the column is cur_<name>_A)",
+            ));
+        }
+        let (amps, what) = match self.source {
+            CurrentSource::Panel { normal, max_a } => {
+                let n = nalgebra::Vector3::new(normal.0, normal.1, normal.2);
+                if !(n.norm() > 0.0 && n.iter().all(|v| v.is_finite())) {
+                    return Err(invalid(
+                        &field("source.normal"),
+                        "must be a finite non-zero vector",
+                    ));
+                }
+                (max_a, "source.max_A")
+            }
+            CurrentSource::Square {
+                amplitude_a,
+                period_s,
+            } => {
+                if !(period_s.is_finite() && period_s > 0.0) {
+                    return Err(invalid(&field("source.period_s"), "must be positive"));
+                }
+                (amplitude_a, "source.amplitude_A")
+            }
+        };
+        let (low, high) = pdcal_dataset::CURRENT_RANGE_A;
+        if !(low..=high).contains(&amps) {
+            return Err(invalid(
+                &field(what),
+                format!("must lie within {low} .. {high} A"),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Magnetometer errors drawn per seed (hardware: the same for every downlink):
+/// `m = T B + b + sum_j c_j u_j + noise`, `T = (I + D + S) N` with `D` the scale errors,
+/// `S` symmetric soft iron and `N` unit upper triangular (non-orthogonal axes). Each value
+/// is a magnitude drawn from its spread with a random sign.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MagErrors {
+    /// Hard-iron bias per axis, nT (file name `hard_iron_nT`).
+    #[serde(rename = "hard_iron_nT")]
+    pub hard_iron_nt: Spread,
+    /// Scale-factor error per axis, fraction (`T_aa - 1` before the non-orthogonality).
+    pub scale: Spread,
+    /// Soft-iron coupling per axis pair, fraction (symmetric off-diagonal of `T`).
+    pub soft_iron: Spread,
+    /// Non-orthogonality per axis pair, degrees.
+    pub nonorthogonality_deg: Spread,
+    /// Bias per ampere of a channel with `drives_mag`, per axis, nT/A (file name
+    /// `current_bias_nT_per_A`).
+    #[serde(rename = "current_bias_nT_per_A")]
+    pub current_bias_nt_per_a: Spread,
 }
 
 /// A first-order thermal model of each photodiode's mount, driven by sunlight:
@@ -341,6 +465,11 @@ impl Spread {
 pub struct Photodiodes {
     /// Intended mounting, `pdNN` order, degrees (dataset.ron's `photodiodes`).
     pub nominal: Vec<NominalMount>,
+    /// The mounting dataset.ron states instead of `nominal`, when the two differ (a head
+    /// mounted rotated from its drawing): the true normals are drawn around `nominal`, the
+    /// calibration is told `assumed`. Absent: dataset.ron states `nominal`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub assumed: Option<Vec<NominalMount>>,
     /// Hard field-of-view half angle of the true sensor (a recessed mount), degrees: beyond
     /// it neither direct sunlight nor albedo reaches the diode ([`pdcal_photodiode::Photodiode`]'s
     /// FOV gate). Absent: the cosine law holds to 90 deg (then `fov-rolloff` is the way to
@@ -389,6 +518,22 @@ pub struct Magnetometer {
     /// Sample period, s.
     #[serde(default = "default_period")]
     pub sample_period_s: f64,
+    /// Hard iron, scale, soft iron, non-orthogonality and current-driven bias. Absent: an
+    /// ideal sensor (beyond `mag-bias`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub errors: Option<MagErrors>,
+}
+
+/// A mounting's angles: azimuth finite, elevation within [-90, 90] deg.
+fn check_mount(m: &NominalMount, at: &str) -> Result<(), ScenarioError> {
+    if !(m.azimuth_deg.is_finite() && m.elevation_deg.is_finite() && m.elevation_deg.abs() <= 90.0)
+    {
+        return Err(invalid(
+            at,
+            "azimuth must be finite and elevation within [-90, 90] deg",
+        ));
+    }
+    Ok(())
 }
 
 impl Scenario {
@@ -501,16 +646,19 @@ impl Scenario {
                 format!("needs 1 to 999 entries, has {n}"),
             ));
         }
-        for (i, m) in pd.nominal.iter().enumerate() {
-            if !(m.azimuth_deg.is_finite()
-                && m.elevation_deg.is_finite()
-                && m.elevation_deg.abs() <= 90.0)
-            {
+        if let Some(assumed) = &pd.assumed {
+            if assumed.len() != n {
                 return Err(invalid(
-                    &format!("photodiodes.nominal[{i}]"),
-                    "azimuth must be finite and elevation within [-90, 90] deg",
+                    "photodiodes.assumed",
+                    format!("has {} entries, nominal has {n}", assumed.len()),
                 ));
             }
+            for (i, m) in assumed.iter().enumerate() {
+                check_mount(m, &format!("photodiodes.assumed[{i}]"))?;
+            }
+        }
+        for (i, m) in pd.nominal.iter().enumerate() {
+            check_mount(m, &format!("photodiodes.nominal[{i}]"))?;
             if let Some(panel) = &m.panel
                 && !pdcal_dataset::is_panel_name(panel)
             {
@@ -575,6 +723,24 @@ impl Scenario {
         }
         if let Some(thermal) = &self.temperature {
             thermal.validate(self.duration_s)?;
+        }
+        if let Some(errors) = &self.magnetometer.errors {
+            errors
+                .hard_iron_nt
+                .check("magnetometer.errors.hard_iron_nT")?;
+            errors.scale.check("magnetometer.errors.scale")?;
+            errors.soft_iron.check("magnetometer.errors.soft_iron")?;
+            (errors.nonorthogonality_deg).check("magnetometer.errors.nonorthogonality_deg")?;
+            (errors.current_bias_nt_per_a).check("magnetometer.errors.current_bias_nT_per_A")?;
+        }
+        for (i, channel) in self.currents.iter().enumerate() {
+            channel.validate(i)?;
+            if self.currents[..i].iter().any(|c| c.name == channel.name) {
+                return Err(invalid(
+                    &format!("currents[{i}].name"),
+                    "a second channel of this name",
+                ));
+            }
         }
         Ok(())
     }
@@ -778,6 +944,27 @@ mod tests {
         let mut s = base.clone();
         s.epoch_utc = "yesterday".into();
         assert_eq!(field_of(s.validate()), "epoch_utc");
+    }
+
+    #[test]
+    fn an_assumed_mounting_is_what_dataset_ron_states() {
+        let text = include_str!("../../../fixtures/scenarios/weak/pyramid-head-rotated.ron");
+        let s = Scenario::from_ron_str(text).unwrap();
+        let assumed = s.photodiodes.assumed.clone().unwrap();
+        for (a, n) in assumed.iter().zip(&s.photodiodes.nominal) {
+            // The head turned 15 deg about its boresight (+z): azimuths 15 deg on.
+            let turn = (a.azimuth_deg - n.azimuth_deg).rem_euclid(360.0);
+            assert!((turn - 15.0).abs() < 1e-9, "{a:?} {n:?}");
+            assert_eq!(a.elevation_deg, n.elevation_deg);
+        }
+        let out = crate::simulate(&s, 1).unwrap();
+        assert_eq!(out.meta.photodiodes, assumed);
+        let mut short = s.clone();
+        short.photodiodes.assumed.as_mut().unwrap().pop();
+        assert_eq!(field_of(short.validate()), "photodiodes.assumed");
+        let mut bad = s;
+        bad.photodiodes.assumed.as_mut().unwrap()[2].elevation_deg = 91.0;
+        assert_eq!(field_of(bad.validate()), "photodiodes.assumed[2]");
     }
 
     #[test]

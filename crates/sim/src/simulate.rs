@@ -4,9 +4,9 @@ use nalgebra::{Matrix3, Vector3, Vector4};
 use pdcal_albedo::{AlbedoError, AlbedoModel, AlbedoView, MapChoice, MapError};
 use pdcal_attitude::Quat;
 use pdcal_dataset::{
-    Dataset, DatasetMeta, Effect, EpochUtc, FORMAT_VERSION, Inertia, NoiseHints, OrbitSpec,
-    Samples, Telemetry, TemperatureColumn, TruePd, TruthConstants, TruthSeries,
-    photodiode_temperature_column,
+    CurrentColumn, Dataset, DatasetMeta, Effect, EpochUtc, FORMAT_VERSION, Inertia, NoiseHints,
+    OrbitSpec, Samples, Telemetry, TemperatureColumn, TrueMagnetometer, TruePd, TruthConstants,
+    TruthSeries, current_column, photodiode_temperature_column,
 };
 use pdcal_ephem::igrf::IgrfError;
 use pdcal_ephem::{OrbitError, ReferenceError, ReferenceModel, TimeError, TleOrbit};
@@ -22,7 +22,7 @@ use crate::dynamics::{
 };
 use crate::random::{self, Seed, Stream};
 use crate::scenario::{
-    InitialAttitude, InitialRate, Scenario, ScenarioError, ScenarioOrbit, Thermal,
+    InitialAttitude, InitialRate, Scenario, ScenarioError, ScenarioOrbit, Spread, Thermal,
 };
 
 /// Why a simulation failed.
@@ -395,6 +395,7 @@ impl Series {
                 pd_v: vec![Samples::with_capacity(rows); n_pd],
                 r_gcrf_km: None,
                 temperature_c: Vec::new(),
+                current_a: Vec::new(),
             },
             truth: TruthSeries::default(),
             sun_gcrf: Vec::with_capacity(rows),
@@ -457,9 +458,16 @@ impl Sensors {
             + random::normal3(&mut self.gyro_noise) * self.gyro_sigma_rad_s
     }
 
-    /// A magnetometer sample: `A B_ref + bias + noise`.
-    fn magnetometer(&mut self, mag_body_nt: &Vector3<f64>) -> Vector3<f64> {
-        let biased = (self.effects.iter()).fold(*mag_body_nt, |b, e| e.corrupt_mag(b));
+    /// A magnetometer sample: `T A B_ref + b + sum_j c_j u_j + bias + noise`, `u` every
+    /// current channel's value at the row.
+    fn magnetometer(
+        &mut self,
+        mag_body_nt: &Vector3<f64>,
+        errors: &TrueMagErrors,
+        u: &[f64],
+    ) -> Vector3<f64> {
+        let field = errors.apply(mag_body_nt, u);
+        let biased = (self.effects.iter()).fold(field, |b, e| e.corrupt_mag(b));
         biased + random::normal3(&mut self.mag_noise) * self.mag_sigma_nt
     }
 
@@ -486,6 +494,84 @@ impl Sensors {
     }
 }
 
+/// The magnetometer's drawn errors; the identity without `magnetometer.errors`.
+struct TrueMagErrors {
+    t: Matrix3<f64>,
+    bias_nt: Vector3<f64>,
+    /// `c_j` per current channel (zero for a channel that does not drive the sensor).
+    coeff_nt: Vec<Vector3<f64>>,
+}
+
+impl TrueMagErrors {
+    /// Draws the errors of `scenario` from the hardware stream: `T = (I + D + S) N`.
+    fn draw(scenario: &Scenario, rng: &mut ChaCha8Rng) -> Self {
+        let channels = scenario.currents.len();
+        let Some(errors) = &scenario.magnetometer.errors else {
+            return TrueMagErrors {
+                t: Matrix3::identity(),
+                bias_nt: Vector3::zeros(),
+                coeff_nt: vec![Vector3::zeros(); channels],
+            };
+        };
+        let signed = |spread, rng: &mut ChaCha8Rng| {
+            let magnitude = random::draw(spread, rng);
+            if random::draw(&Spread::Uniform { min: 0.0, max: 1.0 }, rng) < 0.5 {
+                -magnitude
+            } else {
+                magnitude
+            }
+        };
+        let mut soft = Matrix3::identity();
+        for a in 0..3 {
+            soft[(a, a)] += signed(&errors.scale, rng);
+        }
+        for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+            let v = signed(&errors.soft_iron, rng);
+            soft[(a, b)] = v;
+            soft[(b, a)] = v;
+        }
+        let mut nonortho = Matrix3::identity();
+        for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+            nonortho[(a, b)] = signed(&errors.nonorthogonality_deg, rng).to_radians().sin();
+        }
+        let bias_nt = Vector3::from_fn(|_, _| signed(&errors.hard_iron_nt, rng));
+        let coeff_nt = (scenario.currents.iter())
+            .map(|c| {
+                let drawn = Vector3::from_fn(|_, _| signed(&errors.current_bias_nt_per_a, rng));
+                if c.drives_mag {
+                    drawn
+                } else {
+                    Vector3::zeros()
+                }
+            })
+            .collect();
+        TrueMagErrors {
+            t: soft * nonortho,
+            bias_nt,
+            coeff_nt,
+        }
+    }
+
+    /// `T B + b + sum_j c_j u_j`.
+    fn apply(&self, b_nt: &Vector3<f64>, u: &[f64]) -> Vector3<f64> {
+        (self.coeff_nt.iter().zip(u)).fold(self.t * b_nt + self.bias_nt, |m, (c, uj)| m + c * *uj)
+    }
+
+    /// truth.ron's record, when the scenario has errors.
+    fn record(&self, scenario: &Scenario) -> Option<TrueMagnetometer> {
+        scenario.magnetometer.errors.as_ref()?;
+        Some(TrueMagnetometer {
+            matrix: [0, 1, 2].map(|a| [0, 1, 2].map(|b| self.t[(a, b)])),
+            bias_nt: [self.bias_nt.x, self.bias_nt.y, self.bias_nt.z],
+            current_bias_nt_per_a: (scenario.currents.iter())
+                .zip(&self.coeff_nt)
+                .filter(|(c, _)| c.drives_mag)
+                .map(|(c, v)| (current_column(&c.name), [v.x, v.y, v.z]))
+                .collect(),
+        })
+    }
+}
+
 /// dataset.ron of a scenario: its name, epoch, TLE, nominal layout and noise hints.
 fn dataset_meta(scenario: &Scenario, epoch_utc: EpochUtc) -> DatasetMeta {
     let ScenarioOrbit::Tle { line1, line2 } = &scenario.orbit;
@@ -497,7 +583,11 @@ fn dataset_meta(scenario: &Scenario, epoch_utc: EpochUtc) -> DatasetMeta {
             line1: line1.clone(),
             line2: line2.clone(),
         },
-        photodiodes: scenario.photodiodes.nominal.clone(),
+        photodiodes: scenario
+            .photodiodes
+            .assumed
+            .clone()
+            .unwrap_or_else(|| scenario.photodiodes.nominal.clone()),
         noise: Some(NoiseHints {
             gyro_rad_s: Some(scenario.gyro.noise_rad_s),
             mag_nt: Some(scenario.magnetometer.noise_nt),
@@ -626,6 +716,14 @@ pub fn simulate_downlink(
             .collect();
         temperature_true_c = vec![Vec::with_capacity(grid.rows_us.len()); n_pd];
     }
+    out.telemetry.current_a = (scenario.currents.iter())
+        .map(|c| CurrentColumn {
+            name: current_column(&c.name),
+            values: Vec::with_capacity(grid.rows_us.len()),
+        })
+        .collect();
+    let mag_errors = TrueMagErrors::draw(scenario, &mut streams.stream(Stream::MagHardware));
+    let mut currents = vec![0.0; scenario.currents.len()];
     let mut sensors = Sensors::new(scenario, streams);
     for &t_us in &grid.rows_us {
         let k = event(t_us);
@@ -638,9 +736,17 @@ pub fn simulate_downlink(
             .then(|| sensors.gyro(t_us, &state.w_body_rad_s));
         out.telemetry.gyro_rad_s.push(gyro);
         let mag_body_nt = a * env.b_gcrf_nt;
+        let sun_body = a * env.sun_gcrf;
+        for ((u, channel), column) in (currents.iter_mut())
+            .zip(&scenario.currents)
+            .zip(&mut out.telemetry.current_a)
+        {
+            *u = channel.current_a(t_s, &sun_body, env.nu);
+            column.values.push(Some(*u));
+        }
         let mag = grid
             .samples(MAG, t_us)
-            .then(|| sensors.magnetometer(&mag_body_nt));
+            .then(|| sensors.magnetometer(&mag_body_nt, &mag_errors, &currents));
         if let Some(column) = out.telemetry.mag_nt.as_mut() {
             column.push(mag);
         }
@@ -672,7 +778,7 @@ pub fn simulate_downlink(
         out.truth.q.push(Vector4::new(q.x, q.y, q.z, q.w));
         out.truth.w_body_rad_s.push(state.w_body_rad_s);
         out.truth.gyro_bias_rad_s.push(sensors.gyro_bias_rad_s);
-        out.truth.sun_body.push(a * env.sun_gcrf);
+        out.truth.sun_body.push(sun_body);
         out.truth.eclipse.push(shadow.factor(env.nu));
         out.truth.r_gcrf_km.push(env.r_gcrf_km);
         out.truth.mag_body_nt.push(mag_body_nt);
@@ -687,6 +793,7 @@ pub fn simulate_downlink(
         constants: TruthConstants {
             photodiodes: true_pds,
             effects: scenario.effects.clone(),
+            magnetometer: mag_errors.record(scenario),
         },
         sun_gcrf: out.sun_gcrf,
         mag_gcrf_nt: out.mag_gcrf_nt,

@@ -52,6 +52,7 @@ pub const PDCAL: Rules = Rules {
             &["pdcal-effects", "pdcal-attitude", "pdcal-ephem"],
         ),
         ("pdcal-import", &["pdcal-dataset", "pdcal-ephem"]),
+        ("pdcal-magcal", &["pdcal-ephem"]),
         (
             "pdcal-sim",
             &[
@@ -105,6 +106,7 @@ pub const PDCAL: Rules = Rules {
                 "pdcal-evaluate",
                 "pdcal-diagnose",
                 "pdcal-report",
+                "pdcal-magcal",
             ],
         ),
         (
@@ -130,6 +132,7 @@ pub const PDCAL: Rules = Rules {
                 "pdcal-filter",
                 "pdcal-evaluate",
                 "pdcal-diagnose",
+                "pdcal-magcal",
             ],
         ),
         (

@@ -181,6 +181,11 @@ pub fn truth_constants(n: usize) -> TruthConstants {
                 scale_error: [0.01, -0.005, 0.0],
             },
         ],
+        magnetometer: Some(pdcal_dataset::TrueMagnetometer {
+            matrix: [[1.03, 0.02, -0.01], [0.0, 0.97, 0.015], [0.0, 0.0, 1.01]],
+            bias_nt: [3000.0, -2500.0, 4100.5],
+            current_bias_nt_per_a: vec![("cur_px_A".into(), [400.0, -300.0, 650.25])],
+        }),
     }
 }
 
