@@ -64,7 +64,7 @@ pub fn run(
     }
     .to_owned();
     if let Some(cut) = cut {
-        mode = format!("{mode}, passes of {} s every {} s", cut.on_s, cut.period_s);
+        mode = format!("{mode}{}", cut.describe());
     }
     if sets > 1 {
         mode = format!("{mode}, {sets} sets {SET_SPACING_DAYS} days apart calibrated jointly");
@@ -85,7 +85,7 @@ pub fn run(
     }
     print!("{table}");
     let mut tag = match cut {
-        Some(cut) => format!("-passes-{}-{}", cut.on_s, cut.period_s),
+        Some(cut) => cut.tag(),
         None => String::new(),
     };
     if sets > 1 {

@@ -27,6 +27,8 @@
 //! - [`mekf`]: attitude-error vector (rotation vector, `A(q_true) = A(dq(a)) A(q_est)`)
 //!   and multiplicative reset, closed-form propagation from a gyro rate, the 6x6
 //!   discrete `Phi` and `Qd` of attitude error + gyro bias.
+//! - [`dynamics`]: the rigid body (inertia checked physical), Euler's equations, the
+//!   quaternion kinematics, the gravity-gradient torque and an RK4 integrator.
 //! - [`vector_pairs`]: Davenport's q-method and TRIAD.
 //! - [`direction`]: photodiode normal from azimuth/elevation (paper Eq. 16), its
 //!   partials (Eqs. 23-24), and a tangent-plane parametrisation free of the pole
@@ -39,6 +41,7 @@
 //! Wahba-problem solvers in this convention, and they are a few closed forms each.
 
 pub mod direction;
+pub mod dynamics;
 mod error;
 pub mod mekf;
 pub mod quat;

@@ -245,6 +245,12 @@ pub enum ErrorKind {
         /// The name found.
         value: String,
     },
+    /// dataset.ron's `inertia_kg_m2` is no rigid body's.
+    #[error("not a rigid body's inertia: {reason}")]
+    BadInertia {
+        /// Which check failed, with the values.
+        reason: String,
+    },
     /// The same effect listed twice in truth.ron.
     #[error("effect {id:?} is listed twice")]
     DuplicateEffect {

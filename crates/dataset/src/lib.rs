@@ -77,8 +77,8 @@ pub use files::{
     read_meta, read_telemetry, read_truth, render_dataset, write_dataset,
 };
 pub use meta::{
-    DatasetMeta, EpochUtc, FORMAT_VERSION, MetaFields, NoiseHints, NominalMount, OrbitSpec,
-    meta_from_fields, meta_from_str,
+    DatasetMeta, EpochUtc, FORMAT_VERSION, Inertia, MetaFields, NoiseHints, NominalMount,
+    OrbitSpec, meta_from_fields, meta_from_str,
 };
 pub use pdcal_effects::{Effect, EffectId};
 pub use ron_text::{RonFault, RonFaultKind, parse_ron};

@@ -3,6 +3,8 @@
 use std::path::Path;
 
 use hifitime::Epoch;
+use nalgebra::Matrix3;
+use pdcal_attitude::dynamics::RigidBody;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{DatasetError, ErrorKind, text_of};
@@ -30,6 +32,9 @@ pub struct DatasetMeta {
     /// Optional 1-sigma noise hints for filter tuning.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub noise: Option<NoiseHints>,
+    /// Optional inertia tensor about the centre of mass, body frame (checked physical).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub inertia_kg_m2: Option<Inertia>,
 }
 
 /// dataset.ron as parsed, before the epoch text is checked.
@@ -43,6 +48,58 @@ struct RawMeta {
     photodiodes: Vec<NominalMount>,
     #[serde(default)]
     noise: Option<NoiseHints>,
+    #[serde(default)]
+    inertia_kg_m2: Option<Inertia>,
+}
+
+/// The inertia tensor about the centre of mass, body frame, kg m^2: the three moments and
+/// the three products (`xy = J[0][1]`, the tensor's entry, not its negative); a product left
+/// out is zero.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Inertia {
+    /// `J_xx`, kg m^2.
+    pub xx: f64,
+    /// `J_yy`, kg m^2.
+    pub yy: f64,
+    /// `J_zz`, kg m^2.
+    pub zz: f64,
+    /// `J_xy = J_yx`, kg m^2.
+    #[serde(default)]
+    pub xy: f64,
+    /// `J_xz = J_zx`, kg m^2.
+    #[serde(default)]
+    pub xz: f64,
+    /// `J_yz = J_zy`, kg m^2.
+    #[serde(default)]
+    pub yz: f64,
+}
+
+impl Inertia {
+    /// The symmetric tensor `J`, kg m^2.
+    pub fn matrix(&self) -> Matrix3<f64> {
+        Matrix3::new(
+            self.xx, self.xy, self.xz, self.xy, self.yy, self.yz, self.xz, self.yz, self.zz,
+        )
+    }
+
+    /// The tensor's entries of a symmetric `J` (the upper triangle is read).
+    pub fn from_matrix(j: &Matrix3<f64>) -> Self {
+        Inertia {
+            xx: j[(0, 0)],
+            yy: j[(1, 1)],
+            zz: j[(2, 2)],
+            xy: j[(0, 1)],
+            xz: j[(0, 2)],
+            yz: j[(1, 2)],
+        }
+    }
+
+    /// The rigid body of this tensor: finite, positive definite, principal moments obeying
+    /// the triangle inequality ([`RigidBody::new`]), else why not.
+    pub fn rigid_body(&self) -> Result<RigidBody, String> {
+        RigidBody::new(self.matrix()).map_err(|e| e.to_string())
+    }
 }
 
 /// Where the orbit comes from.
@@ -193,6 +250,8 @@ pub struct MetaFields {
     pub photodiodes: Vec<NominalMount>,
     /// Optional 1-sigma noise hints.
     pub noise: Option<NoiseHints>,
+    /// Optional inertia tensor, kg m^2.
+    pub inertia_kg_m2: Option<Inertia>,
 }
 
 /// dataset.ron's layout, field for field as [`DatasetMeta`] serialises.
@@ -205,6 +264,8 @@ struct MetaText<'a> {
     photodiodes: &'a [NominalMount],
     #[serde(skip_serializing_if = "Option::is_none")]
     noise: &'a Option<NoiseHints>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    inertia_kg_m2: &'a Option<Inertia>,
 }
 
 /// The metadata of `fields`, checked by the one reader: they are rendered as the writer
@@ -220,6 +281,7 @@ pub fn meta_from_fields(fields: &MetaFields) -> Result<DatasetMeta, DatasetError
             orbit: &fields.orbit,
             photodiodes: &fields.photodiodes,
             noise: &fields.noise,
+            inertia_kg_m2: &fields.inertia_kg_m2,
         },
     )?;
     meta_from_str(&text)
@@ -252,6 +314,11 @@ pub(crate) fn parse_meta(file: &Path, text: &str) -> Result<DatasetMeta, Dataset
     if let Some(noise) = &raw.noise {
         check_noise(file, noise)?;
     }
+    if let Some(inertia) = &raw.inertia_kg_m2 {
+        inertia
+            .rigid_body()
+            .map_err(|reason| at_key("inertia_kg_m2", ErrorKind::BadInertia { reason }))?;
+    }
     Ok(DatasetMeta {
         format_version: raw.format_version,
         name: raw.name,
@@ -259,6 +326,7 @@ pub(crate) fn parse_meta(file: &Path, text: &str) -> Result<DatasetMeta, Dataset
         orbit: raw.orbit,
         photodiodes: raw.photodiodes,
         noise: raw.noise,
+        inertia_kg_m2: raw.inertia_kg_m2,
     })
 }
 

@@ -16,6 +16,7 @@ fn fields(meta: &DatasetMeta) -> MetaFields {
         orbit: meta.orbit.clone(),
         photodiodes: meta.photodiodes.clone(),
         noise: meta.noise,
+        inertia_kg_m2: meta.inertia_kg_m2,
     }
 }
 

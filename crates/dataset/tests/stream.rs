@@ -26,6 +26,7 @@ fn meta() -> DatasetMeta {
             2
         ],
         noise: None,
+        inertia_kg_m2: None,
     }
 }
 

@@ -26,6 +26,10 @@ pub enum FilterError {
         /// What the field must satisfy.
         rule: String,
     },
+    /// The run needs what the dataset does not give (the message says what and where it
+    /// goes: the inertia in dataset.ron, gyro columns in telemetry.csv).
+    #[error("{0}")]
+    Missing(String),
     /// The RON text of a config or calibration could not be parsed or written.
     #[error("{what}: {message}")]
     Ron {

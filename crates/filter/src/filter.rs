@@ -14,6 +14,7 @@ use crate::dense;
 use crate::error::check_len;
 use crate::guard::{self, CovarianceRepair};
 use crate::layout::{ATTITUDE, BIAS, CORE, StateLayout};
+use crate::rate::{Matrix9, RateModel};
 use crate::sequential::{self, Outcome, Rows, Workspace};
 use crate::{FilterError, StepReference};
 
@@ -160,6 +161,33 @@ pub struct Propagation {
     pub qd: Matrix6<f64>,
     /// Step, s.
     pub dt_s: f64,
+    /// With dynamics ([`crate::rate`]): `Phi` and `Qd` of `[a, beta, w]` (`phi` and `qd`
+    /// above are then unused) and the body rate the step ended with.
+    pub rate: Option<Box<RatePropagation>>,
+}
+
+/// One dynamics-aided propagation as the smoother needs it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RatePropagation {
+    /// `Phi` of `[a, beta, w]`.
+    pub phi: Matrix9,
+    /// `Qd` of `[a, beta, w]`.
+    pub qd: Matrix9,
+    /// The states `[a, beta, w]` index.
+    pub idx: [usize; 9],
+    /// Body rate at the end of the step (the prior), rad/s.
+    pub w_prior_body_rad_s: Vector3<f64>,
+}
+
+/// The filter's body-rate state with dynamics ([`Filter::enable_dynamics`]).
+#[derive(Debug, Clone)]
+struct RateFilter {
+    model: RateModel,
+    /// `[a, beta, w]` state indices.
+    idx: [usize; 9],
+    w_body_rad_s: Vector3<f64>,
+    /// Gyro noise variance per sample, (rad/s)^2.
+    gyro_var: f64,
 }
 
 /// The filter.
@@ -188,6 +216,8 @@ pub struct Filter {
     sun_only: bool,
     /// The unit Sun direction in the body at the current step's prior attitude.
     prior_sun_body: Vector3<f64>,
+    /// The body-rate state and its dynamics, when enabled.
+    rate: Option<RateFilter>,
 }
 
 /// What the next step of a [`Filter`] reads of its past: a restart point
@@ -205,6 +235,7 @@ pub struct FilterState {
     parameters: Vec<f64>,
     counts: UpdateCounts,
     last: Option<Propagation>,
+    w_body_rad_s: Option<Vector3<f64>>,
 }
 
 /// Preallocated work space: nothing is allocated per step.
@@ -355,7 +386,133 @@ impl Filter {
             last: None,
             sun_only: false,
             prior_sun_body: Vector3::zeros(),
+            rate: None,
         })
+    }
+
+    /// Adds the body rate `w` as three states (last in the layout) propagated by `model`'s
+    /// dynamics ([`crate::rate`]): [`Filter::propagate_dynamics`] then replaces
+    /// [`Filter::propagate`], and [`Filter::update_gyro`] takes the gyro as a measurement of
+    /// `w + beta` with variance `gyro_sigma_rad_s^2`. Starts from `w0` with sigma
+    /// `w_sigma_rad_s` per axis, uncorrelated.
+    pub fn enable_dynamics(
+        &mut self,
+        model: RateModel,
+        w0_body_rad_s: Vector3<f64>,
+        w_sigma_rad_s: f64,
+        gyro_sigma_rad_s: f64,
+    ) {
+        let index = self.layout.add_rate_states();
+        let n = self.layout.len();
+        if self.p.nrows() != n {
+            self.p = self.p.clone().resize(n, n, 0.0);
+            for k in index..n {
+                self.p[(k, k)] = w_sigma_rad_s * w_sigma_rad_s;
+            }
+            self.initial_variance = self.p.diagonal().iter().copied().collect();
+            let m = self.scale.len();
+            self.scratch.dx = DVector::zeros(n);
+            self.scratch.cal_noise = DVector::zeros(n);
+            self.scratch.pending = Pending::new(n, 6 + m);
+        }
+        self.rate_est = w0_body_rad_s;
+        self.rate = Some(RateFilter {
+            model,
+            idx: [0, 1, 2, 3, 4, 5, index, index + 1, index + 2],
+            w_body_rad_s: w0_body_rad_s,
+            gyro_var: gyro_sigma_rad_s * gyro_sigma_rad_s,
+        });
+    }
+
+    /// Whether the body rate is a state ([`Filter::enable_dynamics`]).
+    pub fn has_dynamics(&self) -> bool {
+        self.rate.is_some()
+    }
+
+    /// The body-rate estimate, rad/s: the state with dynamics, else the bias-corrected gyro
+    /// rate of the last propagation.
+    pub fn rate_body_rad_s(&self) -> Vector3<f64> {
+        self.rate.as_ref().map_or(self.rate_est, |r| r.w_body_rad_s)
+    }
+
+    /// Sets the body-rate state to `w0` with sigma `w_sigma_rad_s` per axis, uncorrelated
+    /// (an acquisition); nothing without dynamics.
+    pub fn set_rate(&mut self, w0_body_rad_s: Vector3<f64>, w_sigma_rad_s: f64) {
+        let Some(r) = self.rate.as_mut() else {
+            return;
+        };
+        r.w_body_rad_s = w0_body_rad_s;
+        for &k in &r.idx[6..] {
+            self.p.row_mut(k).fill(0.0);
+            self.p.column_mut(k).fill(0.0);
+            self.p[(k, k)] = w_sigma_rad_s * w_sigma_rad_s;
+        }
+    }
+
+    /// Propagates over `dt_s` by the rigid-body dynamics ([`crate::rate`]), the position
+    /// moving from `r0_gcrf_km` to `r1_gcrf_km`: attitude and rate integrated, `P <- Phi P
+    /// Phi^T + Q` with `Phi` on `[a, beta, w]` and identity elsewhere, the calibration
+    /// states a random walk (Eq. 19). Without dynamics, nothing.
+    pub fn propagate_dynamics(
+        &mut self,
+        r0_gcrf_km: &Vector3<f64>,
+        r1_gcrf_km: &Vector3<f64>,
+        dt_s: f64,
+    ) {
+        let Some(r) = self.rate.as_mut() else {
+            return;
+        };
+        let step = crate::rate::propagate(
+            &r.model,
+            &self.q,
+            &r.w_body_rad_s,
+            (r0_gcrf_km, r1_gcrf_km),
+            dt_s,
+        );
+        self.q = step.q;
+        r.w_body_rad_s = step.w_body_rad_s;
+        self.rate_est = step.w_body_rad_s;
+        let idx = r.idx;
+        self.fill_calibration_noise(dt_s);
+        crate::rate::propagate_covariance(
+            &mut self.p,
+            &idx,
+            &step.phi,
+            &step.qd,
+            self.scratch.cal_noise.as_slice(),
+        );
+        self.last = Some(Propagation {
+            phi: Matrix6::identity(),
+            qd: Matrix6::zeros(),
+            dt_s,
+            rate: Some(Box::new(RatePropagation {
+                phi: step.phi,
+                qd: step.qd,
+                idx,
+                w_prior_body_rad_s: step.w_body_rad_s,
+            })),
+        });
+    }
+
+    /// The gyro sample `gyro_rad_s` as a measurement of `w + beta` (three scalar rows,
+    /// gated like the photodiodes'), with the reset. Without dynamics, nothing.
+    pub fn update_gyro(&mut self, gyro_rad_s: &Vector3<f64>) -> Result<(), FilterError> {
+        let Some(r) = self.rate.as_ref() else {
+            return Ok(());
+        };
+        let s = &mut self.scratch;
+        s.rows.clear();
+        let predicted = r.w_body_rad_s + self.bias;
+        for k in 0..3 {
+            s.rows.begin(gyro_rad_s[k] - predicted[k], r.gyro_var);
+            s.rows.entry(BIAS + k, 1.0);
+            s.rows.entry(r.idx[6 + k], 1.0);
+        }
+        self.run_rows();
+        if self.scratch.outcome.iter().any(|o| o.accepted) {
+            self.reset()?;
+        }
+        Ok(())
     }
 
     /// Propagates over `dt_s` with the measured rate `gyro_rad_s` (held or averaged by the
@@ -377,7 +534,12 @@ impl Filter {
             Algebra::Structured => self.propagate_structured(&phi, &qd),
             Algebra::Dense => dense::propagate(&mut self.p, &phi, &qd, &self.scratch.cal_noise),
         }
-        self.last = Some(Propagation { phi, qd, dt_s });
+        self.last = Some(Propagation {
+            phi,
+            qd,
+            dt_s,
+            rate: None,
+        });
     }
 
     /// Starts a new segment `dt_s` after the last processed row (a gap, or an attitude
@@ -396,6 +558,20 @@ impl Filter {
         let bias_walk = self.noise.gyro.sigma_u_rad_s_sqrt_s.powi(2) * dt_s;
         for k in 0..3 {
             self.p[(BIAS + k, BIAS + k)] += bias_walk;
+        }
+        if let Some(r) = &self.rate {
+            // The unknown torque's walk of the rate over the gap (the rate keeps its value:
+            // the gyro or the vector measurements correct it).
+            let j_inv = r
+                .model
+                .body
+                .inertia_kg_m2()
+                .try_inverse()
+                .unwrap_or_default();
+            let walk = j_inv * j_inv.transpose() * (r.model.torque_psd * dt_s);
+            let k = r.idx[6];
+            let mut block = self.p.fixed_view_mut::<3, 3>(k, k);
+            block += walk;
         }
         for k in ATTITUDE..ATTITUDE + 3 {
             self.p.row_mut(k).fill(0.0);
@@ -751,9 +927,9 @@ impl Filter {
         }
     }
 
-    /// Runs the step's rows through the algebra, records each and counts it. Whether any
-    /// was accepted.
-    fn apply_rows(&mut self) -> bool {
+    /// The rows in `scratch.rows` through the algebra: the correction into `scratch.dx`,
+    /// the covariance updated, each row's fate in `scratch.outcome`.
+    fn run_rows(&mut self) {
         let s = &mut self.scratch;
         let gate2 = self.noise.gate_sigmas.powi(2);
         s.dx.fill(0.0);
@@ -774,6 +950,13 @@ impl Filter {
                 dense::sequential_update(&mut self.p, &s.rows, gate2, &mut s.dx, &mut s.outcome)
             }
         }
+    }
+
+    /// Runs the step's rows through the algebra, records each and counts it. Whether any
+    /// was accepted.
+    fn apply_rows(&mut self) -> bool {
+        self.run_rows();
+        let s = &mut self.scratch;
         let mut any = false;
         for (o, &(sensor, measured)) in s.outcome.iter().zip(&s.sources) {
             self.records.push(UpdateRecord {
@@ -862,6 +1045,10 @@ impl Filter {
         self.q = apply_small_error(&self.q, &a);
         let turn = self.q.attitude_matrix() * before.transpose();
         self.bias += Vector3::new(dx[BIAS], dx[BIAS + 1], dx[BIAS + 2]);
+        if let Some(r) = self.rate.as_mut() {
+            let k = r.idx[6];
+            r.w_body_rad_s += Vector3::new(dx[k], dx[k + 1], dx[k + 2]);
+        }
         self.reset_photodiodes();
         let dx = &self.scratch.dx;
         for e in self.layout.extras() {
@@ -973,6 +1160,7 @@ impl Filter {
             parameters: self.model.parameters().map(|(_, p)| p.value).collect(),
             counts: self.counts,
             last: self.last.clone(),
+            w_body_rad_s: self.rate.as_ref().map(|r| r.w_body_rad_s),
         }
     }
 
@@ -998,6 +1186,9 @@ impl Filter {
         }
         self.counts = state.counts;
         self.last.clone_from(&state.last);
+        if let (Some(r), Some(w)) = (self.rate.as_mut(), state.w_body_rad_s) {
+            r.w_body_rad_s = w;
+        }
         Ok(())
     }
 

@@ -128,6 +128,9 @@ pub struct StartInputs<'a> {
     pub bias_sigma_rad_s: f64,
     /// How far the gyro and magnetometer samples may be from the photodiode row.
     pub rules: GapRules,
+    /// Without gyro samples, the body rate the dynamics carry, rad/s: it stands in for the
+    /// bias-corrected gyro (a row then needs no gyro sample near it).
+    pub rate_without_gyro: Option<Vector3<f64>>,
 }
 
 /// The first row of `rows` in full Sun with photodiode samples, a gyro sample within the
@@ -182,8 +185,11 @@ pub fn find_start(
             reached(1);
             continue;
         }
-        let Some((gyro_t_s, gyro_rad_s)) = nearest_gyro(tel, &rows, k, inputs.rules.gyro_hold_s)
-        else {
+        let gyro = match inputs.rate_without_gyro {
+            Some(rate) => Some((tel.t_s[k], rate + inputs.bias_rad_s)),
+            None => nearest_gyro(tel, &rows, k, inputs.rules.gyro_hold_s),
+        };
+        let Some((gyro_t_s, gyro_rad_s)) = gyro else {
             reached(2);
             continue;
         };

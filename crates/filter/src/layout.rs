@@ -53,6 +53,8 @@ pub struct StateLayout {
     /// Per photodiode, the frame of its reference normal, computed once (the part of
     /// [`pdcal_attitude::tangent_basis_about`] that does not depend on the current normal).
     reference_frames: Vec<TangentFrame>,
+    /// State index of the body-rate error `dw` (3 states, last), with dynamics only.
+    rate: Option<usize>,
 }
 
 impl StateLayout {
@@ -99,7 +101,22 @@ impl StateLayout {
             pd_extras,
             reference_frames: reference_normals.iter().map(TangentFrame::about).collect(),
             reference_normals,
+            rate: None,
         }
+    }
+
+    /// Appends the three body-rate states of the dynamics-aided propagation
+    /// ([`crate::rate`]) after every other state, once; their first index.
+    pub fn add_rate_states(&mut self) -> usize {
+        *self.rate.get_or_insert_with(|| {
+            self.len += 3;
+            self.len - 3
+        })
+    }
+
+    /// State index of the body-rate error `dw` (3 states), with dynamics only.
+    pub fn rate(&self) -> Option<usize> {
+        self.rate
     }
 
     /// Sets the normals the tangent bases are taken about (the filter's initial normals).

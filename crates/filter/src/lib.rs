@@ -102,6 +102,7 @@ pub mod init;
 pub mod layout;
 pub mod mounting;
 pub mod output;
+pub mod rate;
 pub mod references;
 pub mod run;
 pub mod screen;
@@ -112,7 +113,7 @@ pub mod smoother;
 pub use bias_fit::{BiasSource, InitialBias};
 pub use bounded::{Bounded, LISTED_ROWS};
 pub use calibration::{Calibration, ParameterEstimate, PdCalibration};
-pub use config::{FilterConfig, Mode, ParameterSigma, SensorSigmas};
+pub use config::{Dynamics, FilterConfig, Mode, ParameterSigma, SensorSigmas};
 pub use consistency::{Consistency, ConsistencyAccumulator, Verdict};
 pub use error::FilterError;
 pub use filter::{

@@ -10,7 +10,7 @@ use pdcal_photodiode::{Albedo, DirectSun, MeasurementModel, Photodiode};
 
 use crate::bias_fit::{BiasSource, FitInputs, FitPrior, InitialBias, fit_bias};
 use crate::calibration::Calibration;
-use crate::config::{E_AM0_W_M2, FilterConfig, Mode, SensorSigmas};
+use crate::config::{Dynamics, E_AM0_W_M2, FilterConfig, Mode, SensorSigmas};
 use crate::error::check_len;
 use crate::filter::{
     Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Sensor, StateView,
@@ -19,6 +19,7 @@ use crate::guard::RepairLog;
 use crate::init::{Start, StartInputs, find_start, initial_scales};
 use crate::layout::{ATTITUDE, BIAS, StateLayout};
 use crate::output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
+use crate::rate::RateModel;
 use crate::screen::{Channel, Rejections, ScreenTolerances, find_outliers, remove_outliers};
 use crate::segments::{
     Acquisition, GapRules, InnovationWindow, SegmentBreak, SegmentReport, attitude_sigma_rad,
@@ -266,6 +267,8 @@ struct Cursor {
     last_gyro_t_s: f64,
     /// Time of the last processed row, s.
     last_t_s: f64,
+    /// Position at the last processed row, GCRF, km (the dynamics' gravity gradient).
+    last_r_gcrf_km: Vector3<f64>,
     /// The next step must first acquire the attitude (a segment ended).
     acquiring: bool,
     window: InnovationWindow,
@@ -299,6 +302,8 @@ pub struct ForwardPass<'a> {
     rules: GapRules,
     use_mag: bool,
     average_gyro: bool,
+    /// The telemetry has gyro samples.
+    has_gyro: bool,
     min_sun_fraction: f64,
     mode_used: ModeUsed,
     start: usize,
@@ -476,6 +481,15 @@ impl<'a> ForwardPass<'a> {
         };
         let mut filter = Filter::new(model, layout, init, noise, algebra)?;
         filter.set_sun_only(!use_mag);
+        if let Some(rate_model) = dynamics_model(inputs.meta, tel, config, &rules)? {
+            // The rate is set at each acquisition; until then it is unknown.
+            filter.enable_dynamics(
+                rate_model,
+                Vector3::zeros(),
+                config.initial_rate_sigma_deg_s.to_radians(),
+                sigmas.gyro_rad_s,
+            );
+        }
         let initial = filter.calibration(prior);
         let mut pass = ForwardPass {
             references: inputs.references,
@@ -485,6 +499,7 @@ impl<'a> ForwardPass<'a> {
             rules,
             use_mag,
             average_gyro: config.average_gyro,
+            has_gyro: tel.gyro_rad_s.iter().any(Option::is_some),
             min_sun_fraction: config.min_sun_fraction,
             mode_used,
             start: 0,
@@ -499,6 +514,7 @@ impl<'a> ForwardPass<'a> {
                 last_gyro: None,
                 last_gyro_t_s: f64::NEG_INFINITY,
                 last_t_s: tel.t_s[0],
+                last_r_gcrf_km: Vector3::zeros(),
                 acquiring: true,
                 window: InnovationWindow::new(&config.segments),
                 acquired_sigma_deg: 0.0,
@@ -557,6 +573,8 @@ impl<'a> ForwardPass<'a> {
                     bias_rad_s: self.filter.bias_rad_s(),
                     bias_sigma_rad_s: bias_var.sqrt(),
                     rules: self.rules,
+                    rate_without_gyro: (self.filter.has_dynamics() && !self.has_gyro)
+                        .then(|| self.filter.rate_body_rad_s()),
                 },
                 first..end,
                 &self.config,
@@ -578,6 +596,13 @@ impl<'a> ForwardPass<'a> {
                     self.at.fresh = true;
                     self.at.last_gyro = Some(start.gyro_rad_s);
                     self.at.last_gyro_t_s = start.gyro_t_s;
+                    if self.has_gyro {
+                        let bias_sigma = bias_var.sqrt();
+                        self.filter.set_rate(
+                            start.gyro_rad_s - self.filter.bias_rad_s(),
+                            bias_sigma.hypot(self.sigmas.gyro_rad_s),
+                        );
+                    }
                     self.at.acquiring = false;
                     self.at.window.clear();
                     self.current.initial_bias = Some(self.initialise_bias(&start, end)?);
@@ -775,10 +800,16 @@ impl<'a> ForwardPass<'a> {
         let t_s = tel.t_s[k];
         let reference = &self.references.at(k)?;
         check_reference(k, t_s, reference)?;
+        let r_gcrf_km = reference.r_gcrf_km;
         let gyro = tel.gyro_rad_s[k];
         self.at.propagated = !self.at.fresh;
         self.at.fresh = false;
-        if self.at.propagated {
+        if self.at.propagated && self.filter.has_dynamics() {
+            let r0 = self.at.last_r_gcrf_km;
+            self.filter
+                .propagate_dynamics(&r0, &reference.r_gcrf_km, t_s - tel.t_s[k - 1]);
+            self.at.prior_q = self.filter.q();
+        } else if self.at.propagated {
             let t0 = tel.t_s[k - 1];
             let before = match tel.gyro_rad_s[k - 1] {
                 Some(g) => Some((t0, g)),
@@ -792,9 +823,11 @@ impl<'a> ForwardPass<'a> {
             self.filter.propagate(&rate, change, t_s - t0);
             self.at.prior_q = self.filter.q();
         }
-        if gyro.is_some() {
+        if let Some(g) = gyro {
             self.at.last_gyro = gyro;
             self.at.last_gyro_t_s = t_s;
+            self.filter.update_gyro(&g)?;
+            self.at.prior_q = self.filter.q();
         }
         for (slot, column) in self.row.iter_mut().zip(&tel.pd_v) {
             *slot = column.get(k);
@@ -844,6 +877,7 @@ impl<'a> ForwardPass<'a> {
         self.current.rows_used += 1;
         self.at.next = k + 1;
         self.at.last_t_s = t_s;
+        self.at.last_r_gcrf_km = r_gcrf_km;
         self.at.held = self.attitude_sigma_deg(k) <= self.config.segments.held_attitude_sigma_deg;
         self.end_segment_if_due(k);
         Ok(Some(k))
@@ -879,8 +913,15 @@ impl<'a> ForwardPass<'a> {
             Some(SegmentBreak::Lost)
         } else {
             let t = &self.telemetry.t_s;
-            t.get(k + 1)
-                .and_then(|&t_next| self.rules.breaks(t[k], t_next, self.at.last_gyro_t_s))
+            t.get(k + 1).and_then(|&t_next| {
+                // The dynamics carry the attitude through a silent gyro.
+                let t_gyro = if self.filter.has_dynamics() {
+                    t_next
+                } else {
+                    self.at.last_gyro_t_s
+                };
+                self.rules.breaks(t[k], t_next, t_gyro)
+            })
         };
         if let Some(ended_by) = ended_by {
             self.close_segment(k, ended_by);
@@ -1045,6 +1086,56 @@ impl<'a> ForwardPass<'a> {
             photodiode_time_used_s: self.photodiode_time_s.clone(),
         }
     }
+}
+
+/// The rigid-body model of the dynamics-aided propagation ([`crate::rate`]) when the
+/// config and the dataset call for it ([`Dynamics`]), else `None`; `dynamics: On` without
+/// the inertia is an error saying so.
+fn dynamics_model(
+    meta: &DatasetMeta,
+    tel: &Telemetry,
+    config: &FilterConfig,
+    rules: &GapRules,
+) -> Result<Option<RateModel>, FilterError> {
+    let has_gyro = tel.gyro_rad_s.iter().any(Option::is_some);
+    let wanted = match config.dynamics {
+        Dynamics::Off => false,
+        Dynamics::On => true,
+        Dynamics::Auto => {
+            meta.inertia_kg_m2.is_some()
+                && (!has_gyro || rules.gyro_step_s > config.dynamics_gyro_step_s)
+        }
+    };
+    let carried = wanted && meta.inertia_kg_m2.is_some();
+    if !has_gyro && !carried {
+        let why = if meta.inertia_kg_m2.is_none() {
+            "and dataset.ron has no inertia_kg_m2 (the filter needs a gyro or, with the \
+             inertia, the rigid-body dynamics to carry the attitude between samples)"
+        } else {
+            "and the filter config turns the dynamics off (dynamics: Off)"
+        };
+        return Err(FilterError::Missing(format!(
+            "telemetry.csv has no gyro sample {why}"
+        )));
+    }
+    if !wanted {
+        return Ok(None);
+    }
+    let Some(inertia) = &meta.inertia_kg_m2 else {
+        return Err(FilterError::Missing(
+            "filter config: dynamics = On needs the spacecraft's inertia: add inertia_kg_m2 \
+             to dataset.ron (docs/dataset-format.md)"
+                .to_owned(),
+        ));
+    };
+    let body = inertia
+        .rigid_body()
+        .map_err(|reason| FilterError::Missing(format!("dataset.ron: inertia_kg_m2: {reason}")))?;
+    Ok(Some(RateModel {
+        body,
+        torque_psd: config.torque_noise_n_m_sqrt_s.powi(2),
+        bias_walk_var_per_s: config.gyro_bias_walk_rad_s_sqrt_s.powi(2),
+    }))
 }
 
 /// A gyro sample: its time, s, and rate, rad/s.

@@ -29,7 +29,7 @@ use pdcal_attitude::{Quat, rotate_normal_in, tangent_basis};
 
 use crate::FilterError;
 use crate::calibration::Calibration;
-use crate::filter::{Filter, Propagation, StateView};
+use crate::filter::{Filter, Propagation, RatePropagation, StateView};
 use crate::layout::{ATTITUDE, BIAS, CORE, StateLayout};
 use crate::output::StepEstimate;
 
@@ -37,6 +37,8 @@ struct Transition {
     phi: Matrix6<f64>,
     qd: Matrix6<f64>,
     q_prior_next: Quat,
+    /// With dynamics: the transition of `[a, beta, w]` instead of `phi`, `qd`.
+    rate: Option<Box<RatePropagation>>,
 }
 
 struct Stored {
@@ -48,6 +50,8 @@ struct Stored {
     scale: Vec<f64>,
     normal: Vec<Vector3<f64>>,
     extras: Vec<f64>,
+    /// The body-rate state, with dynamics.
+    w: Option<Vector3<f64>>,
     next: Option<Transition>,
 }
 
@@ -81,6 +85,7 @@ impl SmootherStore {
                 phi: prop.phi,
                 qd: prop.qd,
                 q_prior_next: q_prior,
+                rate: prop.rate.clone(),
             });
             self.cal_noise.extend(cal_noise.iter());
         }
@@ -107,6 +112,7 @@ impl SmootherStore {
             scale: filter.scales_v().to_vec(),
             normal: filter.normals().to_vec(),
             extras: filter.extra_values(),
+            w: filter.has_dynamics().then(|| filter.rate_body_rad_s()),
             next: None,
         });
     }
@@ -239,6 +245,15 @@ impl Work {
     /// 6 rows (and columns) differ from `P+` (`O(36 n)` instead of two `n^3` products);
     /// `pp` mirrored from its lower triangle so that it is exactly symmetric.
     fn predict(&mut self, trans: &Transition, cal_noise: &[f64]) {
+        if let Some(rate) = &trans.rate {
+            self.gt.copy_from(&self.pf);
+            crate::rate::left_multiply(&mut self.gt, &rate.idx, &rate.phi);
+            self.pp.copy_from(&self.gt);
+            crate::rate::right_multiply_transpose(&mut self.pp, &rate.idx, &rate.phi);
+            crate::rate::add_noise(&mut self.pp, &rate.idx, &rate.qd, cal_noise);
+            self.pp.fill_upper_triangle_with_lower_triangle();
+            return;
+        }
         let n = self.pf.nrows();
         self.gt.copy_from(&self.pf);
         let top = trans.phi * self.pf.rows(0, CORE);
@@ -305,6 +320,7 @@ struct SmoothedState {
     scale: Vec<f64>,
     normal: Vec<Vector3<f64>>,
     extras: Vec<f64>,
+    w: Option<Vector3<f64>>,
 }
 
 impl SmoothedState {
@@ -315,6 +331,7 @@ impl SmoothedState {
             scale: s.scale.clone(),
             normal: s.normal.clone(),
             extras: s.extras.clone(),
+            w: s.w,
         }
     }
 
@@ -327,6 +344,14 @@ impl SmoothedState {
         d: &mut DVector<f64>,
     ) {
         d.fill(0.0);
+        if let (Some(k), Some(w), Some(rate)) = (
+            layout.rate(),
+            self.w,
+            prev.next.as_ref().and_then(|t| t.rate.as_ref()),
+        ) {
+            d.fixed_rows_mut::<3>(k)
+                .copy_from(&(w - rate.w_prior_body_rad_s));
+        }
         let a = error_vector(&self.q, q_prior);
         d.fixed_rows_mut::<3>(ATTITUDE).copy_from(&a);
         d.fixed_rows_mut::<3>(BIAS)
@@ -363,6 +388,9 @@ impl SmoothedState {
         }
         for (e, v) in layout.extras().iter().zip(self.extras.iter_mut()) {
             *v += delta[e.state];
+        }
+        if let (Some(k), Some(w)) = (layout.rate(), self.w.as_mut()) {
+            *w += Vector3::new(delta[k], delta[k + 1], delta[k + 2]);
         }
         self
     }

@@ -111,6 +111,7 @@ fn noise_free_data_converges_to_truth() {
     let (meta, tel, refs, _) = case.build();
     let meta = pdcal_dataset::DatasetMeta {
         noise: None,
+        inertia_kg_m2: None,
         ..meta
     };
     let inputs = RunInputs {

@@ -454,6 +454,7 @@ pub fn convert_stream<R: Read>(
         orbit: orbit_spec(&spec.orbit),
         photodiodes: mounts(spec),
         noise: spec.noise,
+        inertia_kg_m2: spec.inertia_kg_m2,
     };
     Ok(Converted { meta, report })
 }

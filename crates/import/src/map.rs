@@ -3,7 +3,7 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use pdcal_dataset::{DatasetMeta, EpochUtc, NoiseHints, NominalMount, OrbitSpec};
+use pdcal_dataset::{DatasetMeta, EpochUtc, Inertia, NoiseHints, NominalMount, OrbitSpec};
 use serde::Deserialize;
 
 use crate::error::{ErrorKind, ImportError, clip, line_col, number, quote, text_of};
@@ -46,6 +46,9 @@ pub struct MapSpec {
     /// Noise hints copied into dataset.ron (same fields and units).
     #[serde(default)]
     pub noise: Option<NoiseHints>,
+    /// The inertia tensor copied into dataset.ron (same fields and units).
+    #[serde(default)]
+    pub inertia_kg_m2: Option<Inertia>,
     /// The export's cell separator; detected from the header when absent.
     #[serde(default)]
     pub delimiter: Option<Delimiter>,
@@ -813,6 +816,7 @@ fn check_as_dataset(map: &Locator<'_>, spec: &MapSpec) -> Result<(), ImportError
         orbit: orbit_spec(&spec.orbit),
         photodiodes: mounts(spec),
         noise: spec.noise,
+        inertia_kg_m2: spec.inertia_kg_m2,
     };
     let text = ron::to_string(&meta).map_err(|e| {
         ImportError::whole_file(

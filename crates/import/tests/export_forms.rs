@@ -346,3 +346,22 @@ fn the_streamed_export_is_checked_as_text_like_the_map() {
     let e = convert(&map, Path::new("export.csv"), &bytes).unwrap_err();
     assert_eq!(e.to_string(), "export.csv:5006:20: not UTF-8 text");
 }
+
+#[test]
+fn the_maps_inertia_reaches_dataset_ron_and_a_bad_one_is_the_readers_error() {
+    let map = map_text("    inertia_kg_m2: (xx: 0.0314, yy: 0.0314, zz: 0.005, xy: 0.001),\n");
+    let imported = import(&map, CSV).unwrap();
+    let j = imported.dataset.meta.inertia_kg_m2.unwrap().matrix();
+    assert_eq!((j[(0, 0)], j[(2, 2)], j[(1, 0)]), (0.0314, 0.005, 0.001));
+    assert_eq!(
+        import(&map_text(""), CSV)
+            .unwrap()
+            .dataset
+            .meta
+            .inertia_kg_m2,
+        None
+    );
+    let bad = map_text("    inertia_kg_m2: (xx: 1.0, yy: 1.0, zz: 3.0),\n");
+    let e = error(&bad, CSV);
+    assert!(e.contains("not a rigid body's inertia"), "{e}");
+}

@@ -62,50 +62,177 @@ pub struct SeedResult {
     pub repeat_tests_beyond_3: (usize, usize, f64),
 }
 
-/// Which rows a downlink keeps: `passes:ON/PERIOD` keeps ON seconds of every PERIOD
-/// (5-min passes every 15 min: `passes:300/900`; 10 min on, 10 off: `passes:600/1200`),
-/// starting at a phase drawn from the seed, so that the passes fall differently per seed.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// What a downlink keeps and what the filter is told, comma-separated parts:
+/// `passes:ON/PERIOD` keeps ON seconds of every PERIOD (5-min passes every 15 min:
+/// `passes:300/900`; 10 min on, 10 off: `passes:600/1200`), starting at a phase drawn from
+/// the seed, so that the passes fall differently per seed; `every:S` keeps one row every S
+/// seconds; `gyro-every:S` keeps the gyro samples every S seconds only; `no-gyro` drops the
+/// gyro columns; `inertia-x:F` (or `-y`, `-z`) multiplies dataset.ron's inertia moment about
+/// that axis by F (the filter's belief; the truth keeps the scenario's).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Cut {
-    /// Seconds kept per period.
-    pub on_s: f64,
-    /// Period, s.
-    pub period_s: f64,
+    /// Passes: seconds kept per period and the period, s.
+    pub passes: Option<(f64, f64)>,
+    /// One row kept every this many seconds.
+    pub every_s: Option<f64>,
+    /// One gyro sample kept every this many seconds.
+    pub gyro_every_s: Option<f64>,
+    /// The gyro columns dropped.
+    pub no_gyro: bool,
+    /// The inertia axis (0, 1, 2) and the factor on its moment in dataset.ron.
+    pub inertia_factor: Option<(usize, f64)>,
 }
 
 impl std::str::FromStr for Cut {
     type Err = anyhow::Error;
 
     fn from_str(s: &str) -> Result<Self> {
-        let spec = s
-            .strip_prefix("passes:")
-            .context("a cut is passes:ON/PERIOD (seconds)")?;
-        let (on, period) = spec
-            .split_once('/')
-            .context("a cut is passes:ON/PERIOD (seconds)")?;
-        let cut = Cut {
-            on_s: on.trim().parse().context("ON seconds")?,
-            period_s: period.trim().parse().context("PERIOD seconds")?,
-        };
-        anyhow::ensure!(
-            cut.on_s > 0.0 && cut.period_s > cut.on_s,
-            "a cut needs 0 < ON < PERIOD"
-        );
+        let mut cut = Cut::default();
+        for part in s.split(',').map(str::trim) {
+            let seconds = |v: &str| -> Result<f64> {
+                let v: f64 = v.trim_end_matches('s').parse().context("seconds")?;
+                anyhow::ensure!(v > 0.0 && v.is_finite(), "a spacing must be positive");
+                Ok(v)
+            };
+            if let Some(v) = part.strip_prefix("every:") {
+                cut.every_s = Some(seconds(v)?);
+            } else if let Some(v) = part.strip_prefix("gyro-every:") {
+                cut.gyro_every_s = Some(seconds(v)?);
+            } else if part == "no-gyro" {
+                cut.no_gyro = true;
+            } else if let Some((axis, v)) = part
+                .strip_prefix("inertia-")
+                .and_then(|rest| rest.split_once(':'))
+            {
+                let axis = ["x", "y", "z"]
+                    .iter()
+                    .position(|a| *a == axis)
+                    .context("inertia-x, inertia-y or inertia-z")?;
+                let f: f64 = v.parse().context("inertia factor")?;
+                anyhow::ensure!(
+                    f > 0.0 && f.is_finite(),
+                    "an inertia factor must be positive"
+                );
+                cut.inertia_factor = Some((axis, f));
+            } else {
+                let (on, period) = passes(part)?;
+                cut.passes = Some((on, period));
+            }
+        }
         Ok(cut)
     }
 }
 
+/// `passes:ON/PERIOD`.
+fn passes(s: &str) -> Result<(f64, f64)> {
+    {
+        let spec = s.strip_prefix("passes:").context(
+            "a cut is passes:ON/PERIOD (seconds), every:S, gyro-every:S, no-gyro or inertia-x:F",
+        )?;
+        let (on, period) = spec
+            .split_once('/')
+            .context("a cut is passes:ON/PERIOD (seconds)")?;
+        let on_s: f64 = on.trim().parse().context("ON seconds")?;
+        let period_s: f64 = period.trim().parse().context("PERIOD seconds")?;
+        anyhow::ensure!(on_s > 0.0 && period_s > on_s, "a cut needs 0 < ON < PERIOD");
+        Ok((on_s, period_s))
+    }
+}
+
 impl Cut {
-    /// Whether time `t_s` is inside a pass, for the seed's phase.
+    /// Whether time `t_s` is kept, for the seed's phase of the passes.
     fn keeps(&self, seed: u64, t_s: f64) -> bool {
+        let in_pass = self
+            .passes
+            .is_none_or(|(on_s, period_s)| Self::in_pass(seed, t_s, on_s, period_s));
+        in_pass && self.every_s.is_none_or(|s| on_grid(t_s, s))
+    }
+
+    /// Whether `t_s` is inside a pass of `on_s` every `period_s`, for the seed's phase.
+    fn in_pass(seed: u64, t_s: f64, on_s: f64, period_s: f64) -> bool {
         // One number per seed: a splitmix64 step spreads consecutive seeds over the period.
         let mut z = seed.wrapping_add(0x9e37_79b9_7f4a_7c15);
         z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
         z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
         z ^= z >> 31;
-        let phase = (z >> 11) as f64 / (1u64 << 53) as f64 * self.period_s;
-        (t_s + phase).rem_euclid(self.period_s) < self.on_s
+        let phase = (z >> 11) as f64 / (1u64 << 53) as f64 * period_s;
+        (t_s + phase).rem_euclid(period_s) < on_s
     }
+
+    /// The parts as a table's title reads them (`, passes of 300 s every 900 s`).
+    pub fn describe(&self) -> String {
+        let mut out = String::new();
+        if let Some((on, period)) = self.passes {
+            out += &format!(", passes of {on} s every {period} s");
+        }
+        if let Some(s) = self.every_s {
+            out += &format!(", one row every {s} s");
+        }
+        if let Some(s) = self.gyro_every_s {
+            out += &format!(", gyro every {s} s");
+        }
+        if self.no_gyro {
+            out += ", no gyro";
+        }
+        if let Some((axis, f)) = self.inertia_factor {
+            out += &format!(
+                ", filter's inertia {}{} x {f}",
+                "xyz".as_bytes()[axis] as char,
+                "xyz".as_bytes()[axis] as char
+            );
+        }
+        out
+    }
+
+    /// The parts as an output directory's suffix (`-passes-300-900`).
+    pub fn tag(&self) -> String {
+        let mut out = String::new();
+        if let Some((on, period)) = self.passes {
+            out += &format!("-passes-{on}-{period}");
+        }
+        if let Some(s) = self.every_s {
+            out += &format!("-every-{s}");
+        }
+        if let Some(s) = self.gyro_every_s {
+            out += &format!("-gyro-every-{s}");
+        }
+        if self.no_gyro {
+            out += "-no-gyro";
+        }
+        if let Some((axis, f)) = self.inertia_factor {
+            out += &format!("-inertia-{}-{f}", "xyz".as_bytes()[axis] as char);
+        }
+        out
+    }
+
+    /// The gyro thinned or dropped and the inertia changed as asked.
+    fn apply_sensors(&self, sim: &mut pdcal_sim::SimOutput) {
+        if self.no_gyro {
+            sim.telemetry.gyro_rad_s.iter_mut().for_each(|g| *g = None);
+        } else if let Some(s) = self.gyro_every_s {
+            let t = &sim.telemetry.t_s;
+            for (g, &t) in sim.telemetry.gyro_rad_s.iter_mut().zip(t) {
+                if !on_grid(t, s) {
+                    *g = None;
+                }
+            }
+        }
+        if let (Some((axis, f)), Some(inertia)) =
+            (self.inertia_factor, sim.meta.inertia_kg_m2.as_mut())
+        {
+            match axis {
+                0 => inertia.xx *= f,
+                1 => inertia.yy *= f,
+                _ => inertia.zz *= f,
+            }
+        }
+    }
+}
+
+/// Whether `t_s` falls on the grid of spacing `step_s` (within a millisecond).
+fn on_grid(t_s: f64, step_s: f64) -> bool {
+    let r = t_s.rem_euclid(step_s);
+    r < 1e-3 || step_s - r < 1e-3
 }
 
 /// Days between the data sets of a joint run (`--sets N`).
@@ -136,6 +263,7 @@ fn simulate_set(
         sim.telemetry = sim.telemetry.select_rows(|k| cut.keeps(seed, t[k]));
         let t = sim.truth.t_s.clone();
         sim.truth = sim.truth.select_rows(|k| cut.keeps(seed, t[k]));
+        cut.apply_sensors(&mut sim);
     }
     Ok(sim)
 }

@@ -11,8 +11,8 @@ use std::path::PathBuf;
 
 use nalgebra::{Vector3, Vector4};
 use pdcal_dataset::{
-    Effect, MetaFields, NoiseHints, NominalMount, OrbitSpec, Telemetry, TruePd, TruthConstants,
-    TruthSeries, columns, photodiode_column,
+    Effect, Inertia, MetaFields, NoiseHints, NominalMount, OrbitSpec, Telemetry, TruePd,
+    TruthConstants, TruthSeries, columns, photodiode_column,
 };
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
@@ -149,6 +149,23 @@ fn noise_dict<'py>(py: Python<'py>, noise: &NoiseHints) -> PyResult<Bound<'py, P
     Ok(dict)
 }
 
+/// A 3x3 inertia tensor, kg m^2 (the reader checks it symmetric and physical).
+fn inertia(value: &Bound<'_, PyAny>) -> PyResult<Inertia> {
+    let cols = matrix(value, "inertia_kg_m2", Some(3))?;
+    if cols.iter().any(|c| c.len() != 3) {
+        return Err(pyo3::exceptions::PyValueError::new_err(
+            "inertia_kg_m2: expected a 3x3 array",
+        ));
+    }
+    let j = nalgebra::Matrix3::from_fn(|r, c| cols[c][r]);
+    if (j - j.transpose()).abs().max() > 0.0 {
+        return Err(pyo3::exceptions::PyValueError::new_err(
+            "inertia_kg_m2: the tensor is not symmetric",
+        ));
+    }
+    Ok(Inertia::from_matrix(&j))
+}
+
 /// Named telemetry columns in the writer's order: `t_s`, gyro, magnetometer, photodiodes,
 /// positions, temperatures.
 struct Columns(Vec<(String, Vec<f64>)>);
@@ -277,12 +294,12 @@ impl Dataset {
     #[pyo3(
         text_signature = "(*, epoch_utc, t_s, gyro_rad_s, photodiodes_V, nominal_az_el_deg, \
         mag_nT=None, tle=None, positions_gcrf_km=None, fov_deg=None, panel=None, \
-        temperatures_C=None, noise=None, name='dataset', truth=None)"
+        temperatures_C=None, noise=None, name='dataset', truth=None, inertia_kg_m2=None)"
     )]
     #[pyo3(signature = (
         *, epoch_utc, t_s, gyro_rad_s, photodiodes_V, nominal_az_el_deg, mag_nT=None, tle=None,
         positions_gcrf_km=None, fov_deg=None, panel=None, temperatures_C=None, noise=None,
-        name="dataset".to_owned(), truth=None
+        name="dataset".to_owned(), truth=None, inertia_kg_m2=None
     ))]
     #[allow(non_snake_case, clippy::too_many_arguments)]
     fn new(
@@ -300,6 +317,7 @@ impl Dataset {
         noise: Option<&Bound<'_, PyDict>>,
         name: String,
         truth: Option<&Bound<'_, PyDict>>,
+        inertia_kg_m2: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let photodiodes = nominal_mounts(Mounts {
             az_el_deg: nominal_az_el_deg,
@@ -315,6 +333,7 @@ impl Dataset {
             },
             photodiodes,
             noise: noise_hints(noise)?,
+            inertia_kg_m2: inertia_kg_m2.map(inertia).transpose()?,
         };
         let meta = pdcal_dataset::meta_from_fields(&fields).map_err(py_err)?;
         let mut cols = Columns(vec![(columns::T_S.to_owned(), vector(t_s, "t_s")?)]);
@@ -486,6 +505,23 @@ impl Dataset {
     fn noise<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
         (self.inner.meta.noise.as_ref())
             .map(|n| noise_dict(py, n))
+            .transpose()
+    }
+
+    /// The inertia tensor, body frame, kg m^2, (3, 3), or None.
+    #[getter]
+    fn inertia_kg_m2<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<Option<Bound<'py, numpy::PyArray2<f64>>>> {
+        (self.inner.meta.inertia_kg_m2.as_ref())
+            .map(|i| {
+                let j = i.matrix();
+                let cols: Vec<Vec<f64>> = (0..3)
+                    .map(|c| (0..3).map(|r| j[(r, c)]).collect())
+                    .collect();
+                from_columns(py, &cols, 3)
+            })
             .transpose()
     }
 

@@ -4,9 +4,9 @@ use nalgebra::{Matrix3, Vector3, Vector4};
 use pdcal_albedo::{AlbedoError, AlbedoModel, AlbedoView, MapChoice, MapError};
 use pdcal_attitude::Quat;
 use pdcal_dataset::{
-    CurrentColumn, Dataset, DatasetMeta, Effect, EpochUtc, FORMAT_VERSION, NoiseHints, OrbitSpec,
-    Samples, Telemetry, TemperatureColumn, TrueMagnetometer, TruePd, TruthConstants, TruthSeries,
-    current_column, photodiode_temperature_column,
+    CurrentColumn, Dataset, DatasetMeta, Effect, EpochUtc, FORMAT_VERSION, Inertia, NoiseHints,
+    OrbitSpec, Samples, Telemetry, TemperatureColumn, TrueMagnetometer, TruePd, TruthConstants,
+    TruthSeries, current_column, photodiode_temperature_column,
 };
 use pdcal_ephem::igrf::IgrfError;
 use pdcal_ephem::{OrbitError, ReferenceError, ReferenceModel, TimeError, TleOrbit};
@@ -593,6 +593,7 @@ fn dataset_meta(scenario: &Scenario, epoch_utc: EpochUtc) -> DatasetMeta {
             mag_nt: Some(scenario.magnetometer.noise_nt),
             photodiode_v: Some(scenario.photodiodes.noise_v),
         }),
+        inertia_kg_m2: Some(Inertia::from_matrix(&scenario.inertia_kg_m2())),
     }
 }
 
@@ -863,4 +864,20 @@ fn scene_for<'a>(
         Some(view) => scene.with_albedo(view),
         None => scene,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dataset_ron_carries_the_scenarios_inertia_read_back_whole() {
+        let scenario = Scenario::builtin("sso-6u").expect("built-in scenario");
+        let epoch = EpochUtc::parse(&scenario.epoch_utc).expect("scenario epoch");
+        let meta = dataset_meta(&scenario, epoch);
+        let text = ron::to_string(&meta).expect("renders");
+        let back = pdcal_dataset::meta_from_str(&text).expect("reads back");
+        let j = back.inertia_kg_m2.expect("written").matrix();
+        assert_eq!(j, scenario.inertia_kg_m2());
+    }
 }

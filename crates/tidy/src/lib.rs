@@ -47,7 +47,10 @@ pub const PDCAL: Rules = Rules {
             "pdcal-photodiode",
             &["pdcal-effects", "pdcal-attitude", "pdcal-albedo"],
         ),
-        ("pdcal-dataset", &["pdcal-effects", "pdcal-ephem"]),
+        (
+            "pdcal-dataset",
+            &["pdcal-effects", "pdcal-attitude", "pdcal-ephem"],
+        ),
         ("pdcal-import", &["pdcal-dataset", "pdcal-ephem"]),
         ("pdcal-magcal", &["pdcal-ephem"]),
         (

@@ -92,6 +92,14 @@ pub fn full_dataset(rows: usize) -> Dataset {
             mag_nt: Some(320.0),
             photodiode_v: Some(0.015),
         }),
+        inertia_kg_m2: Some(pdcal_dataset::Inertia {
+            xx: 0.185,
+            yy: 0.144,
+            zz: 0.061,
+            xy: 0.002,
+            xz: -0.001,
+            yz: 0.0015,
+        }),
     };
     let mut s = Stream::new(7);
     let mut tm = Telemetry {
@@ -191,6 +199,7 @@ pub fn minimal_dataset(rows: usize) -> Dataset {
         orbit: OrbitSpec::PositionColumns,
         photodiodes: rax2_mounts()[..3].to_vec(),
         noise: None,
+        inertia_kg_m2: None,
     };
     let mut tm = Telemetry {
         pd_v: vec![Samples::new(); 3],

@@ -107,6 +107,38 @@ pub fn step(s: &mut Setup, albedo: &AlbedoExpansion) {
         .unwrap();
 }
 
+/// The same step with the dynamics-aided propagation ([`pdcal_filter::rate`]): a 1 s
+/// rigid-body step at rest (as [`step`]: the measurements stay the predictions), the gyro
+/// update, the photodiode and magnetometer updates.
+pub fn enable_dynamics(s: &mut Setup) {
+    let body = pdcal_attitude::dynamics::RigidBody::new(Matrix3::from_diagonal(&Vector3::new(
+        0.0314, 0.0314, 0.005,
+    )))
+    .unwrap();
+    let model = pdcal_filter::rate::RateModel {
+        body,
+        torque_psd: 1e-8,
+        bias_walk_var_per_s: 4e-12,
+    };
+    s.filter
+        .enable_dynamics(model, Vector3::new(1e-9, 0.0, 0.0), 1e-3, 8.7e-4);
+}
+
+pub fn step_dynamics(s: &mut Setup, albedo: &AlbedoExpansion) {
+    let r = s.reference.r_gcrf_km;
+    s.filter.propagate_dynamics(&r, &r, 1.0);
+    let gyro = s.filter.rate_body_rad_s() + s.filter.bias_rad_s();
+    s.filter.update_gyro(&gyro).unwrap();
+    let meas = Measurements {
+        mag_nt: Some(s.mag),
+        pd_v: &s.pd_v,
+        temperature_c: &[],
+    };
+    s.filter
+        .update(0.0, &meas, &s.reference, Some(albedo))
+        .unwrap();
+}
+
 pub fn albedo() -> AlbedoExpansion {
     let model = AlbedoModel::from_choice(&MapChoice::TomsMean1p25x1).unwrap();
     let mut view = AlbedoView::new();
