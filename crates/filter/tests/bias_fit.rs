@@ -55,6 +55,7 @@ fn fit_first_segment(
             bias_rad_s: Vector3::zeros(),
             bias_sigma_rad_s: bias_sigma,
             rules,
+            rate_without_gyro: None,
         },
         0..telemetry.len(),
         &config,

@@ -342,14 +342,16 @@ fn a_full_disk_names_the_file() {
 fn killed_at_200_random_instants_out_is_always_complete_old_or_new() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("out");
-    // The shortest of three complete runs (the first one also warms the caches).
+    // The longest of three complete runs: the other tests of this binary load the machine
+    // while the kills run, and a run slower than the shortest must still be able to finish
+    // before its kill in some of them.
     let full_run = (0..3)
         .map(|_| {
             let start = Instant::now();
             assert!(calibrate_child(&out, None).wait().unwrap().success());
             start.elapsed()
         })
-        .min()
+        .max()
         .unwrap();
     let mut previous = complete_output(&out).unwrap();
     let mut rng = rand::rngs::StdRng::seed_from_u64(14);
@@ -358,7 +360,7 @@ fn killed_at_200_random_instants_out_is_always_complete_old_or_new() {
     // (before the swap: the new output; after it: the old one, not yet removed).
     let mut in_publication = 0;
     for k in 0..200 {
-        // Four runs in five are killed at an instant uniform over a whole run. The fifth
+        // Four runs in five are killed at an instant uniform over 1.3 runs. The fifth
         // pauses 500 ms between its finished staging directory and the swap (a test-only
         // hook) and is killed at a random instant from just after its computation, so that
         // kills also land in the publication, which lasts only a few milliseconds otherwise.
@@ -366,7 +368,7 @@ fn killed_at_200_random_instants_out_is_always_complete_old_or_new() {
             let after = full_run.mul_f64(1.15) + Duration::from_millis(rng.random_range(0..300));
             (Some(500), after)
         } else {
-            (None, full_run.mul_f64(rng.random_range(0.0..1.05)))
+            (None, full_run.mul_f64(rng.random_range(0.0..1.3)))
         };
         let mut child = calibrate_child(&out, pause_ms);
         std::thread::sleep(delay);
