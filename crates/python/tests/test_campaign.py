@@ -118,6 +118,14 @@ def test_equals_xtask_sim_calibrate(client, tmp_path):
             },
             "attitude_about_sun_inside": row["attitude_about_sun_inside"],
             "attitude_across_sun_inside": row["attitude_across_sun_inside"],
+            "repeatability": row["repeatability"],
+            "differing": [d for d in row["repeat_differing"].split(";") if d],
+            "bias_change_warnings": row["bias_change_warnings"],
+            "repeat_tests_beyond_3": [
+                row["repeat_tests_beyond_3"],
+                row["repeat_tests"],
+                row["repeat_rms_z"],
+            ],
         }
         want = {k: v for k, v in want.items() if k not in ("seed", "runtime_s")}
         assert got == want, row["run_id"]

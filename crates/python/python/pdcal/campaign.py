@@ -96,6 +96,12 @@ FIGURES = [
     "not_determined_outside_3sigma",
     "attitude_about_sun_inside",
     "attitude_across_sun_inside",
+    "repeatability",
+    "repeat_differing",
+    "bias_change_warnings",
+    "repeat_tests_beyond_3",
+    "repeat_tests",
+    "repeat_rms_z",
 ]
 
 _DEG = math.pi / 180.0
@@ -450,6 +456,15 @@ def _flatten(result: dict) -> dict:
         "not_determined_outside_3sigma": int(result["by_status"]["not_determined_outside_3sigma"]),
         "attitude_about_sun_inside": result["attitude_about_sun_inside"],
         "attitude_across_sun_inside": result["attitude_across_sun_inside"],
+        # With several sets: the repeatability verdict, the parameters whose sets differ
+        # (joined by ";"), the gyro-bias change warnings, and the single tests beyond 3
+        # sigma, their count and the RMS of their z.
+        "repeatability": result["repeatability"],
+        "repeat_differing": ";".join(result["differing"]),
+        "bias_change_warnings": int(result["bias_change_warnings"]),
+        "repeat_tests_beyond_3": int(result["repeat_tests_beyond_3"][0]),
+        "repeat_tests": int(result["repeat_tests_beyond_3"][1]),
+        "repeat_rms_z": float(result["repeat_tests_beyond_3"][2]),
     }
     for pd in result["photodiodes"]:
         p = f"pd{pd['index']:02d}"
