@@ -77,7 +77,7 @@ pub struct FilterConfig {
     /// the covariance from collapsing over days of data.
     pub normal_walk_deg_per_sqrt_h: f64,
     /// Initial gyro-bias sigma per axis, deg/s. Default 5: the turn-on bias of MEMS gyros
-    /// reaches several deg/s (issue 20's flight set: about 4 deg/s).
+    /// reaches several deg/s (4 deg/s is seen in flight on small-satellite MEMS gyros).
     pub initial_bias_sigma_deg_s: f64,
     /// Fit the gyro bias from the data at each acquisition ([`crate::bias_fit`]): the first
     /// `bias_fit_window_s` of the segment's vectors and gyro, the directions the data
