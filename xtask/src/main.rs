@@ -54,6 +54,10 @@ enum Task {
         /// calibrate the photodiodes with it applied (`--mag-cal`).
         #[arg(long)]
         magcal: bool,
+        /// With `--magcal`: passes of the magnetometer's rotation against the calibrated
+        /// attitude, each followed by a calibration again (docs/magcal.md).
+        #[arg(long, default_value_t = 0)]
+        mag_align_passes: usize,
         /// A seed that ends with an error is listed under the table (with the error)
         /// instead of stopping the run: for weak-data scenarios whose filter may fail.
         #[arg(long)]
@@ -94,6 +98,7 @@ fn main() -> ExitCode {
             cut,
             sets,
             magcal,
+            mag_align_passes,
             keep_going,
         } => monte_carlo::run(
             seeds,
@@ -101,7 +106,7 @@ fn main() -> ExitCode {
             photodiode_only,
             config.as_deref(),
             (cut, sets),
-            magcal,
+            (magcal, mag_align_passes),
             keep_going,
         ),
         Task::MagcalValidate {

@@ -19,7 +19,7 @@ pub fn run(
     photodiode_only: bool,
     config_file: Option<&std::path::Path>,
     (cut, sets): (Option<Cut>, usize),
-    magcal: bool,
+    (magcal, mag_align_passes): (bool, usize),
     keep_going: bool,
 ) -> Result<()> {
     let scenario = pdcal::simulate::load_scenario(scenario_name)?;
@@ -31,6 +31,7 @@ pub fn run(
         config.mode = Mode::PhotodiodeOnly;
     }
     config.fit_mag_cal = magcal;
+    config.mag_align_passes = mag_align_passes;
     let albedo = albedo_model()?;
     let bar = ProgressBar::new(n);
     bar.set_style(ProgressStyle::with_template(
@@ -72,6 +73,9 @@ pub fn run(
     if magcal {
         mode = format!("{mode}, magnetometer calibrated first (pdcal magcal)");
     }
+    if magcal && mag_align_passes > 0 {
+        mode = format!("{mode}, {mag_align_passes} passes of its rotation against the attitude");
+    }
     let mut table = table(&scenario.name, &mode, &results);
     if !failed.is_empty() {
         let _ = writeln!(
@@ -93,6 +97,9 @@ pub fn run(
     }
     if magcal {
         tag = format!("{tag}-magcal");
+    }
+    if magcal && mag_align_passes > 0 {
+        tag = format!("{tag}-align{mag_align_passes}");
     }
     let dir = PathBuf::from("out/sim-calibrate").join(format!(
         "{}-{}{tag}",

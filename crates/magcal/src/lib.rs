@@ -18,11 +18,13 @@
 //! information, and backward selection of the regressors by the diagnosis's evidence rule
 //! ([`fit`]). No I/O: the driver reads the dataset and writes the results.
 
+pub mod align;
 mod error;
 pub mod fit;
 pub mod model;
 pub(crate) mod start;
 
+pub use align::{AlignSample, Misalignment};
 pub use error::MagCalError;
 pub use fit::{MagCalConfig, MagCalibration, RegressorDecision, Sample, calibrate};
 pub use model::{MatrixForm, Params, RowFit};

@@ -30,6 +30,11 @@ pub struct RunConfig {
     /// Calibrate the magnetometer from each run's own data first (`pdcal magcal`) and apply
     /// that (the Monte Carlo's `--magcal`); ignored when `mag_cal` is given.
     pub fit_mag_cal: bool,
+    /// Passes of the magnetometer's rotation against the first calibration's attitude
+    /// (`crate::mag_align`) in the Monte Carlo with a magnetometer calibration: 0 by default
+    /// (docs/magcal.md, "The rotation against the body": each pass recovers only a few
+    /// percent of the rotation).
+    pub mag_align_passes: usize,
 }
 
 impl Default for RunConfig {
@@ -39,6 +44,7 @@ impl Default for RunConfig {
             mode: Mode::Full,
             mag_cal: None,
             fit_mag_cal: false,
+            mag_align_passes: 0,
         }
     }
 }

@@ -14,6 +14,7 @@ pub mod figures;
 pub mod files;
 pub mod import;
 pub mod joint;
+pub mod mag_align;
 pub mod magcal;
 pub mod mounting;
 pub mod output;

@@ -19,6 +19,9 @@ pub const CONVENTION: &str = "m = T B + b + sum_j c_j u_j + noise (sensor axes, 
 cur_<name>_A columns, A); corrected B = T^-1 (m - b - sum_j c_j u_j); T symmetric (the polar \
 factor (T T^T)^(1/2)): the field magnitude does not determine the sensor's rotation";
 
+/// How many rejected rows magcal.json lists; rejected_rows.csv has every one.
+pub const REJECTED_ROWS_LISTED: usize = 50;
+
 /// magcal.ron: the parameters in their convention, the covariance, the regressors.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -94,8 +97,11 @@ pub struct MagCalSummary {
     pub rows_used: usize,
     /// Rows rejected by the outlier gate.
     pub rows_rejected: usize,
-    /// Their 0-based telemetry rows.
+    /// The first [`REJECTED_ROWS_LISTED`] of their 0-based telemetry rows (all of them in
+    /// `rejected_rows.csv`).
     pub rejected_rows: Vec<usize>,
+    /// `rejected_rows` holds fewer than `rows_rejected`.
+    pub rejected_rows_truncated: bool,
     /// Every regressor tested.
     pub regressors: Vec<RegressorRecord>,
     /// Forms of `T` the data did not determine (fallen back from).
@@ -225,6 +231,10 @@ fn write_outputs(
         &dir.file("magcal.json"),
         serde_json::to_string_pretty(&summary)?.as_bytes(),
     )?;
+    write_file(
+        &dir.file("rejected_rows.csv"),
+        rejected_rows_csv(outcome).as_bytes(),
+    )?;
     apply(&mut telemetry, cal)?;
     write_corrected_dataset(&dir.file("dataset"), dataset, meta, telemetry)?;
     let figures = figures(dir.path(), outcome)?;
@@ -236,6 +246,18 @@ fn write_outputs(
         &figures,
     )?;
     dir.commit()
+}
+
+/// Every row the outlier gate rejected: `row` (0-based telemetry row) and `t_s`.
+fn rejected_rows_csv(outcome: &MagCalOutcome) -> String {
+    let mut text = String::from("row,t_s\n");
+    for &row in &outcome.calibration.rejected_rows {
+        let t_s = (outcome.samples.iter())
+            .find(|s| s.row == row)
+            .map_or(f64::NAN, |s| s.t_s);
+        text.push_str(&format!("{row},{t_s}\n"));
+    }
+    text
 }
 
 /// dataset.ron and the corrected telemetry.csv, with the input's truth files copied as
@@ -405,7 +427,8 @@ fn summary_of(outcome: &MagCalOutcome) -> MagCalSummary {
         rows_usable: outcome.samples.len(),
         rows_used: cal.rows_used,
         rows_rejected: cal.rejected_rows.len(),
-        rejected_rows: cal.rejected_rows.clone(),
+        rejected_rows: (cal.rejected_rows.iter().take(REJECTED_ROWS_LISTED).copied()).collect(),
+        rejected_rows_truncated: cal.rejected_rows.len() > REJECTED_ROWS_LISTED,
         regressors: records(cal),
         matrix_forms_not_determined: cal.forms_not_determined.clone(),
         warnings: outcome.warnings.clone(),

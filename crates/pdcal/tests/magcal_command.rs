@@ -84,3 +84,46 @@ fn a_broken_magcal_file_is_refused_with_its_place() {
     let e = pdcal::cli::error_text(&magcal::apply(&mut telemetry, &loaded).expect_err("refused"));
     assert!(e.contains("cur_px_A"), "{e}");
 }
+
+/// Rows the gate rejects: magcal.json lists the first few and counts them all, and
+/// rejected_rows.csv has every one, in order.
+#[test]
+fn many_rejected_rows_are_counted_listed_short_and_written_whole() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (data, out) = (tmp.path().join("data"), tmp.path().join("out"));
+    let mut sim = simulated(&data, 3);
+    // Spikes along the field (a torquer firing): 120 rows read half again the field.
+    let spiked: Vec<usize> = (0..120).map(|k| 100 + 25 * k).collect();
+    let mag = sim.telemetry.mag_nt.as_mut().unwrap();
+    for &row in &spiked {
+        mag[row] = mag[row].map(|m| m * 1.5);
+    }
+    let dataset = pdcal_dataset::Dataset {
+        meta: sim.meta.clone(),
+        telemetry: sim.telemetry.clone(),
+        truth: None,
+    };
+    for (name, text) in pdcal_dataset::render_dataset(&dataset).unwrap() {
+        std::fs::write(data.join(name), text).unwrap();
+    }
+    magcal::run_dir_forced(&data, &out, true).expect("calibrates");
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("magcal.json")).unwrap()).unwrap();
+    let listed: Vec<usize> = (json["rejected_rows"].as_array().unwrap().iter())
+        .map(|v| v.as_u64().unwrap() as usize)
+        .collect();
+    let count = json["rows_rejected"].as_u64().unwrap() as usize;
+    assert!(count >= spiked.len(), "{count} rejected");
+    assert_eq!(listed.len(), magcal::REJECTED_ROWS_LISTED);
+    assert_eq!(
+        json["rejected_rows_truncated"],
+        serde_json::Value::Bool(true)
+    );
+    let csv = std::fs::read_to_string(out.join("rejected_rows.csv")).unwrap();
+    let rows: Vec<usize> = (csv.lines().skip(1))
+        .map(|l| l.split(',').next().unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(rows.len(), count);
+    assert_eq!(rows[..listed.len()], listed[..]);
+    assert!(spiked.iter().all(|r| rows.contains(r)));
+}
