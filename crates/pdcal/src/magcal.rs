@@ -209,15 +209,15 @@ pub fn run_dir_forced(dataset: &Path, out: &Path, force: bool) -> Result<MagCalO
     let meta = pdcal_dataset::read_meta(dataset)?;
     let telemetry = pdcal_dataset::read_telemetry(dataset, &meta)?;
     let outcome = run(&meta, &telemetry)?;
-    write_outputs(dir, dataset, &meta, telemetry, &outcome)?;
+    write_outputs(dir, Some(dataset), &meta, telemetry, &outcome)?;
     Ok(outcome)
 }
 
 /// magcal.ron, magcal.json, the corrected dataset, the figures and index.html, published
-/// in one step.
-fn write_outputs(
+/// in one step; `dataset`, the directory read, if any, gives the truth files copied.
+pub fn write_outputs(
     dir: OutputDir,
-    dataset: &Path,
+    dataset: Option<&Path>,
     meta: &DatasetMeta,
     mut telemetry: Telemetry,
     outcome: &MagCalOutcome,
@@ -264,7 +264,7 @@ fn rejected_rows_csv(outcome: &MagCalOutcome) -> String {
 /// they are (never parsed: another tool's truth must not stop the run).
 fn write_corrected_dataset(
     target: &Path,
-    source: &Path,
+    source: Option<&Path>,
     meta: &DatasetMeta,
     telemetry: Telemetry,
 ) -> Result<()> {
@@ -278,7 +278,9 @@ fn write_corrected_dataset(
         write_file(&target.join(name), text.as_bytes())?;
     }
     for name in [pdcal_dataset::TRUTH_CSV, pdcal_dataset::TRUTH_RON] {
-        let from = source.join(name);
+        let Some(from) = source.map(|s| s.join(name)) else {
+            break;
+        };
         if from.is_file() {
             std::fs::copy(&from, target.join(name))
                 .with_context(|| format!("cannot copy {}", from.display()))?;
@@ -403,7 +405,8 @@ fn records(cal: &MagCalibration) -> Vec<RegressorRecord> {
         .collect()
 }
 
-fn summary_of(outcome: &MagCalOutcome) -> MagCalSummary {
+/// magcal.json of `outcome`.
+pub fn summary_of(outcome: &MagCalOutcome) -> MagCalSummary {
     let cal = &outcome.calibration;
     let by_name = |values: &[Vector3<f64>]| {
         (cal.regressors.iter())

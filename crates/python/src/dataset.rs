@@ -271,6 +271,10 @@ fn truth_dict<'py>(
         .map(effect_ron)
         .collect::<PyResult<Vec<_>>>()?;
     dict.set_item("effects", PyList::new(py, effects)?)?;
+    if let Some(magnetometer) = &constants.magnetometer {
+        let json = serde_json::to_string(magnetometer).map_err(py_err)?;
+        dict.set_item("magnetometer", json_loads(py, &json)?)?;
+    }
     Ok(dict)
 }
 
@@ -528,7 +532,8 @@ impl Dataset {
     /// The simulated truth (truth.csv and truth.ron) as a dict of arrays, or None: `t_s`,
     /// `q_xyzw` (scalar last, body relative to GCRF), `w_body_rad_s`, `gyro_bias_rad_s`,
     /// `sun_body`, `eclipse`, `r_gcrf_km`, `mag_body_nT`; per photodiode `scale_V`,
-    /// `azimuth_deg`, `elevation_deg`; `effects` in truth.ron's spelling.
+    /// `azimuth_deg`, `elevation_deg`; `effects` in truth.ron's spelling; `magnetometer`
+    /// (its errors, when simulated: `matrix`, `bias_nT`, `current_bias_nT_per_A`).
     #[getter]
     fn truth<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
         (self.inner.truth.as_ref())

@@ -17,6 +17,7 @@ mod campaign;
 mod dataset;
 mod diagnosis;
 mod errors;
+mod magcal;
 
 /// The module `pdcal._pdcal`.
 #[pymodule]
@@ -25,11 +26,13 @@ fn _pdcal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<dataset::Dataset>()?;
     m.add_class::<calibration::Calibration>()?;
     m.add_class::<diagnosis::Diagnosis>()?;
+    m.add_class::<magcal::MagCalibration>()?;
     m.add_function(wrap_pyfunction!(dataset::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(dataset::scenario, m)?)?;
     m.add_function(wrap_pyfunction!(calibration::calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(calibration::evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(diagnosis::diagnose, m)?)?;
+    m.add_function(wrap_pyfunction!(magcal::magcal, m)?)?;
     m.add_function(wrap_pyfunction!(campaign::sim_calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(campaign::ron_to_json, m)?)?;
     Ok(())
