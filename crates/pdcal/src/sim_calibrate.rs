@@ -349,31 +349,23 @@ pub fn run_seed(
         Some(references) => references,
         None => pdcal_filter::step_references(&joint.meta, &joint.telemetry)?,
     };
-    let mut outcome = crate::calibrate::run_with_references(
-        &joint.meta,
-        &telemetry,
-        references.clone(),
-        config,
-        albedo,
-        &joint.sets,
-    )?;
-    for _ in 0..config.mag_align_passes {
-        let sigma = config.filter.resolve(joint.meta.noise.as_ref()).mag_nt;
-        let estimates = outcome
-            .run
-            .smoothed
-            .as_ref()
-            .unwrap_or(&outcome.run.forward);
-        let misalignment = crate::mag_align::estimate(&telemetry, &references, estimates, sigma)?;
-        crate::mag_align::apply(&mut telemetry, &misalignment);
-        outcome = crate::calibrate::run_with_references(
+    let calibrate = |telemetry: &pdcal_dataset::Telemetry| {
+        crate::calibrate::run_with_references(
             &joint.meta,
-            &telemetry,
+            telemetry,
             references.clone(),
             config,
             albedo,
             &joint.sets,
-        )?;
+        )
+    };
+    let mut outcome = calibrate(&telemetry)?;
+    for _ in 0..config.mag_align_passes {
+        let sigma = config.filter.resolve(joint.meta.noise.as_ref()).mag_nt;
+        let estimates = (outcome.run.smoothed.as_ref()).unwrap_or(&outcome.run.forward);
+        let misalignment = crate::mag_align::estimate(&telemetry, &references, estimates, sigma)?;
+        crate::mag_align::apply(&mut telemetry, &misalignment);
+        outcome = calibrate(&telemetry)?;
     }
     let truth = joint_truth(&sims, &joint);
     let s: Summary = summary(&joint.meta, &outcome);
