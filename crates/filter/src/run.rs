@@ -589,8 +589,12 @@ impl<'a> ForwardPass<'a> {
             match found {
                 Ok(start) => {
                     let t_s = self.telemetry.t_s[start.index];
+                    let own_cov = start
+                        .conditional_cov
+                        .as_ref()
+                        .unwrap_or(&start.attitude_cov);
                     self.filter
-                        .reacquire(start.q, &start.attitude_cov, t_s - self.at.last_t_s);
+                        .reacquire(start.q, own_cov, t_s - self.at.last_t_s);
                     self.filter.correlate_attitude(&start.sensitivity);
                     self.current.acquired_row = Some(start.index);
                     self.current.acquisition = if self.use_mag {
