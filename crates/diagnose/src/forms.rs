@@ -108,6 +108,31 @@ pub(crate) fn kelly_rolloff(res: &Residuals, n_pd: usize, lag: usize) -> Option<
     ))
 }
 
+/// The Kelly roll-off fitted again on the residuals of a model that holds `current` (a
+/// `KellyRolloff`), with that term taken out of them sample by sample
+/// (`r + C c (K(c) - 1)`): the shape the data ask for once the calibration has been made
+/// with a roll-off in the model and with the effects found after it. The exponent is not a
+/// filter state and the filter sees only incidences inside its gate, so a shape fitted in
+/// an earlier round, on residuals that still carried a later round's effect (a missing
+/// albedo adds light mostly at high incidence), stays wrong unless fitted again here.
+/// `None` for another form or without lit samples.
+pub(crate) fn kelly_reshaped(
+    res: &Residuals,
+    current: &Effect,
+    n_pd: usize,
+    lag: usize,
+) -> Option<CandidateFit> {
+    let Effect::KellyRolloff { kappa, exponent } = current else {
+        return None;
+    };
+    let law = KellyRolloff::new(*kappa, *exponent).ok()?;
+    let mut without = res.clone();
+    for p in without.pd.iter_mut().filter(|p| p.direct_v > 0.0) {
+        p.residual_v += p.direct_v * (law.factor(p.cos_incidence) - 1.0);
+    }
+    kelly_rolloff(&without, n_pd, lag)
+}
+
 /// Fewest samples exactly at a photodiode's largest output that make it its clip level.
 pub(crate) const MIN_CLIPPED_SAMPLES: usize = 3;
 
