@@ -826,11 +826,14 @@ fn other_form(
     // Only effects with two forms: their shape parameters (the Kelly exponent, which the
     // filter does not estimate, or a taper's ends) were fitted on the residuals of their
     // round, which may have carried effects found later.
+    // Both forms are refitted: the one the fast score prefers on these residuals is not
+    // always the one whose calibration fits best (as when the form was first chosen).
     fit.alternative.as_ref()?;
-    let form = std::iter::once(fit)
+    let (form, next) = std::iter::once(fit)
         .chain(fit.alternative.as_deref())
-        .find(|f| f.effect != current && f.score > config.threshold)?;
-    let next = with_candidate(inputs, config, without, form).ok()?;
+        .filter(|f| f.effect != current && f.score > config.threshold)
+        .filter_map(|f| Some((f, with_candidate(inputs, config, without, f).ok()?)))
+        .min_by(|a, b| pd_rss(&a.1.res).total_cmp(&pd_rss(&b.1.res)))?;
     let (old, new) = (pd_rss(&state.res), pd_rss(&next.res));
     (new < old).then(|| {
         let to = next
