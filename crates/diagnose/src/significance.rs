@@ -249,17 +249,25 @@ fn common_estimate(
     null: f64,
 ) -> Option<ParameterEstimate> {
     let (block, d) = covariance_block(run, parameters, null)?;
-    let ones = DVector::from_element(d.len(), 1.0);
-    let w = block.cholesky()?.solve(&ones);
-    let information = ones.dot(&w);
-    let value = null + w.dot(&d) / information;
-    let sigma = information.recip().sqrt();
-    (value.is_finite() && sigma.is_finite() && sigma > 0.0).then(|| ParameterEstimate {
+    let (mean, sigma) = gls_common(&block, &d)?;
+    Some(ParameterEstimate {
         name: format!("common_{}", common_name(&parameters[0].name)),
         unit: parameters[0].unit.clone(),
-        value,
+        value: null + mean,
         sigma,
     })
+}
+
+/// The generalised-least-squares estimate of one value `a` with `d = a 1 + e`,
+/// `cov(e) = p`: `(1^T p^-1 d / 1^T p^-1 1, (1^T p^-1 1)^-1/2)`; `None` when `p` is not
+/// positive definite.
+fn gls_common(p: &DMatrix<f64>, d: &DVector<f64>) -> Option<(f64, f64)> {
+    let ones = DVector::from_element(d.len(), 1.0);
+    let w = p.clone().cholesky()?.solve(&ones);
+    let information = ones.dot(&w);
+    let mean = w.dot(d) / information;
+    let sigma = information.recip().sqrt();
+    (mean.is_finite() && sigma.is_finite() && sigma > 0.0).then_some((mean, sigma))
 }
 
 /// `pd01_scale_drift_per_h` -> `scale_drift_per_h`: a per-photodiode name without its
@@ -287,5 +295,30 @@ mod tests {
         }
         assert!((2.0 * normal_upper_tail(3.0) - 0.0027).abs() < 1e-6);
         assert!(chi_square_sigmas(17.0, 17) < 1.0);
+    }
+
+    #[test]
+    fn the_common_value_is_the_weighted_mean_over_the_joint_covariance() {
+        // Independent, equal sigmas: the plain mean, sigma / sqrt(n).
+        let d = DVector::from_vec(vec![0.004, 0.005, 0.003, 0.006]);
+        let p = DMatrix::from_diagonal_element(4, 4, 0.005f64.powi(2));
+        let (mean, sigma) = gls_common(&p, &d).expect("positive definite");
+        assert!((mean - 0.0045).abs() < 1e-15);
+        assert!((sigma - 0.0025).abs() < 1e-15);
+        // Independent, unequal sigmas: inverse-variance weights.
+        let p = DMatrix::from_diagonal(&DVector::from_vec(vec![1.0, 4.0, 1.0, 4.0]));
+        let (mean, sigma) = gls_common(&p, &d).expect("positive definite");
+        let w = [1.0, 0.25, 1.0, 0.25];
+        let expected = d.iter().zip(w).map(|(x, w)| x * w).sum::<f64>() / 2.5;
+        assert!((mean - expected).abs() < 1e-15);
+        assert!((sigma - 2.5f64.recip().sqrt()).abs() < 1e-15);
+        // A shared error (correlation rho between every pair): the mean's variance
+        // s^2 (1 + (n - 1) rho) / n does not shrink below rho s^2.
+        let (s2, rho, n) = (1.0, 0.5, 4.0);
+        let p = DMatrix::from_fn(4, 4, |i, j| if i == j { s2 } else { rho * s2 });
+        let (_, sigma) = gls_common(&p, &d).expect("positive definite");
+        assert!((sigma * sigma - s2 * (1.0 + (n - 1.0) * rho) / n).abs() < 1e-12);
+        // Not positive definite: no estimate.
+        assert!(gls_common(&DMatrix::zeros(4, 4), &d).is_none());
     }
 }
