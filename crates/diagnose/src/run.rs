@@ -149,6 +149,7 @@ fn filter_run(
         telemetry,
         references: inputs.references.into(),
         albedo,
+        set_first_rows: &[],
     };
     Ok(calibrate_with_model(
         &run_inputs,

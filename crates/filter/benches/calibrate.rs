@@ -20,6 +20,7 @@ fn bench(c: &mut Criterion) {
         telemetry: &sim.telemetry,
         references: (&references).into(),
         albedo: Some(&albedo),
+        set_first_rows: &[],
     };
     let forward = FilterConfig {
         smoother: false,

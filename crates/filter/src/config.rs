@@ -79,6 +79,11 @@ pub struct FilterConfig {
     /// Initial gyro-bias sigma per axis, deg/s. Default 5: the turn-on bias of MEMS gyros
     /// reaches several deg/s (4 deg/s is seen in flight on small-satellite MEMS gyros).
     pub initial_bias_sigma_deg_s: f64,
+    /// What the gyro bias does between the data sets of a joint run. Default
+    /// [`BiasAcrossSets::Restart`]: a MEMS gyro's turn-on bias changes from one power-on to
+    /// the next by up to its whole spread, far beyond the bias walk, so each set's bias
+    /// starts again from the prior (`initial_bias_sigma_deg_s`) and is found in that set.
+    pub gyro_bias_across_sets: BiasAcrossSets,
     /// Fit the gyro bias from the data at each acquisition ([`crate::bias_fit`]): the first
     /// `bias_fit_window_s` of the segment's vectors and gyro, the directions the data
     /// determine fused into the filter. Default true.
@@ -170,6 +175,18 @@ pub struct FilterConfig {
     pub initial_rate_sigma_deg_s: f64,
 }
 
+/// The gyro bias at the first acquisition of a data set after the first, in a joint run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum BiasAcrossSets {
+    /// Back to the prior: zero, `initial_bias_sigma_deg_s` per axis, uncorrelated (a gyro
+    /// turned on anew between the sets).
+    #[default]
+    Restart,
+    /// The estimate carries over with its random walk grown over the time between the sets
+    /// (a gyro that stayed on, or whose turn-on bias repeats).
+    Carry,
+}
+
 /// Whether the filter integrates the rigid-body dynamics ([`crate::rate`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum Dynamics {
@@ -210,6 +227,7 @@ impl Default for FilterConfig {
             scale_walk_fraction_per_sqrt_h: 1e-4,
             normal_walk_deg_per_sqrt_h: 0.001,
             initial_bias_sigma_deg_s: 5.0,
+            gyro_bias_across_sets: BiasAcrossSets::Restart,
             bias_from_data: true,
             bias_fit_window_s: 120.0,
             initial_scale_sigma_fraction: 0.15,

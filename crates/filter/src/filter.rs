@@ -584,6 +584,17 @@ impl Filter {
         self.last = None;
     }
 
+    /// The gyro bias back to its prior: zero, `sigma_rad_s` per axis, uncorrelated with
+    /// every other state (a gyro turned on anew).
+    pub fn restart_bias(&mut self, sigma_rad_s: f64) {
+        for k in BIAS..BIAS + 3 {
+            self.p.row_mut(k).fill(0.0);
+            self.p.column_mut(k).fill(0.0);
+            self.p[(k, k)] = sigma_rad_s * sigma_rad_s;
+        }
+        self.bias = Vector3::zeros();
+    }
+
     /// Fuses a batch fit's scalar measurements of the bias ([`crate::bias_fit::BiasRow`]:
     /// `u . b = y` with variance `r`) as Kalman updates of the whole state (Eqs. 4-7 with
     /// `H = [0, u^T, 0]`), so the calibration states move with their correlation to the

@@ -212,11 +212,14 @@ pub fn find_start(
                 continue;
             }
         }
-        let pds: Vec<Photodiode> = sampled.iter().map(|&i| inputs.photodiodes[i]).collect();
-        let outputs: Vec<f64> = sampled
-            .iter()
-            .map(|&i| tel.pd_v[i].get(k).unwrap_or(0.0))
-            .collect();
+        let largest_albedo_ratio = match inputs.albedo {
+            Some(model) => {
+                reference.albedo_into(model, &mut view, k)?;
+                view.max_ratio()
+            }
+            None => 0.0,
+        };
+        let (pds, outputs) = above_albedo(inputs, &sampled, k, largest_albedo_ratio);
         let mut known = vec![0.0; pds.len()];
         let options = SunVectorOptions {
             sun_distance_factor: reference.sun_distance_factor(),
@@ -227,8 +230,7 @@ pub fn find_start(
             continue;
         };
         let mut q = attitude(&sun_body, field.as_ref(), reference, config)?;
-        if let Some(model) = inputs.albedo {
-            reference.albedo_into(model, &mut view, k)?;
+        if inputs.albedo.is_some() {
             for _ in 0..2 {
                 let a = q.attitude_matrix();
                 for (known, pd) in known.iter_mut().zip(&pds) {
@@ -251,6 +253,30 @@ pub fn find_start(
         }));
     }
     Ok(Err(REASONS[furthest].to_owned()))
+}
+
+/// The photodiodes of `sampled` whose output at row `k` exceeds the largest Earth albedo
+/// any attitude could give them (`scale_v` times the albedo ratio of every lit cell in view,
+/// no cosine) by the Sun vector's lit threshold, with those outputs. The attitude is unknown at
+/// acquisition, so the albedo cannot be removed yet: an output below that bound may be
+/// albedo alone (a head facing the sunlit Earth with the Sun behind it reads hundreds of
+/// mV), and a Sun vector solved from albedo points at the Earth, not the Sun.
+fn above_albedo(
+    inputs: &StartInputs<'_>,
+    sampled: &[usize],
+    k: usize,
+    largest_albedo_ratio: f64,
+) -> (Vec<Photodiode>, Vec<f64>) {
+    sampled
+        .iter()
+        .filter_map(|&i| {
+            let pd = inputs.photodiodes[i];
+            let output = inputs.telemetry.pd_v[i].get(k)?;
+            let bound = pd.scale_v * largest_albedo_ratio
+                + SunVectorOptions::default().threshold.volts(pd.noise_v);
+            (output > bound).then_some((pd, output))
+        })
+        .unzip()
 }
 
 /// A magnetometer sample paired with a photodiode row.

@@ -113,7 +113,7 @@ pub mod smoother;
 pub use bias_fit::{BiasSource, InitialBias};
 pub use bounded::{Bounded, LISTED_ROWS};
 pub use calibration::{Calibration, ParameterEstimate, PdCalibration};
-pub use config::{Dynamics, FilterConfig, Mode, ParameterSigma, SensorSigmas};
+pub use config::{BiasAcrossSets, Dynamics, FilterConfig, Mode, ParameterSigma, SensorSigmas};
 pub use consistency::{Consistency, ConsistencyAccumulator, Verdict};
 pub use error::FilterError;
 pub use filter::{

@@ -25,7 +25,7 @@ use crate::segments::{
     Acquisition, GapRules, InnovationWindow, SegmentBreak, SegmentReport, attitude_sigma_rad,
 };
 use crate::smoother::SmootherStore;
-use crate::{FilterError, References, StepReference};
+use crate::{BiasAcrossSets, FilterError, References, StepReference};
 
 /// What a run reads: the dataset's metadata and telemetry (never its truth), one reference
 /// per telemetry row, and optionally the albedo model.
@@ -39,6 +39,9 @@ pub struct RunInputs<'a> {
     pub references: References<'a>,
     /// Albedo model (the paper's Eq. 13); `None` runs without albedo.
     pub albedo: Option<&'a AlbedoModel>,
+    /// The first telemetry row of each data set of a joint run after the first (empty for
+    /// one set): where [`FilterConfig::gyro_bias_across_sets`] applies.
+    pub set_first_rows: &'a [usize],
 }
 
 /// The paper's measurement model (Eq. 15: direct Sun plus albedo) for `photodiodes`, with
@@ -327,6 +330,8 @@ pub struct ForwardPass<'a> {
     view: AlbedoView,
     rejections: Rejections,
     repairs: RepairLog,
+    /// [`RunInputs::set_first_rows`] not yet reached.
+    sets_ahead: Vec<usize>,
 }
 
 impl<'a> ForwardPass<'a> {
@@ -532,6 +537,7 @@ impl<'a> ForwardPass<'a> {
             view: AlbedoView::new(),
             rejections,
             repairs: RepairLog::default(),
+            sets_ahead: inputs.set_first_rows.iter().rev().copied().collect(),
             telemetry,
         };
         if let Err(reason) = pass.acquire()? {
@@ -557,6 +563,7 @@ impl<'a> ForwardPass<'a> {
         let mut reasons: Vec<(String, usize)> = Vec::new();
         while self.at.next < self.telemetry.len() {
             let first = self.at.next;
+            self.enter_set(first);
             let end = self.segment_end(first);
             let photodiodes = self.current_photodiodes();
             let p = self.filter.covariance();
@@ -636,6 +643,21 @@ impl<'a> ForwardPass<'a> {
                 .join("; "),
         };
         Ok(Err(text))
+    }
+
+    /// Before acquiring from row `first`: when a later data set of a joint run begins at or
+    /// before it, the gyro bias restarts from its prior
+    /// ([`FilterConfig::gyro_bias_across_sets`]).
+    fn enter_set(&mut self, first: usize) {
+        let mut entered = false;
+        while self.sets_ahead.last().is_some_and(|&row| row <= first) {
+            self.sets_ahead.pop();
+            entered = true;
+        }
+        if entered && self.config.gyro_bias_across_sets == BiasAcrossSets::Restart {
+            self.filter
+                .restart_bias(self.config.initial_bias_sigma_deg_s.to_radians());
+        }
     }
 
     /// At an acquisition: the bias fitted over the segment's first rows (before `end`) and

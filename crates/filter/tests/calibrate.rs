@@ -16,6 +16,7 @@ fn run(case: &Case, config: &FilterConfig, mode: &Mode) -> CalibrationRun {
         telemetry: &tel,
         references: (&refs).into(),
         albedo: None,
+        set_first_rows: &[],
     };
     calibrate(&inputs, config, mode).expect("calibration runs")
 }
@@ -119,6 +120,7 @@ fn noise_free_data_converges_to_truth() {
         telemetry: &tel,
         references: (&refs).into(),
         albedo: None,
+        set_first_rows: &[],
     };
     let run = calibrate(&inputs, &config, &Mode::Full).unwrap();
     let (normal_deg, scale) = worst_errors(&case, &run);
@@ -202,6 +204,7 @@ fn gate_rejects_an_injected_outlier() {
         telemetry: &tel,
         references: (&refs).into(),
         albedo: None,
+        set_first_rows: &[],
     };
     // By default the screening against the neighbouring samples takes it out first.
     let run = calibrate(&inputs, &no_smoother(), &Mode::Full).unwrap();
@@ -288,6 +291,7 @@ fn photodiode_only_mode_converges() {
         telemetry: &tel,
         references: (&refs).into(),
         albedo: None,
+        set_first_rows: &[],
     };
     let run = calibrate(&inputs, &config, &Mode::Full).unwrap();
     assert_eq!(run.mode, ModeUsed::PhotodiodeOnly);
@@ -317,6 +321,7 @@ fn smoother_is_no_worse_than_the_filter() {
         telemetry: &tel,
         references: (&refs).into(),
         albedo: None,
+        set_first_rows: &[],
     };
     let run = calibrate(&inputs, &FilterConfig::default(), &Mode::Full).unwrap();
     let smoothed = run.smoothed.as_ref().unwrap();

@@ -33,6 +33,7 @@ fn without_gyro_and_inertia_the_error_names_both() {
         telemetry: &tel,
         references: (&refs).into(),
         albedo: None,
+        set_first_rows: &[],
     };
     let err = calibrate(&inputs, &config(Dynamics::Auto), &Mode::Full).unwrap_err();
     let FilterError::Missing(text) = &err else {
@@ -52,6 +53,7 @@ fn dynamics_on_without_inertia_asks_for_it() {
         telemetry: &tel,
         references: (&refs).into(),
         albedo: None,
+        set_first_rows: &[],
     };
     let err = calibrate(&inputs, &config(Dynamics::On), &Mode::Full).unwrap_err();
     assert!(err.to_string().contains("add inertia_kg_m2"), "{err}");
@@ -67,6 +69,7 @@ fn auto_with_a_1_hz_gyro_is_the_gyro_driven_filter() {
             telemetry: &tel,
             references: (&refs).into(),
             albedo: None,
+            set_first_rows: &[],
         };
         calibrate(&inputs, &config(dynamics), &Mode::Full).expect("runs")
     };

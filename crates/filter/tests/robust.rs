@@ -63,6 +63,7 @@ fn run_checked(telemetry: &Telemetry, mut corrupt: impl FnMut(usize, &mut Forwar
         telemetry,
         references: (&f.references).into(),
         albedo: Some(&f.albedo),
+        set_first_rows: &[],
     };
     let config = forward_only();
     let pds = f
@@ -272,6 +273,7 @@ fn spikes_in_every_sensor_leave_the_smoothed_run_as_it_was() {
             telemetry,
             references: (&f.references).into(),
             albedo: Some(&f.albedo),
+            set_first_rows: &[],
         };
         calibrate(&inputs, &FilterConfig::default(), &Mode::Full).unwrap()
     };

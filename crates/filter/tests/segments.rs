@@ -69,6 +69,7 @@ fn run_checked(
         telemetry: &telemetry,
         references: (&references).into(),
         albedo: Some(&f.albedo),
+        set_first_rows: &[],
     };
     let pds = f
         .meta
@@ -367,6 +368,7 @@ fn sparse_flight_frames_calibrate_honestly() {
         telemetry: &tel,
         references: (&refs).into(),
         albedo: Some(&albedo),
+        set_first_rows: &[],
     };
     let run = pdcal_filter::calibrate(&inputs, &FilterConfig::default(), &Mode::Full).unwrap();
     // The frames' rhythm is not a gap; the passes are.

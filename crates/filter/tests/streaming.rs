@@ -72,6 +72,7 @@ fn compare(
         telemetry: tel,
         references: refs.into(),
         albedo: None,
+        set_first_rows: &[],
     };
     let config = FilterConfig::default();
     let model = || {
@@ -154,6 +155,7 @@ fn a_sink_can_cancel_the_forward_pass_and_the_smoother() {
             telemetry: &tel,
             references: (&refs).into(),
             albedo: None,
+            set_first_rows: &[],
         };
         let model = paper_model(pdcal_filter::nominal_photodiodes(&meta), &config);
         let result = calibrate_streaming(

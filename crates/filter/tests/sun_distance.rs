@@ -23,6 +23,7 @@ fn calibrate_on(epoch_utc: &str, albedo: &AlbedoModel) -> (Vec<(f64, f64, f64)>,
         telemetry: &sim.telemetry,
         references: (&references).into(),
         albedo: Some(albedo),
+        set_first_rows: &[],
     };
     let run = calibrate(&inputs, &FilterConfig::default(), &Mode::Full).unwrap();
     let scales = run

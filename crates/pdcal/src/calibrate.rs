@@ -149,11 +149,13 @@ pub fn run_with_references(
         Some((meta, telemetry)) => (meta, telemetry),
         None => (meta, telemetry),
     };
+    let later_sets: Vec<usize> = sets.iter().skip(1).map(|s| s.first_row).collect();
     let inputs = RunInputs {
         meta,
         telemetry,
         references: (&references).into(),
         albedo: Some(albedo),
+        set_first_rows: &later_sets,
     };
     let start = Instant::now();
     let run = pdcal_filter::calibrate(&inputs, &config.filter, &config.mode)
@@ -371,13 +373,14 @@ pub fn run_sets(
     crate::mounting::apply(&mountings, &mut meta, &mut telemetry);
     warnings.extend(mountings.iter().map(|f| f.message()));
     let references = references_of(stored.as_deref(), &reference_model, &telemetry.t_s);
+    let set_starts: Vec<usize> = joint.sets.iter().map(|s| s.first_row).collect();
     let inputs = RunInputs {
         meta: &meta,
         telemetry: &telemetry,
         references,
         albedo: Some(&albedo),
+        set_first_rows: &set_starts[1.min(set_starts.len())..],
     };
-    let set_starts: Vec<usize> = joint.sets.iter().map(|s| s.first_row).collect();
     let mut sink = StreamSink::new(
         &dir,
         meta.photodiodes.len(),

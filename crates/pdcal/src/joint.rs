@@ -344,6 +344,7 @@ fn own_estimate(
         telemetry: &part,
         references: pdcal_filter::References::Stored(refs),
         albedo: Some(albedo),
+        set_first_rows: &[],
     };
     let mut filter = config.clone();
     filter.smoother = false;

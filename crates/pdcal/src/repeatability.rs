@@ -30,7 +30,10 @@
 //! The gyro bias is no calibration constant: a MEMS gyro's turn-on bias changes with every
 //! power cycle. Consecutive sets' biases are compared against the bias random walk over
 //! the time between them; beyond [`BIAS_CHANGE_SIGMAS`] it is a warning of its own, which
-//! says whether the bias prior allows the change (then it is expected) or not.
+//! says whether the bias prior allows the change (then it is expected) or not. When the
+//! filter restarts the bias from its prior in each set (`gyro_bias_across_sets: Restart`,
+//! the default), a change the prior allows is what the filter assumed and no warning; one
+//! beyond 3 sigma of the prior still is (the prior is too narrow for this gyro).
 
 use pdcal_filter::Calibration;
 use pdcal_filter::consistency::normal_quantile;
@@ -78,6 +81,10 @@ pub struct Walks {
     pub normal_deg_per_sqrt_h: f64,
     /// Gyro bias, rad/s per sqrt(s) (`gyro_bias_walk_rad_s_sqrt_s`).
     pub bias_rad_s_sqrt_s: f64,
+    /// The filter restarts the gyro bias from its prior in each set
+    /// (`gyro_bias_across_sets: Restart`): a change the prior allows is then expected, not
+    /// a warning.
+    pub bias_restarts: bool,
 }
 
 impl Walks {
@@ -87,6 +94,7 @@ impl Walks {
             scale_fraction_per_sqrt_h: config.scale_walk_fraction_per_sqrt_h,
             normal_deg_per_sqrt_h: config.normal_walk_deg_per_sqrt_h,
             bias_rad_s_sqrt_s: config.gyro_bias_walk_rad_s_sqrt_s,
+            bias_restarts: config.gyro_bias_across_sets == pdcal_filter::BiasAcrossSets::Restart,
         }
     }
 }
@@ -584,6 +592,7 @@ fn bias_changes(
             };
             if let Some((j, delta, z, sigma)) = change
                 && z.abs() > BIAS_CHANGE_SIGMAS
+                && !(walks.bias_restarts && delta.abs() <= 3.0 * initial_bias_sigma_rad_s)
             {
                 warnings.push(bias_warning(
                     &label,
@@ -702,6 +711,7 @@ mod tests {
         scale_fraction_per_sqrt_h: 0.0,
         normal_deg_per_sqrt_h: 0.0,
         bias_rad_s_sqrt_s: 0.0,
+        bias_restarts: false,
     };
 
     const PRIOR: f64 = 0.5 * std::f64::consts::PI / 180.0;
@@ -899,6 +909,26 @@ mod tests {
         let row = &compare(&sets(0.2f64.to_radians()), &NO_WALK, PRIOR).sets[1].parameters[3];
         assert_eq!(row.parameter, "gyro_bias_x_rad_s");
         assert_eq!(row.verdict, "changed");
+    }
+
+    #[test]
+    fn a_filter_that_restarts_the_bias_per_set_is_warned_only_beyond_the_prior() {
+        let sets = |b: f64| {
+            [
+                set("a", 0.0, (0.7, 0.01), Status::Calibrated, 0.0),
+                set("b", 86_400.0, (0.7, 0.01), Status::Calibrated, b),
+            ]
+        };
+        let restarts = Walks {
+            bias_restarts: true,
+            ..NO_WALK
+        };
+        let r = compare(&sets(0.2f64.to_radians()), &restarts, PRIOR);
+        assert!(r.bias_warnings.is_empty(), "{:?}", r.bias_warnings);
+        assert_eq!(r.sets[1].parameters[3].verdict, "changed");
+        let r = compare(&sets(2.0f64.to_radians()), &restarts, PRIOR);
+        assert_eq!(r.bias_warnings.len(), 3, "{:?}", r.bias_warnings);
+        assert!(r.bias_warnings[0].contains("beyond 3 sigma of the bias prior"));
     }
 
     #[test]

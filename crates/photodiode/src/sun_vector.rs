@@ -35,6 +35,16 @@ pub enum LitThreshold {
     Volts(f64),
 }
 
+impl LitThreshold {
+    /// The threshold in volts for a photodiode of noise sigma `noise_v`.
+    pub fn volts(&self, noise_v: f64) -> f64 {
+        match *self {
+            LitThreshold::NoiseSigmas(k) => k * noise_v,
+            LitThreshold::Volts(v) => v,
+        }
+    }
+}
+
 /// Options of [`estimate_sun_vector`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SunVectorOptions {
@@ -134,10 +144,7 @@ pub fn estimate_sun_vector(
             });
         }
         let direct = output - known_v.map_or(0.0, |k| k[i]);
-        let threshold = match options.threshold {
-            LitThreshold::NoiseSigmas(k) => k * pd.noise_v,
-            LitThreshold::Volts(v) => v,
-        };
+        let threshold = options.threshold.volts(pd.noise_v);
         lit.push((direct > threshold).then_some(direct / (factor * pd.scale_v)));
     }
     let mut estimate = solve(photodiodes, &lit, options);
