@@ -96,6 +96,7 @@ pub fn describe(d: &Diagnosis) -> String {
             r.rejected,
             r.dropped.iter().map(|x| x.id).collect::<Vec<_>>(),
         );
+        s += &format!("    significance: {}\n", r.significance.text());
         for x in &r.reformed {
             s += &format!(
                 "    reformed {}: {:?} -> {:?} (photodiode RSS {:.4} -> {:.4} V^2)\n",
