@@ -250,36 +250,54 @@ pub fn propagate(
     }
 }
 
+/// The rows of `phi` that differ from the identity's (the bias and dipole rows are the
+/// identity's: only the attitude and rate rows need the product).
+fn moving_rows(phi: &Matrix12) -> ([usize; RATE_STATES], usize) {
+    let mut rows = [0; RATE_STATES];
+    let mut n = 0;
+    for r in 0..RATE_STATES {
+        let identity = (0..RATE_STATES).all(|j| phi[(r, j)] == if j == r { 1.0 } else { 0.0 });
+        if !identity {
+            rows[n] = r;
+            n += 1;
+        }
+    }
+    (rows, n)
+}
+
 /// `P <- Phi P` in place, `Phi` the identity but for rows `idx` (given as `phi`, columns in
 /// `idx` order).
 pub(crate) fn left_multiply(p: &mut DMatrix<f64>, idx: &RateIndex, phi: &Matrix12) {
+    let (rows, n) = moving_rows(phi);
+    let rows = &rows[..n];
     let mut x = [0.0; RATE_STATES];
     for mut column in p.column_iter_mut() {
         for (xj, &k) in x.iter_mut().zip(idx) {
             *xj = column[k];
         }
-        for (r, &k) in idx.iter().enumerate() {
-            column[k] = (0..RATE_STATES).map(|j| phi[(r, j)] * x[j]).sum();
+        for &r in rows {
+            column[idx[r]] = (0..RATE_STATES).map(|j| phi[(r, j)] * x[j]).sum();
         }
     }
 }
 
 /// `P <- P Phi^T` in place, `Phi` as in [`left_multiply`].
 pub(crate) fn right_multiply_transpose(p: &mut DMatrix<f64>, idx: &RateIndex, phi: &Matrix12) {
+    let (cols, m) = moving_rows(phi);
     let n = p.nrows();
     let mut x = [0.0; RATE_STATES];
     for row in 0..n {
         for (xj, &k) in x.iter_mut().zip(idx) {
             *xj = p[(row, k)];
         }
-        for (c, &k) in idx.iter().enumerate() {
-            p[(row, k)] = (0..RATE_STATES).map(|j| phi[(c, j)] * x[j]).sum();
+        for &c in &cols[..m] {
+            p[(row, idx[c])] = (0..RATE_STATES).map(|j| phi[(c, j)] * x[j]).sum();
         }
     }
 }
 
 /// `P <- Phi P Phi^T + Q`: `Phi` as in [`left_multiply`], `Q` = `qd` on `idx` and
-/// `other_noise` on the diagonal elsewhere; made exactly symmetric.
+/// `other_noise` on the diagonal elsewhere; made exactly symmetric (`P` and `Q` are).
 pub(crate) fn propagate_covariance(
     p: &mut DMatrix<f64>,
     idx: &RateIndex,
@@ -290,8 +308,16 @@ pub(crate) fn propagate_covariance(
     left_multiply(p, idx, phi);
     right_multiply_transpose(p, idx, phi);
     add_noise(p, idx, qd, other_noise);
-    let sym = 0.5 * (&*p + p.transpose());
-    p.copy_from(&sym);
+    // Only the rows and columns `Phi` moved can have lost symmetry to round-off.
+    let (rows, m) = moving_rows(phi);
+    for &r in &rows[..m] {
+        let k = idx[r];
+        for j in 0..p.nrows() {
+            let mean = 0.5 * (p[(k, j)] + p[(j, k)]);
+            p[(k, j)] = mean;
+            p[(j, k)] = mean;
+        }
+    }
 }
 
 /// `P += Q` with `Q` as in [`propagate_covariance`].
@@ -477,8 +503,11 @@ mod tests {
         let idx = [0, 1, 2, 3, 4, 5, 11, 12, 13, 14, 15, 16];
         let a = DMatrix::from_fn(n, n, |i, j| ((i * 7 + j * 3) % 11) as f64 / 10.0 - 0.4);
         let mut p = &a * a.transpose() + DMatrix::identity(n, n);
-        let phi12 =
-            Matrix12::from_fn(|i, j| ((i + 2 * j) % 5) as f64 * 0.1 + (i == j) as u8 as f64);
+        // Rows 3..6 the identity's, as the bias rows are (the product skips them).
+        let phi12 = Matrix12::from_fn(|i, j| match i {
+            3..6 => (i == j) as u8 as f64,
+            _ => ((i + 2 * j) % 5) as f64 * 0.1 + (i == j) as u8 as f64,
+        });
         let qd12 = Matrix12::identity() * 0.01;
         let other: Vec<f64> = (0..n).map(|k| 0.001 * k as f64).collect();
         let mut phi = DMatrix::identity(n, n);
