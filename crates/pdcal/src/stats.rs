@@ -127,7 +127,11 @@ mod tests {
         let std = (finite.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
         assert_eq!(sums.count(), finite.len());
         assert_eq!(sums.mean().to_bits(), mean.to_bits());
-        assert!((sums.std() - std).abs() <= 1e-12 * std, "{} {std}", sums.std());
+        assert!(
+            (sums.std() - std).abs() <= 1e-12 * std,
+            "{} {std}",
+            sums.std()
+        );
     }
 
     #[test]

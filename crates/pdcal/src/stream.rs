@@ -371,7 +371,10 @@ impl AttitudeSpill {
         for e in rows {
             let mut record = [0u8; ATTITUDE_RECORD_BYTES];
             record[..8].copy_from_slice(&(e.index as u64).to_le_bytes());
-            for (cell, v) in record[8..].chunks_exact_mut(8).zip([e.q.x, e.q.y, e.q.z, e.q.w]) {
+            for (cell, v) in record[8..]
+                .chunks_exact_mut(8)
+                .zip([e.q.x, e.q.y, e.q.z, e.q.w])
+            {
                 cell.copy_from_slice(&v.to_le_bytes());
             }
             out.write_all(&record).with_context(writing(&self.path))?;
@@ -394,8 +397,8 @@ impl AttitudeSpill {
 
     /// The attitudes `(row, attitude)` in increasing rows.
     pub fn rows(&self) -> Result<impl Iterator<Item = Result<(usize, Quat)>> + '_> {
-        let file =
-            File::open(&self.path).with_context(|| format!("cannot read {}", self.path.display()))?;
+        let file = File::open(&self.path)
+            .with_context(|| format!("cannot read {}", self.path.display()))?;
         let mut file = BufReader::new(file);
         let order: Box<dyn Iterator<Item = &(u64, u64)>> = if self.backward {
             Box::new(self.blocks.iter().rev())
@@ -438,5 +441,13 @@ fn decode(record: &[u8; ATTITUDE_RECORD_BYTES]) -> (usize, Quat) {
     };
     let f = |i: usize| f64::from_le_bytes(word(i));
     let index = u64::from_le_bytes(word(0)) as usize;
-    (index, Quat { x: f(1), y: f(2), z: f(3), w: f(4) })
+    (
+        index,
+        Quat {
+            x: f(1),
+            y: f(2),
+            z: f(3),
+            w: f(4),
+        },
+    )
 }
