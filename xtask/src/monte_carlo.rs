@@ -3,7 +3,7 @@
 use std::fmt::Write;
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use pdcal::calibrate::{RunConfig, albedo_model};
 pub use pdcal::sim_calibrate::Cut;
@@ -57,6 +57,12 @@ pub fn run(
         }
     }
     results.sort_by_key(|r| r.seed);
+    if results.is_empty() {
+        bail!(
+            "no seed of {n} ended without an error: {}",
+            failed.first().map_or("", String::as_str)
+        );
+    }
     let mut mode = if photodiode_only {
         "photodiode-only"
     } else {

@@ -584,6 +584,69 @@ impl Filter {
         self.last = None;
     }
 
+    /// After a Sun-only acquisition ([`Filter::reacquire`]): the attitude error becomes
+    /// `a = J dc + w`, `dc` the photodiodes' calibration errors (`J` from `sensitivity`,
+    /// its normal part applied to each normal's tangent basis) and `w` the acquisition's
+    /// own error (the covariance `reacquire` set): `P_ax = J P_cx` for every other state
+    /// `x`, `P_aa += J P_cc J^T`. The Sun direction the outputs give is only as good as
+    /// the calibration that turned them into a direction; held as independent, the
+    /// filter would take the outputs' agreement with a wrong calibration for knowledge
+    /// of both.
+    pub fn correlate_attitude(&mut self, sensitivity: &[crate::init::PdSensitivity]) {
+        let mut cols: Vec<(usize, Vector3<f64>)> = Vec::new();
+        for s in sensitivity {
+            cols.push((self.layout.scale(s.pd), s.d_scale));
+            if let Some(d) = self.layout.normal(s.pd) {
+                let (e1, e2) = &self.basis[s.pd];
+                cols.push((d, s.d_normal * e1));
+                cols.push((d + 1, s.d_normal * e2));
+            }
+        }
+        let n = self.p.nrows();
+        let mut b = nalgebra::Matrix3xX::<f64>::zeros(n);
+        for &(idx, col) in &cols {
+            for x in 0..n {
+                let v = self.p[(idx, x)];
+                if v != 0.0 {
+                    let mut column = b.column_mut(x);
+                    column += col * v;
+                }
+            }
+        }
+        let mut added = Matrix3::zeros();
+        for &(idx, col) in &cols {
+            added += b.column(idx) * col.transpose();
+        }
+        for x in 0..n {
+            if (ATTITUDE..ATTITUDE + 3).contains(&x) {
+                continue;
+            }
+            for r in 0..3 {
+                self.p[(ATTITUDE + r, x)] = b[(r, x)];
+                self.p[(x, ATTITUDE + r)] = b[(r, x)];
+            }
+        }
+        let mut p_aa = self.p.fixed_view_mut::<3, 3>(ATTITUDE, ATTITUDE);
+        p_aa += 0.5 * (added + added.transpose());
+    }
+
+    /// The attitude-error covariance given the photodiodes' calibration states (rad^2):
+    /// `P_aa - P_ac P_cc^-1 P_ca`, the attitude relative to the frame the photodiodes'
+    /// normals define. `None` when `P_cc` is not positive definite.
+    pub fn attitude_cov_given_calibration(&self) -> Option<Matrix3<f64>> {
+        let n = self.p.nrows();
+        let cal: Vec<usize> = (CORE..n).filter(|&k| self.p[(k, k)] > 0.0).collect();
+        if cal.is_empty() {
+            return Some(self.p.fixed_view::<3, 3>(ATTITUDE, ATTITUDE).into_owned());
+        }
+        let p_cc = DMatrix::from_fn(cal.len(), cal.len(), |r, c| self.p[(cal[r], cal[c])]);
+        let p_ca = DMatrix::from_fn(cal.len(), 3, |r, c| self.p[(cal[r], ATTITUDE + c)]);
+        let solved = p_cc.cholesky()?.solve(&p_ca);
+        let reduction = p_ca.transpose() * solved;
+        let p_aa = self.p.fixed_view::<3, 3>(ATTITUDE, ATTITUDE);
+        Some(Matrix3::from_fn(|r, c| p_aa[(r, c)] - reduction[(r, c)]))
+    }
+
     /// The gyro bias back to its prior: zero, `sigma_rad_s` per axis, uncorrelated with
     /// every other state (a gyro turned on anew).
     pub fn restart_bias(&mut self, sigma_rad_s: f64) {

@@ -100,6 +100,22 @@ pub struct Start {
     pub gyro_rad_s: Vector3<f64>,
     /// Time of that gyro sample, s.
     pub gyro_t_s: f64,
+    /// Sun only: how the acquired attitude's error moves with each lit photodiode's
+    /// calibration error ([`sun_only_sensitivity`]); empty with the magnetometer.
+    pub sensitivity: Vec<PdSensitivity>,
+}
+
+/// The attitude error of a Sun-only acquisition per unit error of one photodiode's
+/// calibration (error = true - estimated, the filter's convention for every state).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PdSensitivity {
+    /// The photodiode.
+    pub pd: usize,
+    /// Attitude error (rad, body) per V of scale-factor error.
+    pub d_scale: Vector3<f64>,
+    /// Attitude error (rad, body) per unit change of the normal vector (applied to its
+    /// tangent directions).
+    pub d_normal: Matrix3<f64>,
 }
 
 /// What [`find_start`] works with.
@@ -217,7 +233,12 @@ pub fn find_start(
             }
             None => 0.0,
         };
-        let (pds, outputs) = above_albedo(inputs, &sampled, k, largest_albedo_ratio);
+        let lit = above_albedo(inputs, &sampled, k, largest_albedo_ratio);
+        let pds: Vec<Photodiode> = lit.iter().map(|&i| inputs.photodiodes[i]).collect();
+        let outputs: Vec<f64> = lit
+            .iter()
+            .map(|&i| tel.pd_v[i].get(k).unwrap_or(0.0))
+            .collect();
         let mut known = vec![0.0; pds.len()];
         let options = SunVectorOptions {
             sun_distance_factor: reference.sun_distance_factor(),
@@ -240,7 +261,18 @@ pub fn find_start(
                 }
             }
         }
-        let attitude_cov = covariance(&sun_body, field.as_ref(), config);
+        let (attitude_cov, sensitivity) = match field {
+            Some(_) => (covariance(&sun_body, field.as_ref(), config), Vec::new()),
+            None => {
+                let fit = SunFit::new(&pds, &outputs, &known, &options);
+                let sensitivity = lit
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(j, &pd)| fit.sensitivity(j, pd))
+                    .collect();
+                (fit.conditional_cov(config), sensitivity)
+            }
+        };
         return Ok(Ok(Start {
             index: k,
             q,
@@ -248,6 +280,7 @@ pub fn find_start(
             paired_field_row: field.and_then(|f| (f.row != k).then_some(f.row)),
             gyro_rad_s,
             gyro_t_s,
+            sensitivity,
         }));
     }
     Ok(Err(REASONS[furthest].to_owned()))
@@ -255,26 +288,139 @@ pub fn find_start(
 
 /// The photodiodes of `sampled` whose output at row `k` exceeds the largest Earth albedo
 /// any attitude could give them (`scale_v` times the albedo ratio of every lit cell in view,
-/// no cosine) by the Sun vector's lit threshold, with those outputs. The attitude is unknown at
-/// acquisition, so the albedo cannot be removed yet: an output below that bound may be
-/// albedo alone (a head facing the sunlit Earth with the Sun behind it reads hundreds of
-/// mV), and a Sun vector solved from albedo points at the Earth, not the Sun.
+/// no cosine) by the Sun vector's lit threshold. The attitude is unknown at acquisition, so
+/// the albedo cannot be removed yet: an output below that bound may be albedo alone (a head
+/// facing the sunlit Earth with the Sun behind it reads hundreds of mV), and a Sun vector
+/// solved from albedo points at the Earth, not the Sun.
 fn above_albedo(
     inputs: &StartInputs<'_>,
     sampled: &[usize],
     k: usize,
     largest_albedo_ratio: f64,
-) -> (Vec<Photodiode>, Vec<f64>) {
+) -> Vec<usize> {
+    let threshold = SunVectorOptions::default().threshold;
     sampled
         .iter()
-        .filter_map(|&i| {
-            let pd = inputs.photodiodes[i];
-            let output = inputs.telemetry.pd_v[i].get(k)?;
-            let bound = pd.scale_v * largest_albedo_ratio
-                + SunVectorOptions::default().threshold.volts(pd.noise_v);
-            (output > bound).then_some((pd, output))
+        .copied()
+        .filter(|&i| {
+            let pd = &inputs.photodiodes[i];
+            let bound = pd.scale_v * largest_albedo_ratio + threshold.volts(pd.noise_v);
+            inputs.telemetry.pd_v[i].get(k).is_some_and(|v| v > bound)
         })
-        .unzip()
+        .collect()
+}
+
+/// The least-squares Sun vector of the lit photodiodes, linearised: `s = G H^T y` with
+/// `G = (H^T H)^-1`, `y_i = (I_i - b_i) / (F C_i)`, `H` the unit normals.
+struct SunFit<'a> {
+    pds: &'a [Photodiode],
+    /// Lit (above the threshold after `known`): `y_i`, else `None`.
+    y: Vec<Option<f64>>,
+    g: Matrix3<f64>,
+    s: Vector3<f64>,
+    factor: f64,
+}
+
+impl<'a> SunFit<'a> {
+    fn new(
+        pds: &'a [Photodiode],
+        outputs: &[f64],
+        known: &[f64],
+        options: &SunVectorOptions,
+    ) -> Self {
+        let factor = options.sun_distance_factor;
+        let y: Vec<Option<f64>> = (0..pds.len())
+            .map(|i| {
+                let direct = outputs[i] - known[i];
+                (direct > options.threshold.volts(pds[i].noise_v))
+                    .then(|| direct / (factor * pds[i].scale_v))
+            })
+            .collect();
+        let lit = || pds.iter().zip(&y).filter_map(|(pd, y)| y.map(|y| (pd, y)));
+        let normal_matrix: Matrix3<f64> =
+            lit().map(|(pd, _)| pd.n_body * pd.n_body.transpose()).sum();
+        let g = normal_matrix.try_inverse().unwrap_or_else(Matrix3::zeros);
+        let s = lit().map(|(pd, y)| g * pd.n_body * y).sum();
+        let fit = SunFit {
+            pds,
+            y,
+            g,
+            s,
+            factor,
+        };
+        // As the Sun vector does, a photodiode facing away from the solution is left out.
+        if fit
+            .pds
+            .iter()
+            .zip(&fit.y)
+            .all(|(pd, y)| y.is_none() || pd.n_body.dot(&fit.s) > 0.0)
+        {
+            return fit;
+        }
+        let y: Vec<Option<f64>> = pds
+            .iter()
+            .zip(&fit.y)
+            .map(|(pd, y)| y.filter(|_| pd.n_body.dot(&fit.s) > 0.0))
+            .collect();
+        let lit = || pds.iter().zip(&y).filter_map(|(pd, y)| y.map(|y| (pd, y)));
+        let normal_matrix: Matrix3<f64> =
+            lit().map(|(pd, _)| pd.n_body * pd.n_body.transpose()).sum();
+        let g = normal_matrix.try_inverse().unwrap_or_else(Matrix3::zeros);
+        let s = lit().map(|(pd, y)| g * pd.n_body * y).sum();
+        SunFit {
+            pds,
+            y,
+            g,
+            s,
+            factor,
+        }
+    }
+
+    /// From a change of `s` to the attitude error it means: with `d = s/|s|` and
+    /// `A_true = (I - [a x]) A_est`, `d_true = d + d x a`, so across the Sun line
+    /// `a = -[d x] (I - d d^T) ds / |s|`.
+    fn to_attitude(&self) -> Matrix3<f64> {
+        let norm = self.s.norm().max(1e-12);
+        let d = self.s / norm;
+        -pdcal_attitude::skew(&d) * (Matrix3::identity() - d * d.transpose()) / norm
+    }
+
+    /// Photodiode `j` of the fit (filter photodiode `pd`): the attitude error per error of
+    /// its scale (`ds/dC = -G n y / C`) and of its normal (`ds/dn = G (r I - n s^T)`, `r`
+    /// its least-squares residual); `None` when it is not lit.
+    fn sensitivity(&self, j: usize, pd: usize) -> Option<PdSensitivity> {
+        let y = self.y[j]?;
+        let p = &self.pds[j];
+        let to_a = self.to_attitude();
+        let residual = y - p.n_body.dot(&self.s);
+        let ds_dn = self.g * (Matrix3::identity() * residual - p.n_body * self.s.transpose());
+        Some(PdSensitivity {
+            pd,
+            d_scale: to_a * (-self.g * p.n_body * y / p.scale_v),
+            d_normal: to_a * ds_dn,
+        })
+    }
+
+    /// The acquired attitude's covariance given the calibration (rad^2, body): the
+    /// outputs' noise across the Sun line (`dI_i / (F C_i)` along `G n_i`), the configured
+    /// floor, and `unobserved_axis_sigma_deg` about the line.
+    fn conditional_cov(&self, config: &FilterConfig) -> Matrix3<f64> {
+        let to_a = self.to_attitude();
+        let noise: Matrix3<f64> = self
+            .pds
+            .iter()
+            .zip(&self.y)
+            .filter(|(_, y)| y.is_some())
+            .map(|(pd, _)| {
+                let col = to_a * self.g * pd.n_body * (pd.noise_v / (self.factor * pd.scale_v));
+                col * col.transpose()
+            })
+            .sum();
+        let d = self.s.try_normalize(1e-12).unwrap_or_else(Vector3::z);
+        let floor = config.initial_attitude_sigma_floor_deg.to_radians().powi(2);
+        let var_axis = config.unobserved_axis_sigma_deg.to_radians().powi(2);
+        noise + Matrix3::identity() * floor + d * d.transpose() * var_axis
+    }
 }
 
 /// A magnetometer sample paired with a photodiode row.
@@ -436,6 +582,76 @@ fn covariance(
         None => {
             let var_axis = config.unobserved_axis_sigma_deg.to_radians().powi(2);
             across(&s) * var_sun + s * s.transpose() * var_axis + floor
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Four photodiodes under a pyramid (normals 18 deg off +z) lit by a Sun 30 deg off +z.
+    fn head() -> (Vec<Photodiode>, Vector3<f64>) {
+        let pds = [0.0f64, 90.0, 180.0, 270.0]
+            .iter()
+            .zip([0.9, 1.1, 0.8, 1.0])
+            .map(|(&az, c)| Photodiode::from_az_el_deg(c, az, 72.0, 0.005))
+            .collect();
+        let s = Vector3::new(0.4, 0.25, 1.0).normalize();
+        (pds, s)
+    }
+
+    /// The attitude error (true - estimated, `A_true = (I - [a x]) A_est`) between the
+    /// directions solved with the estimated and with the true photodiodes, from the same
+    /// outputs: `a = (d_true - d_est) x d_est` across the line.
+    fn attitude_error(est: &[Photodiode], truth: &[Photodiode], outputs: &[f64]) -> Vector3<f64> {
+        let options = SunVectorOptions::default();
+        let known = vec![0.0; outputs.len()];
+        let d_est = SunFit::new(est, outputs, &known, &options).s.normalize();
+        let d_true = SunFit::new(truth, outputs, &known, &options).s.normalize();
+        (d_true - d_est).cross(&d_est)
+    }
+
+    #[test]
+    fn the_acquisition_sensitivity_matches_finite_differences() {
+        let (truth, s) = head();
+        let outputs: Vec<f64> = truth
+            .iter()
+            .map(|pd| pd.scale_v * pd.n_body.dot(&s))
+            .collect();
+        // The estimate: scales and one normal a little off, so the fit has a residual.
+        let mut est = truth.clone();
+        est[0].scale_v *= 1.1;
+        est[2].n_body = (est[2].n_body + Vector3::new(0.03, -0.02, 0.0)).normalize();
+        let known = vec![0.0; outputs.len()];
+        let fit = SunFit::new(&est, &outputs, &known, &SunVectorOptions::default());
+        for j in 0..est.len() {
+            let sens = fit.sensitivity(j, j).unwrap();
+            let h = 1e-6;
+            let mut moved = est.clone();
+            moved[j].scale_v += h;
+            let fd = attitude_error(&est, &moved, &outputs) / h;
+            assert!(
+                (fd - sens.d_scale).norm() <= 1e-4 * sens.d_scale.norm().max(1e-3),
+                "pd {j} scale: {fd} against {}",
+                sens.d_scale
+            );
+            let (e1, e2) = pdcal_attitude::tangent_basis(&est[j].n_body);
+            for e in [e1, e2] {
+                let mut moved = est.clone();
+                moved[j].n_body = pdcal_attitude::rotate_normal_in(
+                    &est[j].n_body,
+                    (&e1, &e2),
+                    h * e.dot(&e1),
+                    h * e.dot(&e2),
+                );
+                let fd = attitude_error(&est, &moved, &outputs) / h;
+                let analytic = sens.d_normal * e;
+                assert!(
+                    (fd - analytic).norm() <= 1e-4 * analytic.norm().max(1e-3),
+                    "pd {j} normal: {fd} against {analytic}"
+                );
+            }
         }
     }
 }

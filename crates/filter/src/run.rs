@@ -591,6 +591,7 @@ impl<'a> ForwardPass<'a> {
                     let t_s = self.telemetry.t_s[start.index];
                     self.filter
                         .reacquire(start.q, &start.attitude_cov, t_s - self.at.last_t_s);
+                    self.filter.correlate_attitude(&start.sensitivity);
                     self.current.acquired_row = Some(start.index);
                     self.current.acquisition = if self.use_mag {
                         Acquisition::SunAndField
@@ -965,6 +966,23 @@ impl<'a> ForwardPass<'a> {
         attitude_sigma_rad(&p_aa, sun_body.as_ref()).to_degrees()
     }
 
+    /// As [`Self::attitude_sigma_deg`], of the attitude given the photodiodes' calibration
+    /// ([`Filter::attitude_cov_given_calibration`]) without the magnetometer: with the Sun
+    /// alone the photodiodes' own mounting uncertainty is part of the attitude's, and an
+    /// attitude known relative to the photodiodes is held whatever that frame's uncertainty.
+    /// With the magnetometer, the attitude's own sigma.
+    fn relative_sigma_deg(&self, k: usize) -> f64 {
+        if self.use_mag {
+            return self.attitude_sigma_deg(k);
+        }
+        let Some(p_aa) = self.filter.attitude_cov_given_calibration() else {
+            return self.attitude_sigma_deg(k);
+        };
+        let sun = self.references.at(k).ok().map(|r| r.sun_gcrf_unit);
+        let sun_body = sun.map(|s| self.filter.q().to_body(&s));
+        attitude_sigma_rad(&p_aa, sun_body.as_ref()).to_degrees()
+    }
+
     /// Why the attitude is lost after the last step, if it is: its sigma beyond the bound
     /// and beyond what the acquisition gave (a q-method with Sun and field 20 degrees apart
     /// starts near 30 degrees about one axis, and is not lost for that), or most of a full
@@ -976,7 +994,7 @@ impl<'a> ForwardPass<'a> {
             .segments
             .lost_attitude_sigma_deg
             .max(self.at.acquired_sigma_deg);
-        if sigma_deg > bound_deg {
+        if sigma_deg > bound_deg && self.relative_sigma_deg(self.at.next - 1) > bound_deg {
             return Some(format!(
                 "attitude sigma {sigma_deg:.1} deg above {bound_deg} deg"
             ));

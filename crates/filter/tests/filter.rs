@@ -7,6 +7,7 @@ use common::Case;
 use nalgebra::{Matrix2, Vector3};
 use pdcal_attitude::{Quat, normal_from_az_el, rotate_normal};
 use pdcal_filter::calibration::az_el_sigmas;
+use pdcal_filter::init::PdSensitivity;
 use pdcal_filter::smoother::tangent_log;
 use pdcal_filter::{
     Algebra, Calibration, Filter, FilterConfig, FilterNoise, InitialState, Measurements,
@@ -391,4 +392,53 @@ fn rate_change_noise_of_a_steady_rate_is_a_quarter_of_the_gyro_noise() {
         100.0 * fraction
     );
     assert!((fraction - 0.24).abs() < 0.02, "{fraction}");
+}
+
+/// A Sun-only acquisition correlated with the calibration ([`Filter::correlate_attitude`]):
+/// the attitude error `a = J dc + w` with `w` the acquisition's own error, so the covariance
+/// stays symmetric positive definite, `P_ac = J P_cc`, and the attitude given the
+/// calibration states is exactly `w`'s covariance again.
+#[test]
+fn a_correlated_acquisition_keeps_the_covariance_and_its_attitude_given_the_calibration() {
+    let case = Case::rax2(23, 200);
+    let q0 = case.true_attitudes()[0];
+    let mut filter = filter_for(&case, q0, Algebra::Structured, false);
+    drive(&case, &mut filter, 200, |_, _| {});
+    let own = nalgebra::Matrix3::new(4e-4, 1e-5, 0.0, 1e-5, 3e-4, 2e-5, 0.0, 2e-5, 2.5);
+    filter.reacquire(filter.q(), &own, 0.0);
+    let sensitivity: Vec<PdSensitivity> = [0usize, 3, 7]
+        .iter()
+        .map(|&pd| {
+            let k = pd as f64;
+            PdSensitivity {
+                pd,
+                d_scale: Vector3::new(0.1 + k, -0.2, 0.05 * k),
+                d_normal: nalgebra::Matrix3::new(0.3, -k, 0.1, 0.2, 0.4, -0.1, k, 0.0, 0.5),
+            }
+        })
+        .collect();
+    filter.correlate_attitude(&sensitivity);
+    let p = filter.covariance();
+    assert_eq!(p, &p.transpose());
+    assert!(p.clone().cholesky().is_some(), "not positive definite");
+    let c0 = filter.layout().scale(0);
+    assert!(
+        p[(0, c0)] != 0.0,
+        "the attitude is correlated with pd01's scale"
+    );
+    let given = filter.attitude_cov_given_calibration().unwrap();
+    for r in 0..3 {
+        for c in 0..3 {
+            assert!(
+                (given[(r, c)] - own[(r, c)]).abs() <= 1e-9 * own[(r, r)].max(own[(c, c)]),
+                "({r}, {c}): {} against {}",
+                given[(r, c)],
+                own[(r, c)]
+            );
+        }
+    }
+    assert!(
+        p[(0, 0)] > own[(0, 0)],
+        "the calibration adds to the attitude's own variance"
+    );
 }

@@ -251,14 +251,23 @@ pub fn convert_stream<R: Read>(
     let time_sentinels = Sentinels::of(&[&spec.time.sentinels, &spec.sentinels]);
 
     let n_pd = spec.photodiodes.len();
-    let has_mag = spec.mag.is_some();
-    let has_r = matches!(spec.orbit, OrbitMap::Positions { .. });
-    // Channel order of `columns`: gyro xyz, mag xyz, orbit xyz, photodiodes, temperatures,
-    // currents.
+    // Channel order of `columns`: gyro xyz, mag xyz, orbit xyz (each when mapped),
+    // photodiodes, temperatures, currents.
+    let mut next = 0;
+    let mut slot = |present: bool| {
+        present.then(|| {
+            next += 3;
+            next - 3
+        })
+    };
+    let gyro_slot = slot(spec.gyro.is_some());
+    let mag_slot = slot(spec.mag.is_some());
+    let r_slot = slot(matches!(spec.orbit, OrbitMap::Positions { .. }));
     let slots = Slots {
-        mag: has_mag.then_some(3),
-        r: has_r.then_some(if has_mag { 6 } else { 3 }),
-        pd: 3 + 3 * usize::from(has_mag) + 3 * usize::from(has_r),
+        gyro: gyro_slot,
+        mag: mag_slot,
+        r: r_slot,
+        pd: next,
         n_pd,
         n_temp: spec.temperatures.len(),
         n_cur: spec.currents.len(),
@@ -401,7 +410,7 @@ pub fn convert_stream<R: Read>(
                 None
             }
         };
-        let gyro = vector(0, &mut partial[0]);
+        let gyro = slots.gyro.and_then(|at| vector(at, &mut partial[0]));
         let mag = slots.mag.and_then(|at| vector(at, &mut partial[1]));
         let r = slots.r.and_then(|at| vector(at, &mut partial[2]));
         if same_time {
@@ -461,6 +470,7 @@ pub fn convert_stream<R: Read>(
 
 /// Where each sensor's values are among the channels' (the order of `columns`).
 struct Slots {
+    gyro: Option<usize>,
     mag: Option<usize>,
     r: Option<usize>,
     pd: usize,
@@ -550,7 +560,7 @@ impl Group {
     }
 
     fn fill(&self, slots: &Slots, row: &mut TelemetryRow) {
-        row.gyro_rad_s = self.gyro.get();
+        row.gyro_rad_s = slots.gyro.and(self.gyro.get());
         row.mag_nt = slots.mag.and(self.mag.get());
         row.r_gcrf_km = slots.r.and(self.r.get());
         let (pd, rest) = self.scalars.split_at(slots.n_pd);

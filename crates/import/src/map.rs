@@ -27,8 +27,10 @@ pub struct MapSpec {
     /// Sentinel values of every column: a cell holding one is treated as empty.
     #[serde(default)]
     pub sentinels: Vec<Sentinel>,
-    /// The gyro's three columns, body frame.
-    pub gyro: VectorColumns,
+    /// The gyro's three columns, body frame; absent for data without a gyro (the filter
+    /// then needs `inertia_kg_m2`, docs/dataset-format.md).
+    #[serde(default)]
+    pub gyro: Option<VectorColumns>,
     /// The magnetometer's three columns, body frame; absent for photodiode-only data.
     #[serde(default)]
     pub mag: Option<VectorColumns>,
@@ -521,7 +523,9 @@ pub(crate) fn columns(spec: &MapSpec) -> Vec<(String, Column, Quantity)> {
             out.push((format!("{name}.{axis}"), c.clone(), q));
         }
     };
-    vector("gyro", &spec.gyro, Quantity::AngularRate);
+    if let Some(gyro) = &spec.gyro {
+        vector("gyro", gyro, Quantity::AngularRate);
+    }
     if let Some(mag) = &spec.mag {
         vector("mag", mag, Quantity::MagneticField);
     }

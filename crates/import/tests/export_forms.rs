@@ -365,3 +365,19 @@ fn the_maps_inertia_reaches_dataset_ron_and_a_bad_one_is_the_readers_error() {
     let e = error(&bad, CSV);
     assert!(e.contains("not a rigid body's inertia"), "{e}");
 }
+
+#[test]
+fn a_map_without_gyro_columns_imports_rows_without_a_gyro() {
+    let gyro = "    gyro: (\n        x: (column: \"wx\", unit: \"deg/s\"),\n        y: (column: \"wy\", unit: \"deg/s\"),\n        z: (column: \"wz\", unit: \"deg/s\"),\n    ),\n";
+    let map =
+        map_text("    inertia_kg_m2: (xx: 0.0314, yy: 0.0314, zz: 0.005),\n").replace(gyro, "");
+    assert!(!map.contains("gyro"), "{map}");
+    let csv = "unix,V5,VN,V6\n1320431385,2048,1024,1500\n1320431386,2048,1000,1500\n";
+    let imported = import(&map, csv).unwrap();
+    let tm = &imported.dataset.telemetry;
+    assert_eq!(tm.gyro_rad_s, vec![None, None]);
+    // The photodiodes keep their columns: (2048 - 1000) counts of 5/4096 V.
+    assert!((tm.pd_v[0].get(1).unwrap() - 1048.0 * 0.001220703125).abs() < 1e-12);
+    assert!((tm.pd_v[1].get(0).unwrap() - 1.5).abs() < 1e-12);
+    assert!(imported.dataset.meta.inertia_kg_m2.is_some());
+}
