@@ -142,6 +142,14 @@ pub fn gravity_gradient_torque(
     u.cross(&(inertia_kg_m2 * u)) * (3.0 * MU_EARTH_KM3_S2 / (r * r * r))
 }
 
+/// Torque on a magnetic dipole `m x B`, N m, with `m` in A m^2 and `B` in nT (body frame).
+pub fn magnetic_dipole_torque(
+    dipole_body_a_m2: &Vector3<f64>,
+    b_body_nt: &Vector3<f64>,
+) -> Vector3<f64> {
+    dipole_body_a_m2.cross(&(b_body_nt * 1e-9))
+}
+
 type State7 = SVector<f64, 7>;
 
 fn pack(s: &AttitudeState) -> State7 {

@@ -392,6 +392,17 @@ fn scale_gain_fit(
     lag: usize,
     x: impl Fn(&PdSample) -> Option<f64>,
 ) -> (WaldFit, Vec<(usize, usize)>) {
+    let (entries, support) = scale_gain_entries(res, n_pd, x);
+    let fit = hac_wald(&entries, n_pd, lag, &vec![pd_var(res); n_pd]);
+    (fit, support)
+}
+
+/// The regression entries of [`scale_gain_fit`] (parameter = photodiode) and their samples.
+fn scale_gain_entries(
+    res: &Residuals,
+    n_pd: usize,
+    x: impl Fn(&PdSample) -> Option<f64>,
+) -> (Vec<Entry>, Vec<(usize, usize)>) {
     let usable = |p: &PdSample| (p.scale_v > 0.0 && p.pd < n_pd).then(|| x(p)).flatten();
     let mut sum = vec![0.0; n_pd];
     let mut weight = vec![0.0; n_pd];
@@ -407,15 +418,18 @@ fn scale_gain_fit(
         .zip(&weight)
         .map(|(s, w)| if *w > 0.0 { s / w } else { 0.0 })
         .collect();
-    let (entries, support) = pd_entries_of(res, |p| {
+    pd_entries_of(res, |p| {
         usable(p).map(|v| (p.pd, p.scale_v * (v - mean[p.pd])))
-    });
-    let fit = hac_wald(&entries, n_pd, lag, &vec![pd_var(res); n_pd]);
-    (fit, support)
+    })
 }
 
 /// `scale-drift`: per photodiode, the residual against `C dI/dC t/3600` made orthogonal to
-/// `C dI/dC` (a constant scale error is the calibration's, not an effect).
+/// `C dI/dC` (a constant scale error is the calibration's, not an effect); or one drift
+/// common to every photodiode (the same regressors, one amplitude: a degradation of the
+/// whole sensor head, or its electronics), whichever scores higher. The common form is
+/// returned with `parameters == 1` and the same rate on every photodiode, and no
+/// alternative: both forms start the same per-photodiode filter states, so a refit cannot
+/// tell them apart and the score's BIC decides.
 fn scale_drift(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
     let (fit, support) = scale_gain_fit(res, n_pd, lag, |p| Some(p.t_s / 3600.0));
     let (lo, hi) = min_max(&fit.amplitudes);
@@ -428,7 +442,30 @@ fn scale_drift(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
     let effect = Effect::ScaleDrift {
         fraction_per_hour: fit.amplitudes.clone(),
     };
-    candidate_fit(effect, &fit, k, evidence, support)
+    let per_pd = scored(candidate_fit(effect, &fit, k, evidence, support), res);
+    let common = scored(common_scale_drift(res, n_pd, lag), res);
+    if common.score > per_pd.score {
+        common
+    } else {
+        per_pd
+    }
+}
+
+/// `scale-drift` in its common form: one rate for every photodiode, fitted on the
+/// per-photodiode signatures of [`scale_gain_fit`] pooled into one amplitude.
+fn common_scale_drift(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
+    let (entries, support) = scale_gain_entries(res, n_pd, |p| Some(p.t_s / 3600.0));
+    let pooled: Vec<Entry> = entries.iter().map(|e| Entry { param: 0, ..*e }).collect();
+    let fit = hac_wald(&pooled, 1, lag, &[pd_var(res)]);
+    let rate = fit.amplitudes[0];
+    let evidence = format!(
+        "photodiode residual vs C dI/dC t, one rate for all photodiodes: {:.3} %/h",
+        100.0 * rate
+    );
+    let effect = Effect::ScaleDrift {
+        fraction_per_hour: vec![rate; n_pd],
+    };
+    candidate_fit(effect, &fit, 1, evidence, support)
 }
 
 /// `mag-bias`: body-frame mean of the magnetometer residuals.

@@ -14,6 +14,7 @@ use crate::DiagnoseError;
 use crate::candidates::{Signature, score_candidates, score_one, signature};
 use crate::consistency::{MAX_RMS_RATIO, Misfit, misfit};
 use crate::fit::{CandidateFit, scored};
+use crate::forms;
 use crate::model::{BaseModel, ModelSpec, changes_filter};
 use crate::refit::time_offset_refit;
 use crate::residuals::{Residuals, mean_std, residuals, rms};
@@ -736,7 +737,74 @@ fn drop_unsupported(
             *state = next;
         }
     }
+    reformed.extend(reshape_kelly(inputs, config, state));
     Ok((dropped, reformed))
+}
+
+/// A Kelly roll-off in the model given the shape the current residuals ask for
+/// ([`forms::kelly_reshaped`]) while that refit gains more than the threshold
+/// (`(rss_before - rss_after) / (2 sigma^2)` over every photodiode sample), at most
+/// [`MAX_REFINEMENTS`] times. The changes made, as [`Reformed`].
+fn reshape_kelly(
+    inputs: &DiagnoseInputs<'_>,
+    config: &DiagnoseConfig,
+    state: &mut State,
+) -> Vec<Reformed> {
+    let n_pd = inputs.meta.photodiodes.len();
+    let mut changes = Vec::new();
+    for _ in 0..MAX_REFINEMENTS {
+        let Some(current) = state.spec.added(EffectId::FovRolloff).cloned() else {
+            break;
+        };
+        let Some(fit) = forms::kelly_reshaped(&state.res, &current, n_pd, config.max_lag_rows)
+        else {
+            break;
+        };
+        let (
+            Effect::KellyRolloff {
+                exponent: k_new, ..
+            },
+            Effect::KellyRolloff {
+                exponent: k_old, ..
+            },
+        ) = (&fit.effect, &current)
+        else {
+            break;
+        };
+        // The filter estimates kappa; only a new exponent is a new shape.
+        if (k_new - k_old).abs() < 1e-9 {
+            break;
+        }
+        let mut spec = state.spec.clone();
+        for e in spec
+            .added
+            .iter_mut()
+            .filter(|e| e.id() == EffectId::FovRolloff)
+        {
+            *e = fit.effect.clone();
+        }
+        let Ok((run, res)) = calibrate_and_residuals(inputs, &mut spec, config) else {
+            break;
+        };
+        let (old, new) = (pd_rss(&state.res), pd_rss(&res));
+        let nats = 0.5 * (old - new) / (res.sigma_pd_v * res.sigma_pd_v).max(f64::MIN_POSITIVE);
+        if nats <= config.threshold {
+            break;
+        }
+        let to = spec
+            .added(EffectId::FovRolloff)
+            .cloned()
+            .unwrap_or(fit.effect);
+        *state = State { spec, run, res };
+        changes.push(Reformed {
+            id: EffectId::FovRolloff,
+            from: current,
+            to,
+            photodiode_rss_v2: [old, new],
+            gap_after: gap(&state.res),
+        });
+    }
+    changes
 }
 
 /// Photodiode residual sum of squares over every sample, V^2.
@@ -758,11 +826,14 @@ fn other_form(
     // Only effects with two forms: their shape parameters (the Kelly exponent, which the
     // filter does not estimate, or a taper's ends) were fitted on the residuals of their
     // round, which may have carried effects found later.
+    // Both forms are refitted: the one the fast score prefers on these residuals is not
+    // always the one whose calibration fits best (as when the form was first chosen).
     fit.alternative.as_ref()?;
-    let form = std::iter::once(fit)
+    let (form, next) = std::iter::once(fit)
         .chain(fit.alternative.as_deref())
-        .find(|f| f.effect != current && f.score > config.threshold)?;
-    let next = with_candidate(inputs, config, without, form).ok()?;
+        .filter(|f| f.effect != current && f.score > config.threshold)
+        .filter_map(|f| Some((f, with_candidate(inputs, config, without, f).ok()?)))
+        .min_by(|a, b| pd_rss(&a.1.res).total_cmp(&pd_rss(&b.1.res)))?;
     let (old, new) = (pd_rss(&state.res), pd_rss(&next.res));
     (new < old).then(|| {
         let to = next

@@ -108,6 +108,31 @@ pub(crate) fn kelly_rolloff(res: &Residuals, n_pd: usize, lag: usize) -> Option<
     ))
 }
 
+/// The Kelly roll-off fitted again on the residuals of a model that holds `current` (a
+/// `KellyRolloff`), with that term taken out of them sample by sample
+/// (`r + C c (K(c) - 1)`): the shape the data ask for once the calibration has been made
+/// with a roll-off in the model and with the effects found after it. The exponent is not a
+/// filter state and the filter sees only incidences inside its gate, so a shape fitted in
+/// an earlier round, on residuals that still carried a later round's effect (a missing
+/// albedo adds light mostly at high incidence), stays wrong unless fitted again here.
+/// `None` for another form or without lit samples.
+pub(crate) fn kelly_reshaped(
+    res: &Residuals,
+    current: &Effect,
+    n_pd: usize,
+    lag: usize,
+) -> Option<CandidateFit> {
+    let Effect::KellyRolloff { kappa, exponent } = current else {
+        return None;
+    };
+    let law = KellyRolloff::new(*kappa, *exponent).ok()?;
+    let mut without = res.clone();
+    for p in without.pd.iter_mut().filter(|p| p.direct_v > 0.0) {
+        p.residual_v += p.direct_v * (law.factor(p.cos_incidence) - 1.0);
+    }
+    kelly_rolloff(&without, n_pd, lag)
+}
+
 /// Fewest samples exactly at a photodiode's largest output that make it its clip level.
 pub(crate) const MIN_CLIPPED_SAMPLES: usize = 3;
 
@@ -243,4 +268,75 @@ pub(crate) fn albedo_map(res: &Residuals, lag: usize) -> CandidateFit {
         evidence,
         support,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::residuals::PdSample;
+
+    /// Lit samples of `n_pd` photodiodes (C = 4 V) over incidences 0-89.9 deg, residuals
+    /// of a model holding `model` on data made with `truth` (both Kelly laws).
+    fn residuals(n_pd: usize, truth: &KellyRolloff, model: &KellyRolloff) -> Residuals {
+        let mut res = Residuals {
+            sigma_pd_v: 0.015,
+            ..Residuals::default()
+        };
+        for row in 0..3000 {
+            let theta = (row as f64 * 0.03).to_radians();
+            let c = theta.cos();
+            for pd in 0..n_pd {
+                let direct_v = 4.0 * c;
+                let residual_v = direct_v * (truth.factor(c) - model.factor(c));
+                res.pd.push(PdSample {
+                    row,
+                    pd,
+                    t_s: row as f64,
+                    measured_v: direct_v * truth.factor(c),
+                    predicted_v: direct_v * model.factor(c),
+                    pre_stage_v: direct_v * model.factor(c),
+                    residual_v,
+                    cos_incidence: c,
+                    sun_fraction: 1.0,
+                    albedo_v: 0.0,
+                    direct_v,
+                    unshadowed_v: direct_v,
+                    time_offset_v_s: 0.0,
+                    scale_v: direct_v,
+                    temperature_c: f64::NAN,
+                    prediction_sigma_v: 0.0,
+                    nadir_lat_rad: 0.0,
+                });
+            }
+        }
+        res
+    }
+
+    #[test]
+    fn a_kelly_shape_fitted_before_is_fitted_again_with_the_term_taken_out() {
+        let truth = KellyRolloff::new(0.3, 2.0).expect("law");
+        let (kappa, exponent) = (0.28, 2.5);
+        let model = KellyRolloff::new(kappa, exponent).expect("law");
+        let res = residuals(3, &truth, &model);
+        let current = Effect::KellyRolloff { kappa, exponent };
+        let fit = kelly_reshaped(&res, &current, 3, 60).expect("lit samples");
+        let Effect::KellyRolloff { kappa, exponent } = fit.effect else {
+            panic!("not a Kelly law: {:?}", fit.effect);
+        };
+        assert_eq!(exponent, 2.0);
+        // One grid step of log10 kappa is 0.05.
+        assert!(
+            (kappa.log10() - 0.3f64.log10()).abs() <= 0.05,
+            "kappa {kappa}"
+        );
+        // The same fit on the residuals as they are (the term left in) does not find it.
+        let as_is = kelly_rolloff(&res, 3, 60).map(|f| f.effect);
+        assert_ne!(as_is, Some(Effect::KellyRolloff { kappa, exponent }));
+        // Another form: nothing to reshape.
+        let taper = Effect::FovRolloff {
+            start_rad: 1.0,
+            cutoff_rad: 1.5,
+        };
+        assert!(kelly_reshaped(&res, &taper, 3, 60).is_none());
+    }
 }

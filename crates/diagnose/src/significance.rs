@@ -56,14 +56,24 @@ impl Significance {
                 } else {
                     String::new()
                 };
+                let common = f.common.as_ref().map_or(String::new(), |c| {
+                    format!(
+                        "; common form: {} = {:.5} +- {:.5} (one parameter)",
+                        c.name, c.value, c.sigma
+                    )
+                });
                 format!(
-                    "{score}; filter: {}{more} (null {}), {:.1} sigma from the null \
+                    "{score}; filter: {}{more}{common} (null {}), {:.1} sigma from the null \
                      (chi-square {:.1} on {})",
                     values.join(", "),
                     f.null,
                     f.sigmas,
                     f.chi_square,
-                    f.parameters.len()
+                    if f.common.is_some() {
+                        1
+                    } else {
+                        f.parameters.len()
+                    }
                 )
             }
         }
@@ -84,6 +94,12 @@ pub struct FilterSignificance {
     pub chi_square: f64,
     /// As a normal deviate (`|value - null|/sigma` for one parameter).
     pub sigmas: f64,
+    /// For an effect in a common form (one rate for every photodiode, `scale-drift`) whose
+    /// filter states are per photodiode: their generalised-least-squares mean over the joint
+    /// covariance, `a = 1^T P^-1 d / 1^T P^-1 1` with sigma `(1^T P^-1 1)^-1/2`, the one
+    /// parameter the form has; `chi_square` and `sigmas` are then its `(a/sigma)^2` and
+    /// `|a|/sigma`.
+    pub common: Option<ParameterEstimate>,
 }
 
 /// A chi-square `x` on `k` degrees of freedom as the two-sided normal deviate of the same
@@ -147,11 +163,39 @@ pub fn significance(
             .map(|p| ((p.value - null) / p.sigma).powi(2))
             .sum();
         let chi_square = joint_chi_square(run, &parameters, null).unwrap_or(marginal);
-        FilterSignificance {
+        let joint = FilterSignificance {
             sigmas: chi_square_sigmas(chi_square, parameters.len()),
-            parameters,
+            parameters: parameters.clone(),
             null,
             chi_square,
+            common: None,
+        };
+        // Per-photodiode states also hold the nested common form (one value for all): a
+        // form with one parameter is tested along that direction only; the per-photodiode
+        // form falls back to it when the states are not determined one by one but their
+        // common value is (a drift shared by all photodiodes is pinned down by all of
+        // them together).
+        let common = (parameters.len() > 1)
+            .then(|| common_estimate(run, &parameters, null))
+            .flatten()
+            .map(|common| {
+                let z = (common.value - null) / common.sigma;
+                FilterSignificance {
+                    sigmas: z.abs(),
+                    chi_square: z * z,
+                    parameters,
+                    null,
+                    common: Some(common),
+                }
+            });
+        match common {
+            Some(common) if c.parameters == 1 => common,
+            Some(common)
+                if joint.sigmas <= MIN_PARAMETER_SIGMAS && common.sigmas > joint.sigmas =>
+            {
+                common
+            }
+            _ => joint,
         }
     });
     Significance {
@@ -160,13 +204,13 @@ pub fn significance(
     }
 }
 
-/// `d^T P^-1 d` over the filter states of `parameters` (by name), `P` their block of the
-/// final covariance; `None` when a state is missing or the block is singular.
-fn joint_chi_square(
+/// The block of the final covariance over the filter states of `parameters` (by name), and
+/// `d`, the estimates minus `null`; `None` when a state is missing.
+fn covariance_block(
     run: &CalibrationRun,
     parameters: &[ParameterEstimate],
     null: f64,
-) -> Option<f64> {
+) -> Option<(DMatrix<f64>, DVector<f64>)> {
     let extras = run.layout.extras();
     let states: Vec<usize> = parameters
         .iter()
@@ -179,9 +223,60 @@ fn joint_chi_square(
     }
     let block = DMatrix::from_fn(n, n, |i, j| cov[(states[i], states[j])]);
     let d = DVector::from_iterator(n, parameters.iter().map(|p| p.value - null));
+    Some((block, d))
+}
+
+/// `d^T P^-1 d` over the filter states of `parameters`, `P` their block of the final
+/// covariance; `None` when a state is missing or the block is singular.
+fn joint_chi_square(
+    run: &CalibrationRun,
+    parameters: &[ParameterEstimate],
+    null: f64,
+) -> Option<f64> {
+    let (block, d) = covariance_block(run, parameters, null)?;
     let x = block.cholesky()?.solve(&d);
     let chi = d.dot(&x);
     chi.is_finite().then_some(chi)
+}
+
+/// The generalised-least-squares common value of `parameters` (one value shared by all
+/// their states) over the joint covariance `P`: `1^T P^-1 x / 1^T P^-1 1`, sigma
+/// `(1^T P^-1 1)^-1/2`, named after the first with `common_` before it; `None` when a state
+/// is missing or the block is singular.
+fn common_estimate(
+    run: &CalibrationRun,
+    parameters: &[ParameterEstimate],
+    null: f64,
+) -> Option<ParameterEstimate> {
+    let (block, d) = covariance_block(run, parameters, null)?;
+    let (mean, sigma) = gls_common(&block, &d)?;
+    Some(ParameterEstimate {
+        name: format!("common_{}", common_name(&parameters[0].name)),
+        unit: parameters[0].unit.clone(),
+        value: null + mean,
+        sigma,
+    })
+}
+
+/// The generalised-least-squares estimate of one value `a` with `d = a 1 + e`,
+/// `cov(e) = p`: `(1^T p^-1 d / 1^T p^-1 1, (1^T p^-1 1)^-1/2)`; `None` when `p` is not
+/// positive definite.
+fn gls_common(p: &DMatrix<f64>, d: &DVector<f64>) -> Option<(f64, f64)> {
+    let ones = DVector::from_element(d.len(), 1.0);
+    let w = p.clone().cholesky()?.solve(&ones);
+    let information = ones.dot(&w);
+    let mean = w.dot(d) / information;
+    let sigma = information.recip().sqrt();
+    (mean.is_finite() && sigma.is_finite() && sigma > 0.0).then_some((mean, sigma))
+}
+
+/// `pd01_scale_drift_per_h` -> `scale_drift_per_h`: a per-photodiode name without its
+/// photodiode.
+fn common_name(name: &str) -> &str {
+    match name.split_once('_') {
+        Some((pd, rest)) if pd.starts_with("pd") => rest,
+        _ => name,
+    }
 }
 
 #[cfg(test)]
@@ -200,5 +295,30 @@ mod tests {
         }
         assert!((2.0 * normal_upper_tail(3.0) - 0.0027).abs() < 1e-6);
         assert!(chi_square_sigmas(17.0, 17) < 1.0);
+    }
+
+    #[test]
+    fn the_common_value_is_the_weighted_mean_over_the_joint_covariance() {
+        // Independent, equal sigmas: the plain mean, sigma / sqrt(n).
+        let d = DVector::from_vec(vec![0.004, 0.005, 0.003, 0.006]);
+        let p = DMatrix::from_diagonal_element(4, 4, 0.005f64.powi(2));
+        let (mean, sigma) = gls_common(&p, &d).expect("positive definite");
+        assert!((mean - 0.0045).abs() < 1e-15);
+        assert!((sigma - 0.0025).abs() < 1e-15);
+        // Independent, unequal sigmas: inverse-variance weights.
+        let p = DMatrix::from_diagonal(&DVector::from_vec(vec![1.0, 4.0, 1.0, 4.0]));
+        let (mean, sigma) = gls_common(&p, &d).expect("positive definite");
+        let w = [1.0, 0.25, 1.0, 0.25];
+        let expected = d.iter().zip(w).map(|(x, w)| x * w).sum::<f64>() / 2.5;
+        assert!((mean - expected).abs() < 1e-15);
+        assert!((sigma - 2.5f64.recip().sqrt()).abs() < 1e-15);
+        // A shared error (correlation rho between every pair): the mean's variance
+        // s^2 (1 + (n - 1) rho) / n does not shrink below rho s^2.
+        let (s2, rho, n) = (1.0, 0.5, 4.0);
+        let p = DMatrix::from_fn(4, 4, |i, j| if i == j { s2 } else { rho * s2 });
+        let (_, sigma) = gls_common(&p, &d).expect("positive definite");
+        assert!((sigma * sigma - s2 * (1.0 + (n - 1.0) * rho) / n).abs() < 1e-12);
+        // Not positive definite: no estimate.
+        assert!(gls_common(&DMatrix::zeros(4, 4), &d).is_none());
     }
 }

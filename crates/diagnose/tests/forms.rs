@@ -72,8 +72,18 @@ fn kelly_rolloff_is_named_in_its_form() {
             .ok()
             .map(|v| v.split(',').filter_map(|s| s.trim().parse().ok()).collect())
             .unwrap_or_else(|| vec![1, 2, 3]);
-        for kappa in [0.1, 0.3] {
-            for base in [BaseModel::Paper, BaseModel::Cosine] {
+        // PDCAL_FORMS_KAPPA=0.3 and PDCAL_FORMS_BASE=cosine restrict it further.
+        let kappas: Vec<f64> = std::env::var("PDCAL_FORMS_KAPPA")
+            .ok()
+            .map(|v| v.split(',').filter_map(|s| s.trim().parse().ok()).collect())
+            .unwrap_or_else(|| vec![0.1, 0.3]);
+        let only_base = std::env::var("PDCAL_FORMS_BASE").unwrap_or_default();
+        let bases: Vec<BaseModel> = [BaseModel::Paper, BaseModel::Cosine]
+            .into_iter()
+            .filter(|b| only_base.is_empty() || format!("{b:?}").eq_ignore_ascii_case(&only_base))
+            .collect();
+        for &kappa in &kappas {
+            for &base in &bases {
                 for &seed in &seeds {
                     kelly_case(kappa, base, seed);
                 }

@@ -1,6 +1,7 @@
 //! The whole 2 h rax2-like data set (7201 rows, 17 photodiodes, TOMS albedo): `calibrate`
 //! forward filter only (`calibrate_rax2_2h`) and with the RTS smoother
-//! (`calibrate_rax2_2h_smoothed`). Simulation, references and the albedo map are built once
+//! (`calibrate_rax2_2h_smoothed`), and the forward filter with the rigid-body dynamics on
+//! (`calibrate_rax2_2h_dynamics`: the rate and dipole states, the gyro a measurement). Simulation, references and the albedo map are built once
 //! outside the timed loop; albedo evaluation per row is inside it (as in the driver).
 #![allow(missing_docs)]
 
@@ -8,7 +9,7 @@ use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use pdcal_albedo::{AlbedoModel, MapChoice};
-use pdcal_filter::{FilterConfig, Mode, RunInputs, calibrate, step_references};
+use pdcal_filter::{Dynamics, FilterConfig, Mode, RunInputs, calibrate, step_references};
 
 fn bench(c: &mut Criterion) {
     let scenario = pdcal_sim::Scenario::rax2_like().unwrap();
@@ -33,6 +34,13 @@ fn bench(c: &mut Criterion) {
         .measurement_time(Duration::from_secs(8));
     group.bench_function("calibrate_rax2_2h", |b| {
         b.iter(|| calibrate(&inputs, &forward, &Mode::Full).unwrap())
+    });
+    let dynamics = FilterConfig {
+        dynamics: Dynamics::On,
+        ..forward.clone()
+    };
+    group.bench_function("calibrate_rax2_2h_dynamics", |b| {
+        b.iter(|| calibrate(&inputs, &dynamics, &Mode::Full).unwrap())
     });
     group.bench_function("calibrate_rax2_2h_smoothed", |b| {
         b.iter(|| calibrate(&inputs, &FilterConfig::default(), &Mode::Full).unwrap())

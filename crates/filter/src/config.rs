@@ -159,13 +159,10 @@ pub struct FilterConfig {
     /// Euler's equations with the dataset's `inertia_kg_m2`, the gyro a measurement of it.
     /// Default `Auto`.
     pub dynamics: Dynamics,
-    /// The unknown torque (everything but the gravity gradient: magnetic, drag, solar
-    /// pressure, an error of the inertia), white noise per body axis, N m / sqrt(s).
-    /// Default 1e-4: a residual magnetic dipole of 0.5 A m^2 in a 30 uT field (a 3U's
-    /// passive magnet, 1.5e-5 N m, not modelled) left a 1e-5 default inconsistent (final
-    /// states 98.6 % inside 3 sigma with the gyro at 0.1 Hz, rax2-like, 4 seeds) and 1e-4
-    /// consistent (100 %, attitude RMS 0.85 instead of 1.34 deg; docs/validation.md); a
-    /// tighter value trusts the dynamics more between samples.
+    /// The unknown torque (everything the dynamics do not model: drag, solar pressure, a
+    /// dipole that changes faster than its walk), white noise per body axis, N m /
+    /// sqrt(s). Default 1e-6 (drag and solar pressure on a CubeSat are 1e-8..1e-7 N m);
+    /// the uncertain inertia adds its own ([`FilterConfig::inertia_sigma_fraction`]).
     pub torque_noise_n_m_sqrt_s: f64,
     /// With `dynamics: Auto`, the dynamics run when the gyro's median spacing exceeds this,
     /// s (or there is no gyro). Default 2 s: a gyro at 1 Hz keeps the gyro-driven MEKF.
@@ -173,6 +170,19 @@ pub struct FilterConfig {
     /// With dynamics and no gyro, the initial body-rate sigma per axis, deg/s (the rate
     /// starts at zero and the vector measurements find it). Default 10 deg/s.
     pub initial_rate_sigma_deg_s: f64,
+    /// With dynamics, the prior sigma per body axis of the residual magnetic dipole the
+    /// filter estimates (its torque `m x B` in the reference field), A m^2. Default 1: a
+    /// CubeSat's residual dipole is 0.01-0.1 A m^2 and a passive magnet's 0.3-1 A m^2.
+    pub dipole_sigma_a_m2: f64,
+    /// With dynamics, the random walk of the residual dipole (currents that change), A m^2
+    /// per sqrt(s). Default 1e-4 (0.008 A m^2 over 2 h).
+    pub dipole_walk_a_m2_sqrt_s: f64,
+    /// With dynamics, the fractional sigma of the dataset's inertia: its error acts as an
+    /// unknown torque of about this fraction of `|J| |w|^2`, added to the torque noise
+    /// ([`crate::rate`], "Uncertain inertia"). Default 0.1 (a CAD inertia's typical error;
+    /// `0` trusts the inertia exactly, which thinned rows need to hold the attitude within
+    /// 1 deg: docs/validation.md).
+    pub inertia_sigma_fraction: f64,
 }
 
 /// The gyro bias at the first acquisition of a data set after the first, in a joint run.
@@ -249,9 +259,12 @@ impl Default for FilterConfig {
             parameter_sigmas: default_parameter_sigmas(),
             segments: SegmentConfig::default(),
             dynamics: Dynamics::Auto,
-            torque_noise_n_m_sqrt_s: 1e-4,
+            torque_noise_n_m_sqrt_s: 1e-6,
             dynamics_gyro_step_s: 2.0,
             initial_rate_sigma_deg_s: 10.0,
+            dipole_sigma_a_m2: 1.0,
+            dipole_walk_a_m2_sqrt_s: 1e-4,
+            inertia_sigma_fraction: 0.1,
         }
     }
 }
@@ -324,6 +337,7 @@ impl FilterConfig {
             ("torque_noise_n_m_sqrt_s", self.torque_noise_n_m_sqrt_s),
             ("dynamics_gyro_step_s", self.dynamics_gyro_step_s),
             ("initial_rate_sigma_deg_s", self.initial_rate_sigma_deg_s),
+            ("dipole_sigma_a_m2", self.dipole_sigma_a_m2),
         ];
         for (field, value) in positive {
             if !(value > 0.0 && value.is_finite()) {
@@ -332,6 +346,8 @@ impl FilterConfig {
         }
         let non_negative = [
             ("albedo_sigma_w_m2", self.albedo_sigma_w_m2),
+            ("dipole_walk_a_m2_sqrt_s", self.dipole_walk_a_m2_sqrt_s),
+            ("inertia_sigma_fraction", self.inertia_sigma_fraction),
             ("rate_change_fraction", self.rate_change_fraction),
             (
                 "gyro_bias_walk_rad_s_sqrt_s",

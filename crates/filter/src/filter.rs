@@ -14,7 +14,7 @@ use crate::dense;
 use crate::error::check_len;
 use crate::guard::{self, CovarianceRepair};
 use crate::layout::{ATTITUDE, BIAS, CORE, StateLayout};
-use crate::rate::{Matrix9, RateModel};
+use crate::rate::{Matrix12, Motion, RateIndex, RateModel, StepEnvironment};
 use crate::sequential::{self, Outcome, Rows, Workspace};
 use crate::{FilterError, StepReference};
 
@@ -161,7 +161,7 @@ pub struct Propagation {
     pub qd: Matrix6<f64>,
     /// Step, s.
     pub dt_s: f64,
-    /// With dynamics ([`crate::rate`]): `Phi` and `Qd` of `[a, beta, w]` (`phi` and `qd`
+    /// With dynamics ([`crate::rate`]): `Phi` and `Qd` of `[a, beta, w, m]` (`phi` and `qd`
     /// above are then unused) and the body rate the step ended with.
     pub rate: Option<Box<RatePropagation>>,
 }
@@ -169,12 +169,12 @@ pub struct Propagation {
 /// One dynamics-aided propagation as the smoother needs it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RatePropagation {
-    /// `Phi` of `[a, beta, w]`.
-    pub phi: Matrix9,
-    /// `Qd` of `[a, beta, w]`.
-    pub qd: Matrix9,
-    /// The states `[a, beta, w]` index.
-    pub idx: [usize; 9],
+    /// `Phi` of `[a, beta, w, m]`.
+    pub phi: Matrix12,
+    /// `Qd` of `[a, beta, w, m]`.
+    pub qd: Matrix12,
+    /// The states `[a, beta, w, m]` index.
+    pub idx: RateIndex,
     /// Body rate at the end of the step (the prior), rad/s.
     pub w_prior_body_rad_s: Vector3<f64>,
 }
@@ -183,9 +183,9 @@ pub struct RatePropagation {
 #[derive(Debug, Clone)]
 struct RateFilter {
     model: RateModel,
-    /// `[a, beta, w]` state indices.
-    idx: [usize; 9],
-    w_body_rad_s: Vector3<f64>,
+    /// `[a, beta, w, m]` state indices.
+    idx: RateIndex,
+    motion: Motion,
     /// Gyro noise variance per sample, (rad/s)^2.
     gyro_var: f64,
 }
@@ -235,7 +235,7 @@ pub struct FilterState {
     parameters: Vec<f64>,
     counts: UpdateCounts,
     last: Option<Propagation>,
-    w_body_rad_s: Option<Vector3<f64>>,
+    motion: Option<Motion>,
 }
 
 /// Preallocated work space: nothing is allocated per step.
@@ -390,24 +390,26 @@ impl Filter {
         })
     }
 
-    /// Adds the body rate `w` as three states (last in the layout) propagated by `model`'s
-    /// dynamics ([`crate::rate`]): [`Filter::propagate_dynamics`] then replaces
-    /// [`Filter::propagate`], and [`Filter::update_gyro`] takes the gyro as a measurement of
-    /// `w + beta` with variance `gyro_sigma_rad_s^2`. Starts from `w0` with sigma
-    /// `w_sigma_rad_s` per axis, uncorrelated.
+    /// Adds the body rate `w` and the residual dipole `m` as three states each (last in the
+    /// layout) propagated by `model`'s dynamics ([`crate::rate`]): [`Filter::propagate_dynamics`]
+    /// then replaces [`Filter::propagate`], and [`Filter::update_gyro`] takes the gyro as a
+    /// measurement of `w + beta` with variance `gyro_sigma_rad_s^2`. The rate starts from
+    /// `w0` with sigma `w_sigma_rad_s` per axis, the dipole from zero with sigma
+    /// `dipole_sigma_a_m2` per axis, uncorrelated.
     pub fn enable_dynamics(
         &mut self,
         model: RateModel,
-        w0_body_rad_s: Vector3<f64>,
-        w_sigma_rad_s: f64,
+        (w0_body_rad_s, w_sigma_rad_s): (Vector3<f64>, f64),
+        dipole_sigma_a_m2: f64,
         gyro_sigma_rad_s: f64,
     ) {
         let index = self.layout.add_rate_states();
         let n = self.layout.len();
         if self.p.nrows() != n {
             self.p = self.p.clone().resize(n, n, 0.0);
-            for k in index..n {
+            for k in index..index + 3 {
                 self.p[(k, k)] = w_sigma_rad_s * w_sigma_rad_s;
+                self.p[(k + 3, k + 3)] = dipole_sigma_a_m2 * dipole_sigma_a_m2;
             }
             self.initial_variance = self.p.diagonal().iter().copied().collect();
             let m = self.scale.len();
@@ -416,10 +418,17 @@ impl Filter {
             self.scratch.pending = Pending::new(n, 6 + m);
         }
         self.rate_est = w0_body_rad_s;
+        let mut idx = [0; crate::rate::RATE_STATES];
+        for (k, slot) in idx.iter_mut().enumerate() {
+            *slot = if k < 6 { k } else { index + k - 6 };
+        }
         self.rate = Some(RateFilter {
             model,
-            idx: [0, 1, 2, 3, 4, 5, index, index + 1, index + 2],
-            w_body_rad_s: w0_body_rad_s,
+            idx,
+            motion: Motion {
+                w_body_rad_s: w0_body_rad_s,
+                dipole_body_a_m2: Vector3::zeros(),
+            },
             gyro_var: gyro_sigma_rad_s * gyro_sigma_rad_s,
         });
     }
@@ -432,7 +441,19 @@ impl Filter {
     /// The body-rate estimate, rad/s: the state with dynamics, else the bias-corrected gyro
     /// rate of the last propagation.
     pub fn rate_body_rad_s(&self) -> Vector3<f64> {
-        self.rate.as_ref().map_or(self.rate_est, |r| r.w_body_rad_s)
+        self.rate
+            .as_ref()
+            .map_or(self.rate_est, |r| r.motion.w_body_rad_s)
+    }
+
+    /// The residual-dipole estimate, body frame, A m^2, with dynamics.
+    pub fn dipole_body_a_m2(&self) -> Option<Vector3<f64>> {
+        self.rate.as_ref().map(|r| r.motion.dipole_body_a_m2)
+    }
+
+    /// The nominal states of the dynamics, with dynamics.
+    pub(crate) fn motion(&self) -> Option<Motion> {
+        self.rate.as_ref().map(|r| r.motion)
     }
 
     /// Sets the body-rate state to `w0` with sigma `w_sigma_rad_s` per axis, uncorrelated
@@ -441,36 +462,25 @@ impl Filter {
         let Some(r) = self.rate.as_mut() else {
             return;
         };
-        r.w_body_rad_s = w0_body_rad_s;
-        for &k in &r.idx[6..] {
+        r.motion.w_body_rad_s = w0_body_rad_s;
+        for &k in &r.idx[6..9] {
             self.p.row_mut(k).fill(0.0);
             self.p.column_mut(k).fill(0.0);
             self.p[(k, k)] = w_sigma_rad_s * w_sigma_rad_s;
         }
     }
 
-    /// Propagates over `dt_s` by the rigid-body dynamics ([`crate::rate`]), the position
-    /// moving from `r0_gcrf_km` to `r1_gcrf_km`: attitude and rate integrated, `P <- Phi P
-    /// Phi^T + Q` with `Phi` on `[a, beta, w]` and identity elsewhere, the calibration
+    /// Propagates over `dt_s` by the rigid-body dynamics ([`crate::rate`]) through `env`
+    /// (position and reference field at both ends): attitude and rate integrated, `P <- Phi
+    /// P Phi^T + Q` with `Phi` on `[a, beta, w, m]` and identity elsewhere, the calibration
     /// states a random walk (Eq. 19). Without dynamics, nothing.
-    pub fn propagate_dynamics(
-        &mut self,
-        r0_gcrf_km: &Vector3<f64>,
-        r1_gcrf_km: &Vector3<f64>,
-        dt_s: f64,
-    ) {
+    pub fn propagate_dynamics(&mut self, env: &StepEnvironment, dt_s: f64) {
         let Some(r) = self.rate.as_mut() else {
             return;
         };
-        let step = crate::rate::propagate(
-            &r.model,
-            &self.q,
-            &r.w_body_rad_s,
-            (r0_gcrf_km, r1_gcrf_km),
-            dt_s,
-        );
+        let step = crate::rate::propagate(&r.model, &self.q, &r.motion, env, dt_s);
         self.q = step.q;
-        r.w_body_rad_s = step.w_body_rad_s;
+        r.motion.w_body_rad_s = step.w_body_rad_s;
         self.rate_est = step.w_body_rad_s;
         let idx = r.idx;
         self.fill_calibration_noise(dt_s);
@@ -502,7 +512,7 @@ impl Filter {
         };
         let s = &mut self.scratch;
         s.rows.clear();
-        let predicted = r.w_body_rad_s + self.bias;
+        let predicted = r.motion.w_body_rad_s + self.bias;
         for k in 0..3 {
             s.rows.begin(gyro_rad_s[k] - predicted[k], r.gyro_var);
             s.rows.entry(BIAS + k, 1.0);
@@ -568,7 +578,8 @@ impl Filter {
                 .inertia_kg_m2()
                 .try_inverse()
                 .unwrap_or_default();
-            let walk = j_inv * j_inv.transpose() * (r.model.torque_psd * dt_s);
+            let psd = r.model.torque_psd_at(&r.motion.w_body_rad_s);
+            let walk = j_inv * j_inv.transpose() * (psd * dt_s);
             let k = r.idx[6];
             let mut block = self.p.fixed_view_mut::<3, 3>(k, k);
             block += walk;
@@ -630,12 +641,19 @@ impl Filter {
         p_aa += 0.5 * (added + added.transpose());
     }
 
-    /// The attitude-error covariance given the photodiodes' calibration states (rad^2):
+    /// The attitude-error covariance given the photodiodes' calibration states (scale and
+    /// normal of each; rad^2):
     /// `P_aa - P_ac P_cc^-1 P_ca`, the attitude relative to the frame the photodiodes'
     /// normals define. `None` when `P_cc` is not positive definite.
     pub fn attitude_cov_given_calibration(&self) -> Option<Matrix3<f64>> {
-        let n = self.p.nrows();
-        let cal: Vec<usize> = (CORE..n).filter(|&k| self.p[(k, k)] > 0.0).collect();
+        let cal: Vec<usize> = (0..self.layout.photodiodes())
+            .flat_map(|i| {
+                let normal = self.layout.normal(i);
+                [Some(self.layout.scale(i)), normal, normal.map(|d| d + 1)]
+            })
+            .flatten()
+            .filter(|&k| self.p[(k, k)] > 0.0)
+            .collect();
         if cal.is_empty() {
             return Some(self.p.fixed_view::<3, 3>(ATTITUDE, ATTITUDE).into_owned());
         }
@@ -1120,8 +1138,9 @@ impl Filter {
         let turn = self.q.attitude_matrix() * before.transpose();
         self.bias += Vector3::new(dx[BIAS], dx[BIAS + 1], dx[BIAS + 2]);
         if let Some(r) = self.rate.as_mut() {
-            let k = r.idx[6];
-            r.w_body_rad_s += Vector3::new(dx[k], dx[k + 1], dx[k + 2]);
+            let (k, d) = (r.idx[6], r.idx[9]);
+            r.motion.w_body_rad_s += Vector3::new(dx[k], dx[k + 1], dx[k + 2]);
+            r.motion.dipole_body_a_m2 += Vector3::new(dx[d], dx[d + 1], dx[d + 2]);
         }
         self.reset_photodiodes();
         let dx = &self.scratch.dx;
@@ -1234,7 +1253,7 @@ impl Filter {
             parameters: self.model.parameters().map(|(_, p)| p.value).collect(),
             counts: self.counts,
             last: self.last.clone(),
-            w_body_rad_s: self.rate.as_ref().map(|r| r.w_body_rad_s),
+            motion: self.motion(),
         }
     }
 
@@ -1260,8 +1279,8 @@ impl Filter {
         }
         self.counts = state.counts;
         self.last.clone_from(&state.last);
-        if let (Some(r), Some(w)) = (self.rate.as_mut(), state.w_body_rad_s) {
-            r.w_body_rad_s = w;
+        if let (Some(r), Some(motion)) = (self.rate.as_mut(), state.motion) {
+            r.motion = motion;
         }
         Ok(())
     }

@@ -101,8 +101,14 @@ pub struct Start {
     /// Time of that gyro sample, s.
     pub gyro_t_s: f64,
     /// Sun only: how the acquired attitude's error moves with each lit photodiode's
-    /// calibration error ([`sun_only_sensitivity`]); empty with the magnetometer.
+    /// calibration error; empty with the magnetometer.
     pub sensitivity: Vec<PdSensitivity>,
+    /// Sun only: the attitude-error covariance given the calibration (the outputs' noise
+    /// and the floor across the Sun line, `unobserved_axis_sigma_deg` about it), rad^2; the
+    /// filter adds the calibration's part through `sensitivity`
+    /// ([`crate::Filter::correlate_attitude`]). `attitude_cov` is then the fixed-sigma
+    /// covariance of a Sun vector of `initial_sun_sigma_deg`.
+    pub conditional_cov: Option<Matrix3<f64>>,
 }
 
 /// The attitude error of a Sun-only acquisition per unit error of one photodiode's
@@ -233,7 +239,16 @@ pub fn find_start(
             }
             None => 0.0,
         };
-        let lit = above_albedo(inputs, &sampled, k, largest_albedo_ratio);
+        let above = above_albedo(inputs, &sampled, k, largest_albedo_ratio);
+        if above.is_empty() {
+            reached(5);
+            continue;
+        }
+        // The albedo is removed at the acquired attitude. With the field that attitude is
+        // whole and every sampled photodiode takes part; with the Sun alone its rotation
+        // about the Sun line is arbitrary, so is the albedo it predicts, and only the
+        // photodiodes above any albedo do.
+        let lit = if field.is_some() { sampled } else { above };
         let pds: Vec<Photodiode> = lit.iter().map(|&i| inputs.photodiodes[i]).collect();
         let outputs: Vec<f64> = lit
             .iter()
@@ -250,19 +265,29 @@ pub fn find_start(
         };
         let mut q = attitude(&sun_body, field.as_ref(), reference, config)?;
         if inputs.albedo.is_some() {
+            let mut refined = true;
             for _ in 0..2 {
                 let a = q.attitude_matrix();
                 for (known, pd) in known.iter_mut().zip(&pds) {
                     *known = pd.scale_v * view.ratio(&(a.transpose() * pd.n_body), 0.0);
                 }
-                if let Some(s) = sun_direction(&pds, &outputs, &known, &options)? {
-                    sun_body = s;
-                    q = attitude(&sun_body, field.as_ref(), reference, config)?;
-                }
+                // Without the albedo the outputs no longer give a direction: the one solved
+                // with it leaned on albedo, and the row is no start.
+                let Some(s) = sun_direction(&pds, &outputs, &known, &options)? else {
+                    refined = false;
+                    break;
+                };
+                sun_body = s;
+                q = attitude(&sun_body, field.as_ref(), reference, config)?;
+            }
+            if !refined {
+                reached(5);
+                continue;
             }
         }
-        let (attitude_cov, sensitivity) = match field {
-            Some(_) => (covariance(&sun_body, field.as_ref(), config), Vec::new()),
+        let attitude_cov = covariance(&sun_body, field.as_ref(), config);
+        let (conditional_cov, sensitivity) = match field {
+            Some(_) => (None, Vec::new()),
             None => {
                 let fit = SunFit::new(&pds, &outputs, &known, &options);
                 let sensitivity = lit
@@ -270,7 +295,7 @@ pub fn find_start(
                     .enumerate()
                     .filter_map(|(j, &pd)| fit.sensitivity(j, pd))
                     .collect();
-                (fit.conditional_cov(config), sensitivity)
+                (Some(fit.conditional_cov(config)), sensitivity)
             }
         };
         return Ok(Ok(Start {
@@ -281,17 +306,18 @@ pub fn find_start(
             gyro_rad_s,
             gyro_t_s,
             sensitivity,
+            conditional_cov,
         }));
     }
     Ok(Err(REASONS[furthest].to_owned()))
 }
 
-/// The photodiodes of `sampled` whose output at row `k` exceeds the largest Earth albedo
-/// any attitude could give them (`scale_v` times the albedo ratio of every lit cell in view,
-/// no cosine) by the Sun vector's lit threshold. The attitude is unknown at acquisition, so
-/// the albedo cannot be removed yet: an output below that bound may be albedo alone (a head
-/// facing the sunlit Earth with the Sun behind it reads hundreds of mV), and a Sun vector
-/// solved from albedo points at the Earth, not the Sun.
+/// The photodiodes of `sampled` that see the Sun itself at row `k`: their output exceeds
+/// the largest Earth albedo any attitude could give them (`scale_v` times the albedo ratio
+/// of every lit cell in view, no cosine) by the Sun vector's lit threshold. The attitude is
+/// unknown at acquisition, so the albedo cannot be removed yet, and with the Sun behind
+/// the photodiodes a head facing the sunlit Earth reads tens to hundreds of mV of albedo on
+/// all of them: a Sun vector solved from that points at the Earth, not the Sun.
 fn above_albedo(
     inputs: &StartInputs<'_>,
     sampled: &[usize],

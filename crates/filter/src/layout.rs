@@ -53,7 +53,8 @@ pub struct StateLayout {
     /// Per photodiode, the frame of its reference normal, computed once (the part of
     /// [`pdcal_attitude::tangent_basis_about`] that does not depend on the current normal).
     reference_frames: Vec<TangentFrame>,
-    /// State index of the body-rate error `dw` (3 states, last), with dynamics only.
+    /// State index of the body-rate error `dw` (3 states, then the 3 of the residual
+    /// dipole `dm`, last), with dynamics only.
     rate: Option<usize>,
 }
 
@@ -105,18 +106,24 @@ impl StateLayout {
         }
     }
 
-    /// Appends the three body-rate states of the dynamics-aided propagation
-    /// ([`crate::rate`]) after every other state, once; their first index.
+    /// Appends the three body-rate states and the three residual-dipole states of the
+    /// dynamics-aided propagation ([`crate::rate`]) after every other state, once; the
+    /// first index of the rate's.
     pub fn add_rate_states(&mut self) -> usize {
         *self.rate.get_or_insert_with(|| {
-            self.len += 3;
-            self.len - 3
+            self.len += 6;
+            self.len - 6
         })
     }
 
     /// State index of the body-rate error `dw` (3 states), with dynamics only.
     pub fn rate(&self) -> Option<usize> {
         self.rate
+    }
+
+    /// State index of the residual-dipole error `dm` (3 states), with dynamics only.
+    pub fn dipole(&self) -> Option<usize> {
+        self.rate.map(|k| k + 3)
     }
 
     /// Sets the normals the tangent bases are taken about (the filter's initial normals).

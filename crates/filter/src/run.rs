@@ -19,7 +19,7 @@ use crate::guard::RepairLog;
 use crate::init::{Start, StartInputs, find_start, initial_scales};
 use crate::layout::{ATTITUDE, BIAS, StateLayout};
 use crate::output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
-use crate::rate::RateModel;
+use crate::rate::{RateModel, StepEnvironment};
 use crate::screen::{Channel, Rejections, ScreenTolerances, find_outliers, remove_outliers};
 use crate::segments::{
     Acquisition, GapRules, InnovationWindow, SegmentBreak, SegmentReport, attitude_sigma_rad,
@@ -272,6 +272,12 @@ struct Cursor {
     last_t_s: f64,
     /// Position at the last processed row, GCRF, km (the dynamics' gravity gradient).
     last_r_gcrf_km: Vector3<f64>,
+    /// Reference field at the last processed row, GCRF, nT (the dynamics' dipole torque).
+    last_b_gcrf_nt: Vector3<f64>,
+    /// With dynamics, whether the next acquisition carries the body rate from the last
+    /// processed row through the dynamics (after a gap) instead of restarting it (at the
+    /// first acquisition of a data set, and after a lost attitude, whose rate is suspect).
+    carry_rate: bool,
     /// The next step must first acquire the attitude (a segment ended).
     acquiring: bool,
     window: InnovationWindow,
@@ -490,8 +496,11 @@ impl<'a> ForwardPass<'a> {
             // The rate is set at each acquisition; until then it is unknown.
             filter.enable_dynamics(
                 rate_model,
-                Vector3::zeros(),
-                config.initial_rate_sigma_deg_s.to_radians(),
+                (
+                    Vector3::zeros(),
+                    config.initial_rate_sigma_deg_s.to_radians(),
+                ),
+                config.dipole_sigma_a_m2,
                 sigmas.gyro_rad_s,
             );
         }
@@ -520,6 +529,8 @@ impl<'a> ForwardPass<'a> {
                 last_gyro_t_s: f64::NEG_INFINITY,
                 last_t_s: tel.t_s[0],
                 last_r_gcrf_km: Vector3::zeros(),
+                last_b_gcrf_nt: Vector3::zeros(),
+                carry_rate: false,
                 acquiring: true,
                 window: InnovationWindow::new(&config.segments),
                 acquired_sigma_deg: 0.0,
@@ -588,9 +599,7 @@ impl<'a> ForwardPass<'a> {
             )?;
             match found {
                 Ok(start) => {
-                    let t_s = self.telemetry.t_s[start.index];
-                    self.filter
-                        .reacquire(start.q, &start.attitude_cov, t_s - self.at.last_t_s);
+                    self.reacquire_at(&start)?;
                     self.filter.correlate_attitude(&start.sensitivity);
                     self.current.acquired_row = Some(start.index);
                     self.current.acquisition = if self.use_mag {
@@ -655,10 +664,46 @@ impl<'a> ForwardPass<'a> {
             self.sets_ahead.pop();
             entered = true;
         }
+        if entered {
+            self.at.carry_rate = false;
+        }
         if entered && self.config.gyro_bias_across_sets == BiasAcrossSets::Restart {
             self.filter
                 .restart_bias(self.config.initial_bias_sigma_deg_s.to_radians());
         }
+    }
+
+    /// Re-acquires the filter at `start` ([`Filter::reacquire`]). With dynamics, after a gap
+    /// the attitude and rate are first carried through it by the dynamics (the rate's
+    /// covariance grown by its transition and torque noise); otherwise, without a gyro, the
+    /// rate restarts from its prior (zero, `initial_rate_sigma_deg_s`).
+    fn reacquire_at(&mut self, start: &Start) -> Result<(), FilterError> {
+        let t_s = self.telemetry.t_s[start.index];
+        let dt_s = t_s - self.at.last_t_s;
+        // Sun only, the acquisition's own covariance: the calibration's part follows
+        // (`Filter::correlate_attitude`).
+        let own_cov = start
+            .conditional_cov
+            .as_ref()
+            .unwrap_or(&start.attitude_cov);
+        if self.filter.has_dynamics() && self.at.carry_rate && dt_s > 0.0 {
+            let reference = self.references.at(start.index)?;
+            let env = StepEnvironment {
+                r_gcrf_km: [self.at.last_r_gcrf_km, reference.r_gcrf_km],
+                b_gcrf_nt: [self.at.last_b_gcrf_nt, reference.b_gcrf_nt],
+            };
+            self.filter.propagate_dynamics(&env, dt_s);
+            self.filter.reacquire(start.q, own_cov, 0.0);
+        } else {
+            self.filter.reacquire(start.q, own_cov, dt_s);
+            if !self.has_gyro {
+                self.filter.set_rate(
+                    Vector3::zeros(),
+                    self.config.initial_rate_sigma_deg_s.to_radians(),
+                );
+            }
+        }
+        Ok(())
     }
 
     /// At an acquisition: the bias fitted over the segment's first rows (before `end`) and
@@ -828,9 +873,11 @@ impl<'a> ForwardPass<'a> {
         self.at.propagated = !self.at.fresh;
         self.at.fresh = false;
         if self.at.propagated && self.filter.has_dynamics() {
-            let r0 = self.at.last_r_gcrf_km;
-            self.filter
-                .propagate_dynamics(&r0, &reference.r_gcrf_km, t_s - tel.t_s[k - 1]);
+            let env = StepEnvironment {
+                r_gcrf_km: [self.at.last_r_gcrf_km, reference.r_gcrf_km],
+                b_gcrf_nt: [self.at.last_b_gcrf_nt, reference.b_gcrf_nt],
+            };
+            self.filter.propagate_dynamics(&env, t_s - tel.t_s[k - 1]);
             self.at.prior_q = self.filter.q();
         } else if self.at.propagated {
             let t0 = tel.t_s[k - 1];
@@ -901,6 +948,7 @@ impl<'a> ForwardPass<'a> {
         self.at.next = k + 1;
         self.at.last_t_s = t_s;
         self.at.last_r_gcrf_km = r_gcrf_km;
+        self.at.last_b_gcrf_nt = reference.b_gcrf_nt;
         self.at.held = self.attitude_sigma_deg(k) <= self.config.segments.held_attitude_sigma_deg;
         self.end_segment_if_due(k);
         Ok(Some(k))
@@ -947,6 +995,7 @@ impl<'a> ForwardPass<'a> {
             })
         };
         if let Some(ended_by) = ended_by {
+            self.at.carry_rate = ended_by != SegmentBreak::Lost;
             self.close_segment(k, ended_by);
             self.at.acquiring = true;
         }
@@ -1175,6 +1224,8 @@ fn dynamics_model(
         body,
         torque_psd: config.torque_noise_n_m_sqrt_s.powi(2),
         bias_walk_var_per_s: config.gyro_bias_walk_rad_s_sqrt_s.powi(2),
+        dipole_walk_var_per_s: config.dipole_walk_a_m2_sqrt_s.powi(2),
+        inertia_sigma_fraction: config.inertia_sigma_fraction,
     }))
 }
 

@@ -32,12 +32,13 @@ use crate::calibration::Calibration;
 use crate::filter::{Filter, Propagation, RatePropagation, StateView};
 use crate::layout::{ATTITUDE, BIAS, CORE, StateLayout};
 use crate::output::StepEstimate;
+use crate::rate::Motion;
 
 struct Transition {
     phi: Matrix6<f64>,
     qd: Matrix6<f64>,
     q_prior_next: Quat,
-    /// With dynamics: the transition of `[a, beta, w]` instead of `phi`, `qd`.
+    /// With dynamics: the transition of `[a, beta, w, m]` instead of `phi`, `qd`.
     rate: Option<Box<RatePropagation>>,
 }
 
@@ -50,8 +51,8 @@ struct Stored {
     scale: Vec<f64>,
     normal: Vec<Vector3<f64>>,
     extras: Vec<f64>,
-    /// The body-rate state, with dynamics.
-    w: Option<Vector3<f64>>,
+    /// The body rate and residual dipole, with dynamics.
+    w: Option<Motion>,
     next: Option<Transition>,
 }
 
@@ -112,7 +113,7 @@ impl SmootherStore {
             scale: filter.scales_v().to_vec(),
             normal: filter.normals().to_vec(),
             extras: filter.extra_values(),
-            w: filter.has_dynamics().then(|| filter.rate_body_rad_s()),
+            w: filter.motion(),
             next: None,
         });
     }
@@ -320,7 +321,7 @@ struct SmoothedState {
     scale: Vec<f64>,
     normal: Vec<Vector3<f64>>,
     extras: Vec<f64>,
-    w: Option<Vector3<f64>>,
+    w: Option<Motion>,
 }
 
 impl SmoothedState {
@@ -350,7 +351,11 @@ impl SmoothedState {
             prev.next.as_ref().and_then(|t| t.rate.as_ref()),
         ) {
             d.fixed_rows_mut::<3>(k)
-                .copy_from(&(w - rate.w_prior_body_rad_s));
+                .copy_from(&(w.w_body_rad_s - rate.w_prior_body_rad_s));
+        }
+        if let (Some(k), Some(w), Some(prev_w)) = (layout.dipole(), self.w, prev.w) {
+            d.fixed_rows_mut::<3>(k)
+                .copy_from(&(w.dipole_body_a_m2 - prev_w.dipole_body_a_m2));
         }
         let a = error_vector(&self.q, q_prior);
         d.fixed_rows_mut::<3>(ATTITUDE).copy_from(&a);
@@ -390,7 +395,8 @@ impl SmoothedState {
             *v += delta[e.state];
         }
         if let (Some(k), Some(w)) = (layout.rate(), self.w.as_mut()) {
-            *w += Vector3::new(delta[k], delta[k + 1], delta[k + 2]);
+            w.w_body_rad_s += Vector3::new(delta[k], delta[k + 1], delta[k + 2]);
+            w.dipole_body_a_m2 += Vector3::new(delta[k + 3], delta[k + 4], delta[k + 5]);
         }
         self
     }

@@ -6,14 +6,6 @@ use nalgebra::Vector3;
 use pdcal_attitude::Quat;
 pub use pdcal_attitude::dynamics::*;
 
-/// Torque on a magnetic dipole `m x B`, N m, with `m` in A m^2 and `B` in nT (body frame).
-pub fn magnetic_dipole_torque(
-    dipole_body_a_m2: &Vector3<f64>,
-    b_body_nt: &Vector3<f64>,
-) -> Vector3<f64> {
-    dipole_body_a_m2.cross(&(b_body_nt * 1e-9))
-}
-
 /// Which disturbance torques act (all off is torque-free motion).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Disturbances {

@@ -96,6 +96,13 @@ pub fn describe(d: &Diagnosis) -> String {
             r.rejected,
             r.dropped.iter().map(|x| x.id).collect::<Vec<_>>(),
         );
+        s += &format!("    significance: {}\n", r.significance.text());
+        for x in &r.reformed {
+            s += &format!(
+                "    reformed {}: {:?} -> {:?} (photodiode RSS {:.4} -> {:.4} V^2)\n",
+                x.id, x.from, x.to, x.photodiode_rss_v2[0], x.photodiode_rss_v2[1]
+            );
+        }
     }
     s += "  final check:";
     for c in d.final_candidates.iter().take(11) {

@@ -119,14 +119,20 @@ pub fn enable_dynamics(s: &mut Setup) {
         body,
         torque_psd: 1e-8,
         bias_walk_var_per_s: 4e-12,
+        dipole_walk_var_per_s: 1e-8,
+        inertia_sigma_fraction: 0.15,
     };
     s.filter
-        .enable_dynamics(model, Vector3::new(1e-9, 0.0, 0.0), 1e-3, 8.7e-4);
+        .enable_dynamics(model, (Vector3::new(1e-9, 0.0, 0.0), 1e-3), 1.0, 8.7e-4);
 }
 
 pub fn step_dynamics(s: &mut Setup, albedo: &AlbedoExpansion) {
-    let r = s.reference.r_gcrf_km;
-    s.filter.propagate_dynamics(&r, &r, 1.0);
+    let (r, b) = (s.reference.r_gcrf_km, s.reference.b_gcrf_nt);
+    let env = pdcal_filter::rate::StepEnvironment {
+        r_gcrf_km: [r, r],
+        b_gcrf_nt: [b, b],
+    };
+    s.filter.propagate_dynamics(&env, 1.0);
     let gyro = s.filter.rate_body_rad_s() + s.filter.bias_rad_s();
     s.filter.update_gyro(&gyro).unwrap();
     let meas = Measurements {
