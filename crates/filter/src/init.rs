@@ -44,19 +44,17 @@ pub fn initial_scales(
     threshold_v: f64,
 ) -> Result<InitialScales, FilterError> {
     crate::error::check_len("references", telemetry.len(), references.len())?;
-    let factors: Vec<f64> = (0..references.len())
-        .map(|k| references.at(k).map(|r| r.sun_distance_factor()))
-        .collect::<Result<_, _>>()?;
-    let maxima: Vec<f64> = telemetry
-        .pd_v
-        .iter()
-        .map(|col| {
-            col.iter()
-                .zip(&factors)
-                .filter_map(|(y, f)| y.map(|y| y / f))
-                .fold(f64::NEG_INFINITY, f64::max)
-        })
-        .collect();
+    // Row by row, so that no per-row factor is kept (a long set's references are computed
+    // when reached).
+    let mut maxima = vec![f64::NEG_INFINITY; telemetry.pd_v.len()];
+    for k in 0..references.len() {
+        let factor = references.at(k)?.sun_distance_factor();
+        for (max, col) in maxima.iter_mut().zip(&telemetry.pd_v) {
+            if let Some(y) = col.get(k) {
+                *max = max.max(y / factor);
+            }
+        }
+    }
     let used: Vec<bool> = maxima.iter().map(|&m| m > threshold_v).collect();
     let mut lit: Vec<f64> = maxima
         .iter()

@@ -419,10 +419,11 @@ pub fn run_sets(
         &telemetry,
         references,
         &run,
-        &streamed.attitudes,
+        streamed.attitudes.rows()?,
         &albedo,
         &config.filter,
     )?;
+    streamed.attitudes.remove()?;
     let mut consistency = streamed.consistency;
     let repeatability = match stored.as_deref() {
         Some(stored) => repeatability_of(&meta, &telemetry, stored, &joint.sets, config, &albedo),

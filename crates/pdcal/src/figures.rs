@@ -12,6 +12,7 @@ use pdcal_report::{
 
 use crate::schema::{Outcome, Summary};
 use crate::stream::stride_for;
+use crate::sunvec::SunVectorPoint;
 
 /// A written figure: caption and file stem.
 pub type FigureEntry = (String, String);
@@ -171,8 +172,9 @@ pub fn raw_outputs_figure(
 }
 
 fn sun_directions(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Result<()> {
-    let all = &outcome.sun_vector.directions_initial_body;
-    let dirs = &every(all, stride_for(all.len()));
+    let points = &outcome.sun_vector.points;
+    let all: Vec<[f64; 3]> = points.iter().map(|p| p.direction_initial_body).collect();
+    let dirs = &every(&all, stride_for(all.len()));
     let figure = Figure::new(
         "fig03_sun_directions",
         "Measured Sun directions in the body frame (initial parameters)",
@@ -327,7 +329,12 @@ fn estimates(dir: &Path, forward: &[StepEstimate], out: &mut Vec<FigureEntry>) -
 }
 
 fn magnitudes(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Result<()> {
-    let sv = &outcome.sun_vector;
+    let points = &outcome.sun_vector.points;
+    let column = |f: fn(&SunVectorPoint) -> f64| -> Vec<f64> { points.iter().map(f).collect() };
+    let (initial, calibrated) = (
+        column(|p| p.magnitude_initial),
+        column(|p| p.magnitude_calibrated),
+    );
     let figure = Figure::new(
         "fig08_magnitude_histograms",
         "Measured Sun-vector magnitude",
@@ -335,11 +342,11 @@ fn magnitudes(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Resu
     let panels = [
         HistogramPanel {
             label: "initial parameters",
-            values: &sv.magnitude_initial,
+            values: &initial,
         },
         HistogramPanel {
             label: "calibrated parameters",
-            values: &sv.magnitude_calibrated,
+            values: &calibrated,
         },
     ];
     histograms(dir, &figure, "magnitude (-)", 40, BinRange::Shared, &panels)?;
@@ -349,11 +356,11 @@ fn magnitudes(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Resu
         "fig08_magnitude_histograms",
     );
 
-    let stride = stride_for(sv.t_s.len());
-    let t = minutes(&every(&sv.t_s, stride));
+    let stride = stride_for(points.len());
+    let t = minutes(&every(&column(|p| p.t_s), stride));
     let (raw, calibrated) = (
-        every(&sv.magnitude_uncompensated, stride),
-        every(&sv.magnitude_calibrated, stride),
+        every(&column(|p| p.magnitude_uncompensated), stride),
+        every(&calibrated, stride),
     );
     let series = [
         Series::new("uncompensated", &raw, Mark::Circle).with_colour([220, 40, 40]),
@@ -382,7 +389,7 @@ fn magnitudes(dir: &Path, outcome: &Outcome, out: &mut Vec<FigureEntry>) -> Resu
     );
     let panels = [HistogramPanel {
         label: "initial vs calibrated",
-        values: &sv.direction_change_deg,
+        values: &column(|p| p.direction_change_deg),
     }];
     histograms(dir, &figure, "angle (deg)", 40, BinRange::PerPanel, &panels)?;
     push(

@@ -71,7 +71,7 @@ pub fn join(mut sets: Vec<(PathBuf, DatasetMeta, Telemetry)>) -> Result<Joint> {
     let first_epoch = sets[0].1.epoch_utc.epoch();
     let mut spans = Vec::with_capacity(sets.len());
     let mut references = Vec::new();
-    let mut parts = Vec::with_capacity(sets.len());
+    let mut offsets_s = Vec::with_capacity(sets.len());
     let mut end_s = f64::NEG_INFINITY;
     let several = sets.len() > 1;
     let mut first_row = 0;
@@ -102,7 +102,7 @@ pub fn join(mut sets: Vec<(PathBuf, DatasetMeta, Telemetry)>) -> Result<Joint> {
             rows: telemetry.len(),
         });
         first_row += telemetry.len();
-        parts.push((offset_s, telemetry));
+        offsets_s.push(offset_s);
     }
     let mut meta = sets[0].1.clone();
     if sets.len() > 1 {
@@ -112,9 +112,13 @@ pub fn join(mut sets: Vec<(PathBuf, DatasetMeta, Telemetry)>) -> Result<Joint> {
             .collect::<Vec<_>>()
             .join(" + ");
     }
+    let parts = offsets_s
+        .into_iter()
+        .zip(sets)
+        .map(|(offset_s, (_, _, telemetry))| (offset_s, telemetry));
     Ok(Joint {
         meta,
-        telemetry: concat(&parts),
+        telemetry: concat(parts),
         references: several.then_some(references),
         sets: spans,
     })
@@ -230,13 +234,21 @@ fn same_layout(
 
 /// The rows of every part, times shifted by its offset; a column one part lacks is blank
 /// there (the magnetometer of a set that has none, a temperature another set did not log).
-fn concat(parts: &[(f64, &Telemetry)]) -> Telemetry {
+fn concat(parts: impl Iterator<Item = (f64, Telemetry)>) -> Telemetry {
+    let mut parts: Vec<(f64, Telemetry)> = parts.collect();
+    // One set is the joint telemetry itself, its times moved in place: no copy.
+    if parts.len() == 1
+        && let Some((offset_s, mut telemetry)) = parts.pop()
+    {
+        telemetry.t_s.iter_mut().for_each(|x| *x += offset_s);
+        return telemetry;
+    }
     let any_mag = parts.iter().any(|(_, t)| t.mag_nt.is_some());
     let all_positions = parts.iter().all(|(_, t)| t.r_gcrf_km.is_some());
     let m = parts.first().map_or(0, |(_, t)| t.pd_v.len());
     let mut names: Vec<String> = Vec::new();
     let mut currents: Vec<String> = Vec::new();
-    for (_, t) in parts {
+    for (_, t) in &parts {
         for c in &t.temperature_c {
             if !names.contains(&c.name) {
                 names.push(c.name.clone());
@@ -269,6 +281,8 @@ fn concat(parts: &[(f64, &Telemetry)]) -> Telemetry {
             })
             .collect(),
     };
+    // Each set is dropped once appended: the sets and the joint copy together never take
+    // more than the joint rows and the largest set.
     for (offset_s, t) in parts {
         let rows = t.len();
         out.t_s.extend(t.t_s.iter().map(|x| x + offset_s));

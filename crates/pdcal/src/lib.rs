@@ -23,6 +23,7 @@ pub mod rows;
 pub mod schema;
 pub mod sim_calibrate;
 pub mod simulate;
+pub mod stats;
 pub mod stream;
 pub mod sunvec;
 pub mod tables;

@@ -9,6 +9,7 @@ use pdcal_filter::{
 };
 use serde::Serialize;
 
+use crate::stats::MeanStdSums;
 use crate::sunvec::SunVectorMetrics;
 
 pub use pdcal_evaluate::OUTPUT_FORMAT_VERSION;
@@ -322,18 +323,14 @@ fn too_few(count: usize, needed: usize) -> Option<&'static str> {
     }
 }
 
-/// Mean and sample standard deviation of finite values (NaN, and a reason, for fewer than
-/// 1 and 2 values).
-pub fn mean_std(values: &[f64]) -> MeanStd {
-    let v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
-    let n = v.len() as f64;
-    let mean = v.iter().sum::<f64>() / n;
-    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+/// Mean and sample standard deviation of the finite values summed in `sums` (NaN, and a
+/// reason, for fewer than 1 and 2 values).
+pub fn mean_std(sums: &MeanStdSums) -> MeanStd {
     MeanStd {
-        mean,
-        std: if v.len() < 2 { f64::NAN } else { var.sqrt() },
-        count: v.len(),
-        reason: too_few(v.len(), 2),
+        mean: sums.mean(),
+        std: sums.std(),
+        count: sums.count(),
+        reason: too_few(sums.count(), 2),
     }
 }
 
@@ -439,7 +436,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         sun_vector_magnitude: MagnitudeSummary {
             initial: mean_std(&sv.magnitude_initial),
             calibrated: mean_std(&sv.magnitude_calibrated),
-            samples: sv.t_s.len(),
+            samples: sv.samples,
         },
         sun_direction_change_deg: {
             let m = mean_std(&sv.direction_change_deg);

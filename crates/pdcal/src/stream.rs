@@ -1,16 +1,17 @@
 //! The sink of a streaming calibration ([`pdcal_filter::calibrate_streaming`]): writes
 //! `estimates.csv`, `residuals.csv` and `estimates_smoothed.csv` into the staging directory
 //! as the rows are produced, and keeps only what the summary and the figures need: the
-//! residual statistics over every row, the attitude per row for the Sun-vector metrics
-//! (40 bytes a row), and the estimates and residuals of every `stride`-th row for the
-//! figures.
+//! residual statistics over every row and the estimates and residuals of every
+//! `stride`-th row for the figures. The attitude per row for the Sun-vector metrics goes
+//! to a spill file in the staging directory (40 bytes a row on disk, [`AttitudeSpill`]),
+//! read back once the calibration is final.
 //!
 //! The smoothed rows arrive in segments, last segment first: each is appended to a spill
 //! file in the staging directory with its byte range, and [`StreamSink::finish`] copies
 //! the ranges in row order into `estimates_smoothed.csv` and removes the spill.
 
 use std::fs::File;
-use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
+use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
@@ -39,8 +40,8 @@ pub fn stride_for(rows: usize) -> usize {
 
 /// What a finished [`StreamSink`] keeps.
 pub struct Streamed {
-    /// The attitude per row (smoothed when the smoother ran), rows increasing.
-    pub attitudes: Vec<(usize, Quat)>,
+    /// The attitude per row (smoothed when the smoother ran), on disk.
+    pub attitudes: AttitudeSpill,
     /// Photodiode residual statistics over every row.
     pub residual_summary: ResidualSummary,
     /// Every `stride`-th forward estimate.
@@ -79,7 +80,7 @@ pub struct StreamSink {
     /// Byte ranges of the smoothed segments in the spill, in arrival order.
     segments: Vec<(u64, u64)>,
     /// Attitudes for the Sun-vector metrics: forward, or smoothed in arrival order.
-    attitudes: Vec<Vec<(usize, Quat)>>,
+    attitudes: AttitudeSpill,
     forward_sample: Vec<StepEstimate>,
     residual_sample: Vec<ResidualRecord>,
     pd_count: usize,
@@ -136,7 +137,7 @@ impl StreamSink {
             smoothed_path: dir.file("estimates_smoothed.csv"),
             smoothed_header: None,
             segments: Vec::new(),
-            attitudes: vec![Vec::new()],
+            attitudes: AttitudeSpill::create(dir.file(".attitudes.spill"), smoother)?,
             forward_sample: Vec::new(),
             residual_sample: Vec::new(),
             pd_count: 0,
@@ -264,11 +265,8 @@ impl StreamSink {
         }
         std::fs::remove_file(&self.spill_path)
             .with_context(|| format!("cannot remove {}", self.spill_path.display()))?;
-        let attitudes: Vec<(usize, Quat)> = if self.smoother {
-            self.attitudes.into_iter().skip(1).rev().flatten().collect()
-        } else {
-            self.attitudes.into_iter().next().unwrap_or_default()
-        };
+        let mut attitudes = self.attitudes;
+        attitudes.close()?;
         let summary = ResidualSummary::from_sums(self.pd_sum_sq, self.pd_inside, self.pd_count);
         Ok(Streamed {
             attitudes,
@@ -309,7 +307,8 @@ impl RunSink for StreamSink {
             }
         }
         if !self.smoother {
-            self.attitudes[0].push((estimate.index, estimate.q));
+            let result = self.attitudes.append(std::slice::from_ref(estimate));
+            self.keep(result);
         }
         if estimate.index.is_multiple_of(self.stride) {
             self.forward_sample.push(estimate.clone());
@@ -323,11 +322,132 @@ impl RunSink for StreamSink {
         }
         let result = self.write_segment(segment);
         self.keep(result);
-        self.attitudes
-            .push(segment.iter().map(|e| (e.index, e.q)).collect());
+        let result = self.attitudes.append(segment);
+        self.keep(result);
     }
 
     fn cancelled(&mut self) -> bool {
         self.cancel.as_mut().is_some_and(|check| check())
     }
+}
+
+/// Bytes of one attitude record: the row (`u64`) and `x, y, z, w` (`f64`), little-endian.
+const ATTITUDE_RECORD_BYTES: usize = 40;
+
+/// The attitude per row of a streamed run, kept in a file of the staging directory instead
+/// of memory: written as the estimates arrive (forward in row order, or the smoother's
+/// blocks last first), read back in row order ([`AttitudeSpill::rows`]) exactly as written.
+/// In memory: one byte range per appended block of rows.
+pub struct AttitudeSpill {
+    path: PathBuf,
+    out: Option<BufWriter<File>>,
+    written: u64,
+    /// Byte ranges of the appended blocks, in arrival order.
+    blocks: Vec<(u64, u64)>,
+    /// Whether the blocks arrive last first (the smoother's backward pass).
+    backward: bool,
+}
+
+impl AttitudeSpill {
+    /// `backward`: the blocks will arrive last first.
+    fn create(path: PathBuf, backward: bool) -> Result<Self> {
+        let file =
+            File::create(&path).with_context(|| format!("cannot create {}", path.display()))?;
+        Ok(AttitudeSpill {
+            path,
+            out: Some(BufWriter::new(file)),
+            written: 0,
+            blocks: Vec::new(),
+            backward,
+        })
+    }
+
+    /// Appends the attitudes of `rows` (consecutive, increasing) as one block.
+    fn append(&mut self, rows: &[StepEstimate]) -> Result<()> {
+        let Some(out) = self.out.as_mut() else {
+            anyhow::bail!("{} is closed", self.path.display());
+        };
+        let start = self.written;
+        for e in rows {
+            let mut record = [0u8; ATTITUDE_RECORD_BYTES];
+            record[..8].copy_from_slice(&(e.index as u64).to_le_bytes());
+            for (cell, v) in record[8..]
+                .chunks_exact_mut(8)
+                .zip([e.q.x, e.q.y, e.q.z, e.q.w])
+            {
+                cell.copy_from_slice(&v.to_le_bytes());
+            }
+            out.write_all(&record).with_context(writing(&self.path))?;
+            self.written += ATTITUDE_RECORD_BYTES as u64;
+        }
+        match self.blocks.last_mut() {
+            // Forward rows arrive in row order: one growing block.
+            Some(last) if !self.backward => last.1 = self.written,
+            _ => self.blocks.push((start, self.written)),
+        }
+        Ok(())
+    }
+
+    fn close(&mut self) -> Result<()> {
+        if let Some(mut out) = self.out.take() {
+            out.flush().with_context(writing(&self.path))?;
+        }
+        Ok(())
+    }
+
+    /// The attitudes `(row, attitude)` in increasing rows.
+    pub fn rows(&self) -> Result<impl Iterator<Item = Result<(usize, Quat)>> + '_> {
+        let file = File::open(&self.path)
+            .with_context(|| format!("cannot read {}", self.path.display()))?;
+        let mut file = BufReader::new(file);
+        let order: Box<dyn Iterator<Item = &(u64, u64)>> = if self.backward {
+            Box::new(self.blocks.iter().rev())
+        } else {
+            Box::new(self.blocks.iter())
+        };
+        let path = &self.path;
+        let reading = move || format!("cannot read {}", path.display());
+        Ok(order
+            .flat_map(|&(start, end)| {
+                let n = (end - start) / ATTITUDE_RECORD_BYTES as u64;
+                (0..n).map(move |i| start + i * ATTITUDE_RECORD_BYTES as u64)
+            })
+            .scan(u64::MAX, move |at, offset| {
+                let mut record = [0u8; ATTITUDE_RECORD_BYTES];
+                let read = (|| -> std::io::Result<()> {
+                    if *at != offset {
+                        file.seek(SeekFrom::Start(offset))?;
+                    }
+                    file.read_exact(&mut record)
+                })();
+                *at = offset + ATTITUDE_RECORD_BYTES as u64;
+                Some(read.with_context(reading).map(|()| decode(&record)))
+            }))
+    }
+
+    /// Removes the file (before the staging directory is published).
+    pub fn remove(mut self) -> Result<()> {
+        self.close()?;
+        std::fs::remove_file(&self.path)
+            .with_context(|| format!("cannot remove {}", self.path.display()))
+    }
+}
+
+fn decode(record: &[u8; ATTITUDE_RECORD_BYTES]) -> (usize, Quat) {
+    let word = |i: usize| {
+        let mut b = [0u8; 8];
+        b.copy_from_slice(&record[8 * i..8 * i + 8]);
+        b
+    };
+    let f = |i: usize| f64::from_le_bytes(word(i));
+    let index = u64::from_le_bytes(word(0)) as usize;
+    (
+        index,
+        Quat {
+            x: f(1),
+            y: f(2),
+            z: f(3),
+            w: f(4),
+        },
+    )
 }

@@ -13,23 +13,45 @@ use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_filter::{Calibration, CalibrationRun, FilterConfig, References};
 use pdcal_photodiode::{Photodiode, SunEstimate, SunVectorOptions, estimate_sun_vector};
 
-/// Per-sample Sun-vector magnitudes and direction changes, over the samples in full Sun
-/// where both the initial and the calibrated sets give an observable vector.
+use crate::stats::{MeanStdSums, Thinned};
+
+/// The Sun-vector magnitudes and direction changes over the samples in full Sun where both
+/// the initial and the calibrated sets give an observable vector: their statistics over
+/// every such sample, and an evenly thinned series of them for the figures (every sample
+/// up to `2 x` [`SUN_VECTOR_POINTS`]), so that memory does not grow with the rows.
 #[derive(Debug, Clone, Default)]
 pub struct SunVectorMetrics {
-    /// Sample times, s.
-    pub t_s: Vec<f64>,
+    /// Samples counted.
+    pub samples: usize,
     /// |s| with the initial parameters, albedo removed.
-    pub magnitude_initial: Vec<f64>,
+    pub magnitude_initial: MeanStdSums,
     /// |s| with the calibrated parameters, albedo removed.
-    pub magnitude_calibrated: Vec<f64>,
-    /// |s| with the calibrated parameters, raw outputs (Fig. 10, red).
-    pub magnitude_uncompensated: Vec<f64>,
+    pub magnitude_calibrated: MeanStdSums,
     /// Angle between the initial and calibrated directions, deg (Fig. 11).
-    pub direction_change_deg: Vec<f64>,
-    /// Measured Sun directions in the body frame with the initial parameters (Fig. 3).
-    pub directions_initial_body: Vec<[f64; 3]>,
+    pub direction_change_deg: MeanStdSums,
+    /// The samples the figures draw, in time order.
+    pub points: Vec<SunVectorPoint>,
 }
+
+/// One sample of [`SunVectorMetrics`].
+#[derive(Debug, Clone, Copy)]
+pub struct SunVectorPoint {
+    /// Sample time, s.
+    pub t_s: f64,
+    /// |s| with the initial parameters, albedo removed.
+    pub magnitude_initial: f64,
+    /// |s| with the calibrated parameters, albedo removed.
+    pub magnitude_calibrated: f64,
+    /// |s| with the calibrated parameters, raw outputs (Fig. 10, red).
+    pub magnitude_uncompensated: f64,
+    /// Angle between the initial and calibrated directions, deg (Fig. 11).
+    pub direction_change_deg: f64,
+    /// Measured Sun direction in the body frame with the initial parameters (Fig. 3).
+    pub direction_initial_body: [f64; 3],
+}
+
+/// Half the most samples [`SunVectorMetrics::points`] keeps.
+pub const SUN_VECTOR_POINTS: usize = 4000;
 
 fn photodiodes(calibration: &Calibration, noise_v: f64, fov_rad: f64) -> Vec<Photodiode> {
     calibration
@@ -61,18 +83,18 @@ pub fn metrics(
     config: &FilterConfig,
 ) -> Result<SunVectorMetrics> {
     let track = run.smoothed.as_ref().unwrap_or(&run.forward);
-    let attitudes: Vec<(usize, Quat)> = track.iter().map(|e| (e.index, e.q)).collect();
-    metrics_along(meta, telemetry, references, run, &attitudes, albedo, config)
+    let attitudes = track.iter().map(|e| Ok((e.index, e.q)));
+    metrics_along(meta, telemetry, references, run, attitudes, albedo, config)
 }
 
-/// [`metrics`] along given attitudes `(row, attitude)` (a streaming run keeps no
-/// estimates).
+/// [`metrics`] along given attitudes `(row, attitude)`, rows increasing (a streaming run
+/// reads them back from its spill file, [`crate::stream::AttitudeSpill`]).
 pub fn metrics_along(
     meta: &DatasetMeta,
     telemetry: &Telemetry,
     references: References<'_>,
     run: &CalibrationRun,
-    attitudes: &[(usize, Quat)],
+    attitudes: impl IntoIterator<Item = Result<(usize, Quat)>>,
     albedo: &AlbedoModel,
     config: &FilterConfig,
 ) -> Result<SunVectorMetrics> {
@@ -97,10 +119,12 @@ pub fn metrics_along(
     }
     let m = meta.photodiodes.len();
     let mut out = SunVectorMetrics::default();
+    let mut points = Thinned::new(SUN_VECTOR_POINTS);
     let mut view = AlbedoView::new();
     let (mut outputs, mut known_initial, mut known_cal) =
         (vec![0.0; m], vec![0.0; m], vec![0.0; m]);
-    for &(k, q) in attitudes {
+    for attitude in attitudes {
+        let (k, q) = attitude?;
         let reference = references.at(k)?;
         if reference.sun_fraction < config.min_sun_fraction
             || !read_outputs(telemetry, k, &calibrated_ok, &mut outputs)
@@ -135,15 +159,23 @@ pub fn metrics_along(
         )?);
         let s_raw = observable(estimate_sun_vector(&calibrated, &outputs, None, &options)?);
         if let (Some(si), Some(sc), Some(sr)) = (s_init, s_cal, s_raw) {
-            out.t_s.push(telemetry.t_s[k]);
-            out.magnitude_initial.push(si.norm());
-            out.magnitude_calibrated.push(sc.norm());
-            out.magnitude_uncompensated.push(sr.norm());
-            out.direction_change_deg.push(si.angle(&sc).to_degrees());
             let d = si.normalize();
-            out.directions_initial_body.push([d.x, d.y, d.z]);
+            let point = SunVectorPoint {
+                t_s: telemetry.t_s[k],
+                magnitude_initial: si.norm(),
+                magnitude_calibrated: sc.norm(),
+                magnitude_uncompensated: sr.norm(),
+                direction_change_deg: si.angle(&sc).to_degrees(),
+                direction_initial_body: [d.x, d.y, d.z],
+            };
+            out.magnitude_initial.push(point.magnitude_initial);
+            out.magnitude_calibrated.push(point.magnitude_calibrated);
+            out.direction_change_deg.push(point.direction_change_deg);
+            points.push(point);
         }
     }
+    out.samples = points.seen();
+    out.points = points.into_kept();
     Ok(out)
 }
 
