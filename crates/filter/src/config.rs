@@ -163,9 +163,9 @@ pub struct FilterConfig {
     /// dipole that changes faster than its walk), white noise per body axis, N m /
     /// sqrt(s). Default 1e-4: drag and solar pressure on a CubeSat are 1e-8..1e-7 N m, but
     /// with a slow gyro of a large unknown bias and the Sun alone (the pyramid head of
-    /// docs/validation.md) 1e-6 held the rate too tightly (final states inside 3 sigma
-    /// 92 % at 1e-4 against 70 % at 1e-6); rows every 10 s with a magnetometer do better at
-    /// 1e-6 (docs/validation.md). The uncertain inertia adds its own
+    /// docs/validation.md) a torque noise near theirs holds the rate too tightly, while
+    /// rows every 10 s with a magnetometer and the dipole estimated lose nothing at 1e-4
+    /// (docs/validation.md has both). The uncertain inertia adds its own
     /// ([`FilterConfig::inertia_sigma_fraction`]).
     pub torque_noise_n_m_sqrt_s: f64,
     /// With `dynamics: Auto`, the dynamics run when the gyro's median spacing exceeds this,
