@@ -362,32 +362,27 @@ impl<'a> SunFit<'a> {
                     .then(|| direct / (factor * pds[i].scale_v))
             })
             .collect();
-        let lit = || pds.iter().zip(&y).filter_map(|(pd, y)| y.map(|y| (pd, y)));
-        let normal_matrix: Matrix3<f64> =
-            lit().map(|(pd, _)| pd.n_body * pd.n_body.transpose()).sum();
-        let g = normal_matrix.try_inverse().unwrap_or_else(Matrix3::zeros);
-        let s = lit().map(|(pd, y)| g * pd.n_body * y).sum();
-        let fit = SunFit {
-            pds,
-            y,
-            g,
-            s,
-            factor,
-        };
+        let fit = SunFit::solve(pds, y, factor);
         // As the Sun vector does, a photodiode facing away from the solution is left out.
+        let faces = |pd: &Photodiode| pd.n_body.dot(&fit.s) > 0.0;
         if fit
             .pds
             .iter()
             .zip(&fit.y)
-            .all(|(pd, y)| y.is_none() || pd.n_body.dot(&fit.s) > 0.0)
+            .all(|(pd, y)| y.is_none() || faces(pd))
         {
             return fit;
         }
-        let y: Vec<Option<f64>> = pds
+        let y = pds
             .iter()
             .zip(&fit.y)
-            .map(|(pd, y)| y.filter(|_| pd.n_body.dot(&fit.s) > 0.0))
+            .map(|(pd, y)| y.filter(|_| faces(pd)))
             .collect();
+        SunFit::solve(pds, y, factor)
+    }
+
+    /// The least squares over the photodiodes with `Some(y)`.
+    fn solve(pds: &'a [Photodiode], y: Vec<Option<f64>>, factor: f64) -> Self {
         let lit = || pds.iter().zip(&y).filter_map(|(pd, y)| y.map(|y| (pd, y)));
         let normal_matrix: Matrix3<f64> =
             lit().map(|(pd, _)| pd.n_body * pd.n_body.transpose()).sum();
