@@ -28,9 +28,7 @@
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 use pdcal_attitude::{az_el_from_normal, normal_from_az_el};
 use pdcal_dataset::{DatasetMeta, Telemetry};
-use pdcal_photodiode::{
-    LitThreshold, Photodiode, SunEstimate, SunVectorOptions, estimate_sun_vector,
-};
+use pdcal_photodiode::{Photodiode, SunEstimate, SunVectorOptions, estimate_sun_vector};
 use serde::Serialize;
 
 use crate::{FilterConfig, FilterError, References};
@@ -323,10 +321,7 @@ fn fit_all(
         .map(|&p| (STRONG_FRACTION * p).max(lit_v))
         .collect();
     let options = SunVectorOptions::default();
-    let lit_sigmas = match options.threshold {
-        LitThreshold::NoiseSigmas(k) => k * pd_sigma_v,
-        LitThreshold::Volts(v) => v,
-    };
+    let lit_sigmas = options.threshold.volts(pd_sigma_v);
     let mut others = vec![f64::NAN; m];
     for (row, &factor) in sampled.outputs.iter().zip(&sampled.factor) {
         if !row.iter().enumerate().any(|(i, y)| y.abs() >= strong[i]) {

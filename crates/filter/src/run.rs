@@ -1006,13 +1006,19 @@ impl<'a> ForwardPass<'a> {
     fn attitude_sigma_deg(&self, k: usize) -> f64 {
         let p = self.filter.covariance();
         let p_aa = p.fixed_view::<3, 3>(ATTITUDE, ATTITUDE).into_owned();
+        self.observed_sigma_deg(&p_aa, k)
+    }
+
+    /// The largest sigma of the attitude covariance `p_aa` at row `k`, deg: across the Sun
+    /// line without the magnetometer, of every axis with it.
+    fn observed_sigma_deg(&self, p_aa: &nalgebra::Matrix3<f64>, k: usize) -> f64 {
         let sun_body = if self.use_mag {
             None
         } else {
             let sun = self.references.at(k).ok().map(|r| r.sun_gcrf_unit);
             sun.map(|s| self.filter.q().to_body(&s))
         };
-        attitude_sigma_rad(&p_aa, sun_body.as_ref()).to_degrees()
+        attitude_sigma_rad(p_aa, sun_body.as_ref()).to_degrees()
     }
 
     /// As [`Self::attitude_sigma_deg`], of the attitude given the photodiodes' calibration
@@ -1021,15 +1027,13 @@ impl<'a> ForwardPass<'a> {
     /// attitude known relative to the photodiodes is held whatever that frame's uncertainty.
     /// With the magnetometer, the attitude's own sigma.
     fn relative_sigma_deg(&self, k: usize) -> f64 {
-        if self.use_mag {
-            return self.attitude_sigma_deg(k);
+        let given = (!self.use_mag)
+            .then(|| self.filter.attitude_cov_given_calibration())
+            .flatten();
+        match given {
+            Some(p_aa) => self.observed_sigma_deg(&p_aa, k),
+            None => self.attitude_sigma_deg(k),
         }
-        let Some(p_aa) = self.filter.attitude_cov_given_calibration() else {
-            return self.attitude_sigma_deg(k);
-        };
-        let sun = self.references.at(k).ok().map(|r| r.sun_gcrf_unit);
-        let sun_body = sun.map(|s| self.filter.q().to_body(&s));
-        attitude_sigma_rad(&p_aa, sun_body.as_ref()).to_degrees()
     }
 
     /// Why the attitude is lost after the last step, if it is: its sigma beyond the bound
