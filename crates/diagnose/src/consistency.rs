@@ -19,7 +19,7 @@
 //! residuals over every sample include the smoothed attitude's own error, so they are a
 //! little above the noise and a little correlated even when the model is complete.
 
-use pdcal_filter::StepReference;
+use pdcal_ephem::Reference;
 use serde::Serialize;
 
 use crate::residuals::{FULL_SUN, PdSample, Residuals, UMBRA};
@@ -130,7 +130,7 @@ impl Noise {
 
 /// Checks the residuals `res` against their noise model; `references` per telemetry row;
 /// `albedo_gain` the model's factor on the albedo regressor (0 when it has no albedo).
-pub fn misfit(res: &Residuals, references: &[StepReference], albedo_gain: f64) -> Misfit {
+pub fn misfit(res: &Residuals, references: &[Reference], albedo_gain: f64) -> Misfit {
     let sigma = res.sigma_pd_v;
     let noise = Noise {
         sensor_var: sigma * sigma,
@@ -336,7 +336,7 @@ fn illumination_band(p: &PdSample) -> String {
     }
 }
 
-fn orbit_band(p: &PdSample, references: &[StepReference]) -> String {
+fn orbit_band(p: &PdSample, references: &[Reference]) -> String {
     let Some(r) = references.get(p.row) else {
         return "orbit unknown".to_owned();
     };

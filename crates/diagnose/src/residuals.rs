@@ -8,7 +8,8 @@ use nalgebra::{Matrix3, Rotation3, Vector3};
 use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView};
 use pdcal_dataset::Effect;
 use pdcal_dataset::{DatasetMeta, Telemetry};
-use pdcal_filter::{CalibrationRun, FilterConfig, StepEstimate, StepReference};
+use pdcal_ephem::Reference;
+use pdcal_filter::{CalibrationRun, FilterConfig, StepEstimate};
 use pdcal_photodiode::{
     ComponentId, MeasurementModel, Partials, Photodiode, Scene, ShadowMode, SunEstimate,
     SunVectorOptions, estimate_sun_vector,
@@ -129,7 +130,7 @@ pub struct ResidualInputs<'a> {
     /// Telemetry with the model's sensor corrections applied.
     pub telemetry: &'a Telemetry,
     /// References per row.
-    pub references: &'a [StepReference],
+    pub references: &'a [Reference],
     /// Albedo model.
     pub albedo: &'a AlbedoModel,
     /// Its reflectivity map's id.

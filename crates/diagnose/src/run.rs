@@ -5,9 +5,8 @@
 
 use pdcal_albedo::AlbedoModel;
 use pdcal_dataset::{DatasetMeta, EffectId, Telemetry};
-use pdcal_filter::{
-    Algebra, CalibrationRun, FilterConfig, Mode, RunInputs, StepReference, calibrate_with_model,
-};
+use pdcal_ephem::Reference;
+use pdcal_filter::{Algebra, CalibrationRun, FilterConfig, Mode, RunInputs, calibrate_with_model};
 use pdcal_photodiode::Photodiode;
 
 use crate::DiagnoseError;
@@ -23,7 +22,7 @@ pub struct DiagnoseInputs<'a> {
     /// telemetry.csv.
     pub telemetry: &'a Telemetry,
     /// One reference per telemetry row.
-    pub references: &'a [StepReference],
+    pub references: &'a [Reference],
     /// The albedo model (the filter's, and the albedo candidates' regressor).
     pub albedo: &'a AlbedoModel,
     /// Its reflectivity map's id (`toms-mean-1p25x1`), for the `albedo` effect it adds.

@@ -48,20 +48,17 @@ impl From<IgrfError> for ReferenceError {
     }
 }
 
-/// Reference quantities at one sample, all inertial vectors in GCRF.
+/// Reference quantities at one sample, all inertial vectors in GCRF: the one per-sample
+/// reference of the workspace (the simulator's truth, the filter's predictions, the
+/// diagnosis's residual bands and the driver's stored rows all read this type).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Reference {
-    /// Seconds since the dataset epoch.
-    pub t_s: f64,
-    /// The sample time.
-    pub epoch: Epoch,
     /// Spacecraft position, km.
     pub r_gcrf_km: Vector3<f64>,
-    /// Spacecraft velocity, km/s.
-    pub v_gcrf_km_s: Vector3<f64>,
     /// Geocentric Sun position, km.
     pub sun_gcrf_km: Vector3<f64>,
-    /// Unit vector from the spacecraft to the Sun (parallax of the orbit included).
+    /// Unit vector from the spacecraft to the Sun, parallax of the orbit included (`s|_R`
+    /// of the paper's Eq. 14).
     pub sun_gcrf_unit: Vector3<f64>,
     /// IGRF-14 field at the spacecraft, nT.
     pub b_gcrf_nt: Vector3<f64>,
@@ -121,10 +118,7 @@ impl ReferenceModel {
         let r = state.r_gcrf_km;
         let b_itrf = self.field.field_ecef_nt(&(gcrf_to_itrf * r), epoch)?;
         Ok(Reference {
-            t_s,
-            epoch,
             r_gcrf_km: r,
-            v_gcrf_km_s: state.v_gcrf_km_s,
             sun_gcrf_km,
             sun_gcrf_unit: (sun_gcrf_km - r).normalize(),
             b_gcrf_nt: gcrf_to_itrf.transpose() * b_itrf,
@@ -154,10 +148,9 @@ mod tests {
     fn bundle_matches_the_individual_models() {
         let m = model();
         let r = m.at(1800.0).expect("in range");
+        let epoch = time::offset(m.epoch(), 1800.0).expect("in range");
         let field = Igrf::igrf14().expect("parses");
-        let b = field
-            .field_gcrf_nt(&r.r_gcrf_km, r.epoch)
-            .expect("in range");
+        let b = field.field_gcrf_nt(&r.r_gcrf_km, epoch).expect("in range");
         assert!((b - r.b_gcrf_nt).norm() < 1e-9 * b.norm());
         assert!((r.sun_gcrf_unit.norm() - 1.0).abs() < 1e-15);
         assert!((0.0..=1.0).contains(&r.sun_fraction));

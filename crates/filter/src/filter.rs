@@ -6,8 +6,10 @@ use nalgebra::{DMatrix, DVector, Dyn, Matrix2, Matrix3, Matrix6, OMatrix, U6, Ve
 use pdcal_albedo::LinearAlbedo;
 use pdcal_attitude::mekf::{apply_small_error, process_noise, state_transition};
 use pdcal_attitude::{GyroNoise, Quat, rotate_normal_in, skew};
+use pdcal_ephem::Reference;
 use pdcal_photodiode::{AlbedoIrradiance, MeasurementModel, Partials, Scene};
 
+use crate::FilterError;
 use crate::algebra::{self, Pending};
 use crate::calibration::{Calibration, ParameterEstimate, PdCalibration};
 use crate::dense;
@@ -16,7 +18,6 @@ use crate::guard::{self, CovarianceRepair};
 use crate::layout::{ATTITUDE, BIAS, CORE, StateLayout};
 use crate::rate::{Matrix12, Motion, RateIndex, RateModel, StepEnvironment};
 use crate::sequential::{self, Outcome, Rows, Workspace};
-use crate::{FilterError, StepReference};
 
 /// How the covariance algebra is done. Both give the same numbers to rounding (a test
 /// holds them to 1e-9); `Dense` is the textbook form kept as the reference and for the
@@ -782,7 +783,7 @@ impl Filter {
         &mut self,
         t_s: f64,
         meas: &Measurements<'_>,
-        reference: &StepReference,
+        reference: &Reference,
         albedo: Option<&dyn AlbedoIrradiance>,
     ) -> Result<(), FilterError> {
         check_len("photodiode samples", self.scale.len(), meas.pd_v.len())?;
@@ -932,7 +933,7 @@ impl Filter {
         t_s: f64,
         pd_v: &[Option<f64>],
         temperature_c: &[f64],
-        reference: &StepReference,
+        reference: &Reference,
         albedo: Option<&dyn AlbedoIrradiance>,
     ) -> Result<(), FilterError> {
         let sun_body = attitude * reference.sun_gcrf_unit;
@@ -981,7 +982,7 @@ impl Filter {
     fn select_photodiodes(
         &mut self,
         pd_v: &[Option<f64>],
-        reference: &StepReference,
+        reference: &Reference,
         sun_body: &Vector3<f64>,
     ) {
         let lit = reference.sun_fraction >= self.noise.min_sun_fraction;

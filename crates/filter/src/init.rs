@@ -8,10 +8,12 @@ use nalgebra::{Matrix3, Vector3};
 use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView};
 use pdcal_attitude::{Quat, VectorPair, q_method};
 use pdcal_dataset::Telemetry;
+use pdcal_ephem::Reference;
 use pdcal_photodiode::{Photodiode, SunEstimate, SunVectorOptions, estimate_sun_vector};
 
+use crate::references::albedo_into;
 use crate::segments::GapRules;
-use crate::{FilterConfig, FilterError, References, StepReference};
+use crate::{FilterConfig, FilterError, References};
 
 /// A lit photodiode whose maximum output stays below this fraction of the median maximum
 /// of the lit photodiodes never faced the Sun near its normal (its maximum is a grazing or
@@ -234,7 +236,7 @@ pub fn find_start(
         }
         let largest_albedo_ratio = match inputs.albedo {
             Some(model) => {
-                reference.albedo_into(model, &mut view, k)?;
+                albedo_into(&reference, model, &mut view, k)?;
                 view.max_ratio()
             }
             None => 0.0,
@@ -545,7 +547,7 @@ pub(crate) fn sun_direction(
 fn attitude(
     sun_body: &Vector3<f64>,
     field: Option<&PairedField>,
-    reference: &StepReference,
+    reference: &Reference,
     config: &FilterConfig,
 ) -> Result<Quat, FilterError> {
     let Some(f) = field else {

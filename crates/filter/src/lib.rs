@@ -7,8 +7,8 @@
 //! ([`Mode`]), the initialisation ([`init`]), the run over a dataset ([`calibrate`]), the
 //! smoother, the calibration file type ([`Calibration`]) and the run's plain-data outputs
 //! ([`CalibrationRun`]). It reads the dataset only through `pdcal-dataset`'s `DatasetMeta`
-//! and `Telemetry`, never the truth; reference vectors come in as [`StepReference`]s (one per
-//! telemetry row, from `pdcal-ephem`; stored or computed per row, [`References`]) and albedo
+//! and `Telemetry`, never the truth; reference vectors come in as `pdcal_ephem::Reference`s (one per
+//! telemetry row; stored or computed per row, [`References`]) and albedo
 //! as `pdcal-albedo`'s model.
 //!
 //! # State and singularity-free normals
@@ -134,60 +134,3 @@ pub use screen::{Channel, ChannelRejections, Rejections, RowList};
 pub use segments::{
     Acquisition, GapRules, SegmentBreak, SegmentConfig, SegmentReport, gyro_step_s, median_spacing,
 };
-
-use nalgebra::{Matrix3, Vector3};
-
-/// The reference quantities at one telemetry row (the fields of
-/// `pdcal_ephem::reference::Reference`), all GCRF.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StepReference {
-    /// Spacecraft position, km.
-    pub r_gcrf_km: Vector3<f64>,
-    /// Geocentric Sun position, km.
-    pub sun_gcrf_km: Vector3<f64>,
-    /// Unit Sun direction as seen from the spacecraft (`s|_R` of Eq. 14).
-    pub sun_gcrf_unit: Vector3<f64>,
-    /// Reference geomagnetic field (IGRF), nT.
-    pub b_gcrf_nt: Vector3<f64>,
-    /// Illuminated fraction of the solar disc, 0..1.
-    pub sun_fraction: f64,
-    /// Rotation GCRF -> ITRF (Earth-fixed), `v_itrf = R v_gcrf`.
-    pub gcrf_to_itrf: Matrix3<f64>,
-}
-
-impl StepReference {
-    /// `(1 AU / r_sun)^2`, `r_sun` the spacecraft-to-Sun distance: the direct irradiance
-    /// relative to 1 AU, where the scale factors are defined.
-    pub fn sun_distance_factor(&self) -> f64 {
-        pdcal_ephem::sun_distance_factor(&self.r_gcrf_km, &self.sun_gcrf_km)
-    }
-
-    /// The albedo `model`'s view from this reference's position and Sun into `view`; errors
-    /// name the telemetry row `index`.
-    pub(crate) fn albedo_into(
-        &self,
-        model: &pdcal_albedo::AlbedoModel,
-        view: &mut pdcal_albedo::AlbedoView,
-        index: usize,
-    ) -> Result<(), FilterError> {
-        model
-            .compute_into(view, &self.r_gcrf_km, &self.sun_gcrf_km, &self.gcrf_to_itrf)
-            .map_err(|e| FilterError::Albedo {
-                index,
-                message: e.to_string(),
-            })
-    }
-}
-
-impl From<&pdcal_ephem::reference::Reference> for StepReference {
-    fn from(r: &pdcal_ephem::reference::Reference) -> Self {
-        StepReference {
-            r_gcrf_km: r.r_gcrf_km,
-            sun_gcrf_km: r.sun_gcrf_km,
-            sun_gcrf_unit: r.sun_gcrf_unit,
-            b_gcrf_nt: r.b_gcrf_nt,
-            sun_fraction: r.sun_fraction,
-            gcrf_to_itrf: r.gcrf_to_itrf,
-        }
-    }
-}

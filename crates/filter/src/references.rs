@@ -7,9 +7,9 @@
 //! gives the same values and keeps a long run's memory from growing with its rows.
 
 use pdcal_dataset::{DatasetMeta, OrbitSpec, Telemetry};
-use pdcal_ephem::{OrbitSource, PositionColumns, ReferenceModel, TleOrbit};
+use pdcal_ephem::{OrbitSource, PositionColumns, Reference, ReferenceModel, TleOrbit};
 
-use crate::{FilterError, StepReference};
+use crate::FilterError;
 
 /// The orbit source the dataset names: its TLE, or its position columns.
 pub fn orbit_source(
@@ -55,24 +55,19 @@ pub fn reference_model(
 }
 
 /// Row `index`'s reference at time `t_s` from `model`.
-fn reference_at(
-    model: &ReferenceModel,
-    index: usize,
-    t_s: f64,
-) -> Result<StepReference, FilterError> {
-    let r = model.at(t_s).map_err(|source| FilterError::Reference {
+fn reference_at(model: &ReferenceModel, index: usize, t_s: f64) -> Result<Reference, FilterError> {
+    model.at(t_s).map_err(|source| FilterError::Reference {
         index: Some(index),
         t_s,
         source,
-    })?;
-    Ok(StepReference::from(&r))
+    })
 }
 
 /// One reference per telemetry row (orbit, Sun, IGRF-14 field, eclipse, Earth rotation).
 pub fn step_references(
     meta: &DatasetMeta,
     telemetry: &Telemetry,
-) -> Result<Vec<StepReference>, FilterError> {
+) -> Result<Vec<Reference>, FilterError> {
     let model = reference_model(meta, telemetry)?;
     (telemetry.t_s.iter().enumerate())
         .map(|(index, &t_s)| reference_at(&model, index, t_s))
@@ -83,7 +78,7 @@ pub fn step_references(
 #[derive(Clone, Copy)]
 pub enum References<'a> {
     /// Computed before the run, one per row ([`step_references`]).
-    Stored(&'a [StepReference]),
+    Stored(&'a [Reference]),
     /// Computed from `model` when a row is reached, at the rows' times `t_s`: the same
     /// values as [`References::Stored`] without memory per row, for a row read more than
     /// once (the smoother's replays) at the cost of computing it again.
@@ -95,14 +90,14 @@ pub enum References<'a> {
     },
 }
 
-impl<'a> From<&'a [StepReference]> for References<'a> {
-    fn from(stored: &'a [StepReference]) -> Self {
+impl<'a> From<&'a [Reference]> for References<'a> {
+    fn from(stored: &'a [Reference]) -> Self {
         References::Stored(stored)
     }
 }
 
-impl<'a> From<&'a Vec<StepReference>> for References<'a> {
-    fn from(stored: &'a Vec<StepReference>) -> Self {
+impl<'a> From<&'a Vec<Reference>> for References<'a> {
+    fn from(stored: &'a Vec<Reference>) -> Self {
         References::Stored(stored)
     }
 }
@@ -122,7 +117,7 @@ impl References<'_> {
     }
 
     /// Row `index`'s reference; an error past the last row or where the model fails.
-    pub fn at(&self, index: usize) -> Result<StepReference, FilterError> {
+    pub fn at(&self, index: usize) -> Result<Reference, FilterError> {
         let past_end = || FilterError::LengthMismatch {
             what: "references",
             expected: index + 1,
@@ -136,4 +131,25 @@ impl References<'_> {
             }
         }
     }
+}
+
+/// The albedo `model`'s view from `reference`'s position and Sun into `view`; errors name
+/// the telemetry row `index`.
+pub(crate) fn albedo_into(
+    reference: &Reference,
+    model: &pdcal_albedo::AlbedoModel,
+    view: &mut pdcal_albedo::AlbedoView,
+    index: usize,
+) -> Result<(), FilterError> {
+    model
+        .compute_into(
+            view,
+            &reference.r_gcrf_km,
+            &reference.sun_gcrf_km,
+            &reference.gcrf_to_itrf,
+        )
+        .map_err(|e| FilterError::Albedo {
+            index,
+            message: e.to_string(),
+        })
 }

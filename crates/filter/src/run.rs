@@ -6,6 +6,7 @@ use nalgebra::{Matrix3, Vector3};
 use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView};
 use pdcal_attitude::{GyroNoise, Quat, normal_from_az_el};
 use pdcal_dataset::{DatasetMeta, Telemetry};
+use pdcal_ephem::Reference;
 use pdcal_photodiode::{Albedo, DirectSun, MeasurementModel, Photodiode};
 
 use crate::bias_fit::{BiasSource, FitInputs, FitPrior, InitialBias, fit_bias};
@@ -20,12 +21,13 @@ use crate::init::{Start, StartInputs, find_start, initial_scales};
 use crate::layout::{ATTITUDE, BIAS, StateLayout};
 use crate::output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
 use crate::rate::{RateModel, StepEnvironment};
+use crate::references::albedo_into;
 use crate::screen::{Channel, Rejections, ScreenTolerances, find_outliers, remove_outliers};
 use crate::segments::{
     Acquisition, GapRules, InnovationWindow, SegmentBreak, SegmentReport, attitude_sigma_rad,
 };
 use crate::smoother::SmootherStore;
-use crate::{BiasAcrossSets, FilterError, References, StepReference};
+use crate::{BiasAcrossSets, FilterError, References};
 
 /// What a run reads: the dataset's metadata and telemetry (never its truth), one reference
 /// per telemetry row, and optionally the albedo model.
@@ -917,7 +919,7 @@ impl<'a> ForwardPass<'a> {
                 if reference.sun_fraction >= self.min_sun_fraction
                     && self.row.iter().any(Option::is_some) =>
             {
-                reference.albedo_into(model, &mut self.view, k)?;
+                albedo_into(&reference, model, &mut self.view, k)?;
                 Some(&self.view)
             }
             _ => None,
@@ -1278,7 +1280,7 @@ pub fn nominal_step_s(tel: &Telemetry) -> f64 {
     crate::segments::median_spacing(tel.t_s.iter().copied()).unwrap_or(1.0)
 }
 
-fn check_reference(index: usize, t_s: f64, r: &StepReference) -> Result<(), FilterError> {
+fn check_reference(index: usize, t_s: f64, r: &Reference) -> Result<(), FilterError> {
     let finite = |v: &Vector3<f64>| v.iter().all(|x| x.is_finite());
     let checks = [
         (

@@ -9,10 +9,11 @@ mod common;
 use nalgebra::{Matrix3, Vector3};
 use pdcal_attitude::normal_from_az_el;
 use pdcal_dataset::{DatasetMeta, Telemetry};
+use pdcal_ephem::Reference;
 use pdcal_filter::bias_fit::{BiasFit, FitInputs, FitPrior, fit_bias};
 use pdcal_filter::init::{StartInputs, find_start, initial_scales};
 use pdcal_filter::segments::GapRules;
-use pdcal_filter::{FilterConfig, References, StepReference, step_references};
+use pdcal_filter::{FilterConfig, References, step_references};
 use pdcal_photodiode::Photodiode;
 
 const PYRAMID: &str = include_str!("../../../fixtures/scenarios/weak/pyramid-head.ron");
@@ -22,7 +23,7 @@ const PYRAMID: &str = include_str!("../../../fixtures/scenarios/weak/pyramid-hea
 fn fit_first_segment(
     meta: &DatasetMeta,
     telemetry: &Telemetry,
-    stored: &[StepReference],
+    stored: &[Reference],
     window_s: f64,
 ) -> (usize, Result<BiasFit, String>) {
     let references = References::from(stored);

@@ -9,16 +9,17 @@ use nalgebra::{Cholesky, Vector3};
 use pdcal_albedo::{AlbedoModel, MapChoice};
 use pdcal_attitude::Quat;
 use pdcal_dataset::{DatasetMeta, Telemetry};
+use pdcal_ephem::Reference;
 use pdcal_filter::{
     Algebra, Calibration, Channel, FilterConfig, ForwardPass, Mode, Rejections, RepairKind,
-    RepairLog, RunInputs, StepReference, calibrate, paper_model, step_references,
+    RepairLog, RunInputs, calibrate, paper_model, step_references,
 };
 use pdcal_photodiode::Photodiode;
 
 struct Fixture {
     meta: DatasetMeta,
     telemetry: Telemetry,
-    references: Vec<StepReference>,
+    references: Vec<Reference>,
     albedo: AlbedoModel,
 }
 

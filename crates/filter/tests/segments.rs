@@ -10,16 +10,17 @@ use nalgebra::{Cholesky, Vector3};
 use pdcal_albedo::{AlbedoModel, MapChoice};
 use pdcal_attitude::{Quat, mekf::error_vector, normal_from_az_el};
 use pdcal_dataset::{DatasetMeta, Telemetry, TruthConstants, TruthSeries};
+use pdcal_ephem::Reference;
 use pdcal_filter::{
     Acquisition, Algebra, Calibration, FilterConfig, ForwardPass, Mode, RunInputs, SegmentBreak,
-    SegmentReport, StepEstimate, StepReference, paper_model, step_references,
+    SegmentReport, StepEstimate, paper_model, step_references,
 };
 use pdcal_photodiode::Photodiode;
 
 struct Fixture {
     meta: DatasetMeta,
     telemetry: Telemetry,
-    references: Vec<StepReference>,
+    references: Vec<Reference>,
     truth: TruthSeries,
     constants: TruthConstants,
     albedo: AlbedoModel,
@@ -60,7 +61,7 @@ fn run_checked(
 ) -> Checked {
     let f = fixture();
     let telemetry = telemetry.select_rows(keep);
-    let references: Vec<StepReference> = (0..f.references.len())
+    let references: Vec<Reference> = (0..f.references.len())
         .filter(|&k| keep(k))
         .map(|k| f.references[k])
         .collect();

@@ -65,7 +65,7 @@ fn streaming_equals_in_memory_across_gaps() {
 fn compare(
     meta: &pdcal_dataset::DatasetMeta,
     tel: &pdcal_dataset::Telemetry,
-    refs: &[pdcal_filter::StepReference],
+    refs: &[pdcal_ephem::Reference],
 ) -> pdcal_filter::CalibrationRun {
     let inputs = RunInputs {
         meta,

@@ -138,7 +138,7 @@ pub fn run(
 pub fn run_with_references(
     meta: &DatasetMeta,
     telemetry: &Telemetry,
-    references: Vec<pdcal_filter::StepReference>,
+    references: Vec<pdcal_ephem::Reference>,
     config: &RunConfig,
     albedo: &AlbedoModel,
     sets: &[crate::joint::SetSpan],
@@ -203,7 +203,7 @@ pub fn run_with_references(
 fn repeatability_of(
     meta: &DatasetMeta,
     telemetry: &Telemetry,
-    references: &[pdcal_filter::StepReference],
+    references: &[pdcal_ephem::Reference],
     sets: &[crate::joint::SetSpan],
     config: &RunConfig,
     albedo: &AlbedoModel,
@@ -326,7 +326,7 @@ pub fn check_photodiode_count(m: usize, what: &str) -> Result<()> {
 
 /// The references of a run: the stored ones when there are, else computed per row.
 fn references_of<'a>(
-    stored: Option<&'a [pdcal_filter::StepReference]>,
+    stored: Option<&'a [pdcal_ephem::Reference]>,
     model: &'a pdcal_filter::ReferenceModel,
     t_s: &'a [f64],
 ) -> References<'a> {

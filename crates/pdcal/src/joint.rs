@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use pdcal_dataset::{CurrentColumn, DatasetMeta, OrbitSpec, Samples, Telemetry, TemperatureColumn};
-use pdcal_filter::StepReference;
+use pdcal_ephem::Reference;
 use serde::Serialize;
 
 /// Two nominal angles closer than this are the same mounting, deg.
@@ -40,7 +40,7 @@ pub struct Joint {
     /// With several sets, every row's references, each from its own set's orbit; `None`
     /// for one set, whose references the caller computes from `meta` (stored or per row,
     /// as memory allows).
-    pub references: Option<Vec<StepReference>>,
+    pub references: Option<Vec<Reference>>,
     /// The sets, in time order.
     pub sets: Vec<SetSpan>,
 }
@@ -324,7 +324,7 @@ fn concat(parts: impl Iterator<Item = (f64, Telemetry)>) -> Telemetry {
 pub fn own_estimates(
     meta: &DatasetMeta,
     telemetry: &Telemetry,
-    references: &[StepReference],
+    references: &[Reference],
     sets: &[SetSpan],
     (config, mode): (&pdcal_filter::FilterConfig, &pdcal_filter::Mode),
     albedo: &pdcal_albedo::AlbedoModel,
@@ -346,7 +346,7 @@ pub fn own_estimates(
 fn own_estimate(
     meta: &DatasetMeta,
     telemetry: &Telemetry,
-    references: &[StepReference],
+    references: &[Reference],
     rows: std::ops::Range<usize>,
     (config, mode): (&pdcal_filter::FilterConfig, &pdcal_filter::Mode),
     albedo: &pdcal_albedo::AlbedoModel,

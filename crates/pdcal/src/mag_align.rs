@@ -7,13 +7,14 @@
 
 use anyhow::Result;
 use pdcal_dataset::Telemetry;
-use pdcal_filter::{StepEstimate, StepReference};
+use pdcal_ephem::Reference;
+use pdcal_filter::StepEstimate;
 use pdcal_magcal::{AlignSample, Misalignment};
 
 /// The rows whose attitude the photodiodes help determine: the Sun's whole disc in view.
 /// In eclipse the attitude comes from the magnetometer and the gyro alone and follows the
 /// magnetometer's own rotation, which would pull the estimate toward none.
-fn sunlit(reference: &StepReference) -> bool {
+fn sunlit(reference: &Reference) -> bool {
     reference.sun_fraction >= 1.0
 }
 
@@ -23,7 +24,7 @@ fn sunlit(reference: &StepReference) -> bool {
 /// variance about two axes times `|B|^2`, per axis).
 pub fn samples(
     telemetry: &Telemetry,
-    references: &[StepReference],
+    references: &[Reference],
     estimates: &[StepEstimate],
     mag_sigma_nt: f64,
 ) -> Vec<AlignSample> {
@@ -58,7 +59,7 @@ pub fn samples(
 /// The misalignment of the run whose estimates are given (the smoothed ones when there are).
 pub fn estimate(
     telemetry: &Telemetry,
-    references: &[StepReference],
+    references: &[Reference],
     estimates: &[StepEstimate],
     mag_sigma_nt: f64,
 ) -> Result<Misalignment> {

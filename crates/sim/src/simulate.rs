@@ -9,7 +9,7 @@ use pdcal_dataset::{
     TruthSeries, current_column, photodiode_temperature_column,
 };
 use pdcal_ephem::igrf::IgrfError;
-use pdcal_ephem::{OrbitError, ReferenceError, ReferenceModel, TimeError, TleOrbit};
+use pdcal_ephem::{OrbitError, Reference, ReferenceError, ReferenceModel, TimeError, TleOrbit};
 use pdcal_photodiode::{
     EffectId, EffectModelOptions, MeasurementModel, Photodiode, PhotodiodeError, Scene, ShadowMode,
     add_effect,
@@ -176,20 +176,6 @@ impl Grid {
     }
 }
 
-/// The environment at one instant, GCRF.
-#[derive(Debug, Clone, Copy)]
-struct Environment {
-    /// GCRF -> ITRF rotation (`pdcal_ephem::frames::gcrf_to_itrf`).
-    gcrf_to_ecef: Matrix3<f64>,
-    r_gcrf_km: Vector3<f64>,
-    r_sun_gcrf_km: Vector3<f64>,
-    /// Unit vector from the spacecraft to the Sun.
-    sun_gcrf: Vector3<f64>,
-    b_gcrf_nt: Vector3<f64>,
-    /// Illuminated fraction of the solar disc (conical shadow with penumbra).
-    nu: f64,
-}
-
 /// The ephemeris of a run: the same [`ReferenceModel`] the filter's driver uses, so truth
 /// and filter see identical reference vectors.
 struct Ephemeris(ReferenceModel);
@@ -205,16 +191,8 @@ impl Ephemeris {
             .map_err(|e| reference_error(0.0, e))
     }
 
-    fn at(&self, t_s: f64) -> Result<Environment, SimError> {
-        let r = self.0.at(t_s).map_err(|e| reference_error(t_s, e))?;
-        Ok(Environment {
-            gcrf_to_ecef: r.gcrf_to_itrf,
-            r_gcrf_km: r.r_gcrf_km,
-            r_sun_gcrf_km: r.sun_gcrf_km,
-            sun_gcrf: r.sun_gcrf_unit,
-            b_gcrf_nt: r.b_gcrf_nt,
-            nu: r.sun_fraction,
-        })
+    fn at(&self, t_s: f64) -> Result<Reference, SimError> {
+        self.0.at(t_s).map_err(|e| reference_error(t_s, e))
     }
 }
 
@@ -313,13 +291,13 @@ fn propagate_events(
     ephemeris: &Ephemeris,
     events_us: &[i64],
     initial: AttitudeState,
-) -> Result<(Vec<AttitudeState>, Vec<Environment>), SimError> {
+) -> Result<(Vec<AttitudeState>, Vec<Reference>), SimError> {
     let body = RigidBody::new(scenario.inertia_kg_m2())?;
     let disturbances = Disturbances {
         gravity_gradient: scenario.spacecraft.gravity_gradient,
         dipole_body_a_m2: scenario.dipole_body_a_m2(),
     };
-    let envs = events_us
+    let references = events_us
         .par_iter()
         .map(|&t_us| ephemeris.at(to_s(t_us)))
         .collect::<Result<Vec<_>, _>>()?;
@@ -331,8 +309,8 @@ fn propagate_events(
     let step = |from: usize, to: usize, state: &AttitudeState| {
         let dt_s = to_s(events_us[to] - events_us[from]);
         let torque_env = TorqueEnvironment {
-            r_gcrf_km: [envs[from].r_gcrf_km, envs[to].r_gcrf_km],
-            b_gcrf_nt: [envs[from].b_gcrf_nt, envs[to].b_gcrf_nt],
+            r_gcrf_km: [references[from].r_gcrf_km, references[to].r_gcrf_km],
+            b_gcrf_nt: [references[from].b_gcrf_nt, references[to].b_gcrf_nt],
             dt_s,
         };
         let torque = |t: f64, q: &Quat| torque_env.torque(&body, &disturbances, t, q);
@@ -344,7 +322,7 @@ fn propagate_events(
     for k in (0..k0).rev() {
         states[k] = step(k + 1, k, &states[k + 1])?;
     }
-    Ok((states, envs))
+    Ok((states, references))
 }
 
 /// True temperatures at every event, degrees Celsius, `[j * n_pd + i]` for photodiode `i`
@@ -356,12 +334,12 @@ fn thermal_truth(
     photodiodes: &[Photodiode],
     events_us: &[i64],
     states: &[AttitudeState],
-    envs: &[Environment],
+    references: &[Reference],
 ) -> Vec<f64> {
     let n = photodiodes.len();
     let equilibrium = |j: usize, i: usize| {
-        let sun_body = states[j].q.attitude_matrix() * envs[j].sun_gcrf;
-        let lit = photodiodes[i].n_body.dot(&sun_body).max(0.0) * envs[j].nu;
+        let sun_body = states[j].q.attitude_matrix() * references[j].sun_gcrf_unit;
+        let lit = photodiodes[i].n_body.dot(&sun_body).max(0.0) * references[j].sun_fraction;
         thermal.equilibrium_c(lit)
     };
     let mut t_c = vec![thermal.initial_c(); events_us.len() * n];
@@ -649,7 +627,7 @@ pub fn simulate_downlink(
         _ => 0,
     };
     let events_us = event_times(&grid, pd_offset_us);
-    let (states, envs) = propagate_events(
+    let (states, references) = propagate_events(
         scenario,
         &ephemeris,
         &events_us,
@@ -680,13 +658,13 @@ pub fn simulate_downlink(
     let n_pd = scenario.n_photodiodes();
     let thermal = scenario.temperature.as_ref();
     let true_temperature_c = thermal
-        .map(|th| thermal_truth(th, &photodiodes, &events_us, &states, &envs))
+        .map(|th| thermal_truth(th, &photodiodes, &events_us, &states, &references))
         .unwrap_or_default();
     let truth_scenes = TruthScenes {
         model: &model,
         albedo: albedo.as_ref(),
         states: &states,
-        envs: &envs,
+        references: &references,
         temperature_c: &true_temperature_c,
     };
     // Noise-free outputs first, in parallel (albedo dominates the run time); each row is a
@@ -727,7 +705,7 @@ pub fn simulate_downlink(
     let mut sensors = Sensors::new(scenario, streams);
     for &t_us in &grid.rows_us {
         let k = event(t_us);
-        let (state, env) = (&states[k], &envs[k]);
+        let (state, reference) = (&states[k], &references[k]);
         let a = state.q.attitude_matrix();
         let t_s = to_s(t_us);
         out.telemetry.t_s.push(t_s);
@@ -735,13 +713,13 @@ pub fn simulate_downlink(
             .samples(GYRO, t_us)
             .then(|| sensors.gyro(t_us, &state.w_body_rad_s));
         out.telemetry.gyro_rad_s.push(gyro);
-        let mag_body_nt = a * env.b_gcrf_nt;
-        let sun_body = a * env.sun_gcrf;
+        let mag_body_nt = a * reference.b_gcrf_nt;
+        let sun_body = a * reference.sun_gcrf_unit;
         for ((u, channel), column) in (currents.iter_mut())
             .zip(&scenario.currents)
             .zip(&mut out.telemetry.current_a)
         {
-            *u = channel.current_a(t_s, &sun_body, env.nu);
+            *u = channel.current_a(t_s, &sun_body, reference.sun_fraction);
             column.values.push(Some(*u));
         }
         let mag = grid
@@ -779,11 +757,13 @@ pub fn simulate_downlink(
         out.truth.w_body_rad_s.push(state.w_body_rad_s);
         out.truth.gyro_bias_rad_s.push(sensors.gyro_bias_rad_s);
         out.truth.sun_body.push(sun_body);
-        out.truth.eclipse.push(shadow.factor(env.nu));
-        out.truth.r_gcrf_km.push(env.r_gcrf_km);
+        out.truth
+            .eclipse
+            .push(shadow.factor(reference.sun_fraction));
+        out.truth.r_gcrf_km.push(reference.r_gcrf_km);
         out.truth.mag_body_nt.push(mag_body_nt);
-        out.sun_gcrf.push(env.sun_gcrf);
-        out.mag_gcrf_nt.push(env.b_gcrf_nt);
+        out.sun_gcrf.push(reference.sun_gcrf_unit);
+        out.mag_gcrf_nt.push(reference.b_gcrf_nt);
     }
 
     Ok(SimOutput {
@@ -810,7 +790,7 @@ struct TruthScenes<'a> {
     model: &'a MeasurementModel,
     albedo: Option<&'a AlbedoModel>,
     states: &'a [AttitudeState],
-    envs: &'a [Environment],
+    references: &'a [Reference],
     /// [`thermal_truth`], empty without a thermal model.
     temperature_c: &'a [f64],
 }
@@ -824,11 +804,16 @@ impl TruthScenes<'_> {
         j: usize,
         t_s: f64,
     ) -> Result<Vec<f64>, SimError> {
-        let env = &self.envs[j];
+        let reference = &self.references[j];
         let albedo_view = match self.albedo {
             Some(albedo) => {
                 albedo
-                    .compute_into(view, &env.r_gcrf_km, &env.r_sun_gcrf_km, &env.gcrf_to_ecef)
+                    .compute_into(
+                        view,
+                        &reference.r_gcrf_km,
+                        &reference.sun_gcrf_km,
+                        &reference.gcrf_to_itrf,
+                    )
                     .map_err(|source| SimError::Albedo { t_s, source })?;
                 Some(&*view)
             }
@@ -836,8 +821,8 @@ impl TruthScenes<'_> {
         };
         let n = self.model.photodiodes().len();
         let temperature_c = self.temperature_c.get(j * n..(j + 1) * n).unwrap_or(&[]);
-        let scene =
-            scene_for(&self.states[j], env, t_s, albedo_view)?.with_temperatures(temperature_c);
+        let scene = scene_for(&self.states[j], reference, t_s, albedo_view)?
+            .with_temperatures(temperature_c);
         (0..n)
             .map(|i| Ok(self.model.pre_stage_output(i, &scene)?))
             .collect()
@@ -847,16 +832,16 @@ impl TruthScenes<'_> {
 /// The photodiode scene at one instant: attitude, Sun, eclipse fraction, rate, time, albedo.
 fn scene_for<'a>(
     state: &AttitudeState,
-    env: &Environment,
+    reference: &Reference,
     t_s: f64,
     albedo: Option<&'a AlbedoView>,
 ) -> Result<Scene<'a>, SimError> {
     let a: Matrix3<f64> = state.q.attitude_matrix();
-    let scene = Scene::new(a, &env.sun_gcrf)?
-        .with_sun_fraction(env.nu)
+    let scene = Scene::new(a, &reference.sun_gcrf_unit)?
+        .with_sun_fraction(reference.sun_fraction)
         .with_sun_distance_factor(pdcal_ephem::sun_distance_factor(
-            &env.r_gcrf_km,
-            &env.r_sun_gcrf_km,
+            &reference.r_gcrf_km,
+            &reference.sun_gcrf_km,
         ))
         .with_rate(state.w_body_rad_s)
         .with_time(t_s);

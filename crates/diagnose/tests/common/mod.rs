@@ -6,7 +6,7 @@
 use pdcal_albedo::{AlbedoModel, MapChoice};
 use pdcal_dataset::Effect;
 use pdcal_diagnose::{BaseModel, DiagnoseConfig, DiagnoseInputs, Diagnosis, diagnose};
-use pdcal_filter::StepReference;
+use pdcal_ephem::Reference;
 use pdcal_sim::{Scenario, SimOutput, simulate};
 
 /// Duration of the default tests' data sets, s: 90 min (the data set starts in eclipse and enters the next one at 85 min)
@@ -29,7 +29,7 @@ pub fn albedo() -> Effect {
 }
 
 /// One reference per telemetry row, from the dataset's TLE.
-pub fn references(sim: &SimOutput) -> Vec<StepReference> {
+pub fn references(sim: &SimOutput) -> Vec<Reference> {
     pdcal_filter::step_references(&sim.meta, &sim.telemetry).expect("references")
 }
 
@@ -51,7 +51,7 @@ pub fn run(scenario: &Scenario, seed: u64, base: BaseModel) -> (SimOutput, Diagn
 /// The diagnosis inputs of a simulation (never its truth), with the TOMS map.
 pub fn inputs<'a>(
     sim: &'a SimOutput,
-    references: &'a [StepReference],
+    references: &'a [Reference],
     albedo: &'a AlbedoModel,
 ) -> DiagnoseInputs<'a> {
     DiagnoseInputs {

@@ -6,9 +6,10 @@
 use nalgebra::{Matrix3, Vector3};
 use pdcal_albedo::{AlbedoExpansion, AlbedoModel, AlbedoView, MapChoice};
 use pdcal_attitude::{GyroNoise, Quat};
+use pdcal_ephem::Reference;
 use pdcal_filter::{
     Algebra, Filter, FilterConfig, FilterNoise, InitialState, Measurements, StateLayout,
-    StepReference, paper_model,
+    paper_model,
 };
 use pdcal_photodiode::{Photodiode, Scene};
 
@@ -27,7 +28,7 @@ pub fn normals(m: usize) -> Vec<Vector3<f64>> {
 
 pub struct Setup {
     pub filter: Filter,
-    pub reference: StepReference,
+    pub reference: Reference,
     pub pd_v: Vec<Option<f64>>,
     pub mag: Vector3<f64>,
 }
@@ -73,7 +74,7 @@ pub fn setup(m: usize, algebra: Algebra, albedo: &AlbedoExpansion) -> Setup {
     };
     let filter = Filter::new(model, layout, init, noise, algebra).unwrap();
     let sun = Vector3::new(0.8, 0.5, 0.33).normalize();
-    let reference = StepReference {
+    let reference = Reference {
         r_gcrf_km: Vector3::new(7000.0, 0.0, 0.0),
         sun_gcrf_km: sun * 1.496e8,
         sun_gcrf_unit: sun,

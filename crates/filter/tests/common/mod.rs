@@ -7,7 +7,7 @@ use nalgebra::Vector3;
 use pdcal_attitude::mekf::propagate;
 use pdcal_attitude::{Quat, normal_from_az_el};
 use pdcal_dataset::{DatasetMeta, Telemetry, meta_from_str};
-use pdcal_filter::StepReference;
+use pdcal_ephem::Reference;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand_distr::{Distribution, Normal};
@@ -124,7 +124,7 @@ impl Case {
     }
 
     /// Builds (meta, telemetry, references, true attitudes).
-    pub fn build(&self) -> (DatasetMeta, Telemetry, Vec<StepReference>, Vec<Quat>) {
+    pub fn build(&self) -> (DatasetMeta, Telemetry, Vec<Reference>, Vec<Quat>) {
         let mut rng = StdRng::seed_from_u64(self.seed.wrapping_mul(7919).wrapping_add(1));
         let std = Normal::new(0.0, 1.0).unwrap();
         let m = self.nominal.len();
@@ -156,7 +156,7 @@ impl Case {
             if let Some(mag) = tel.mag_nt.as_mut() {
                 mag.push(Some(a * b + noise3() * self.mag_sigma_nt));
             }
-            let reference = StepReference {
+            let reference = Reference {
                 r_gcrf_km: Vector3::new(7000.0, 0.0, 0.0),
                 sun_gcrf_km: sun * 1.496e8,
                 sun_gcrf_unit: sun,
