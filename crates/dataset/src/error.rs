@@ -346,9 +346,9 @@ impl fmt::Display for DatasetError {
 // print it twice in an `anyhow` chain).
 impl std::error::Error for DatasetError {}
 
-pub use pdcal_ephem::text::{QUOTE_MAX_CHARS, clip, quote};
+pub(crate) use pdcal_text::{QUOTE_MAX_CHARS, clip, quote};
 
-pub(crate) use pdcal_ephem::text::line_col;
+pub(crate) use pdcal_text::line_col;
 
 /// Why a user's file is not text to read: the one check of every reader of a user's text
 /// file (here and in `pdcal-import`), each of which turns it into its own error kind.

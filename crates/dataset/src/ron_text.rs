@@ -66,11 +66,10 @@ pub fn parse_ron<T: DeserializeOwned>(text: &str) -> Result<T, RonFault> {
                 name: field.to_owned(),
             },
             other => RonFaultKind::Ron {
-                message: pdcal_ephem::text::parser_message(&other.to_string()),
+                message: pdcal_text::parser_message(&other.to_string()),
             },
         };
-        let (line, column) =
-            pdcal_ephem::text::skip_blanks(text, e.span.start.line, e.span.start.col);
+        let (line, column) = pdcal_text::skip_blanks(text, e.span.start.line, e.span.start.col);
         RonFault { line, column, kind }
     })
 }

@@ -94,6 +94,3 @@ pub use orbit::{OrbitError, OrbitSource, OrbitState, TemeState, TleLine, TleOrbi
 pub use reference::{Reference, ReferenceError, ReferenceModel};
 pub use sun::{LowPrecisionSun, SunEphemeris, sun_distance_factor};
 pub use time::TimeError;
-
-/// The message helpers (quoting, line and column), re-exported for the readers above.
-pub use pdcal_text as text;

@@ -18,7 +18,7 @@ pub enum TimeError {
     /// The text is not `YYYY-MM-DDTHH:MM:SS[.fraction]Z`.
     #[error(
         "`{}` is not an ISO 8601 UTC time (YYYY-MM-DDTHH:MM:SS[.f]Z): {reason}",
-        crate::text::clip(.input)
+        pdcal_text::clip(.input)
     )]
     Format {
         /// The text as given (the message quotes at most `text::QUOTE_MAX_CHARS` of it).
@@ -27,7 +27,7 @@ pub enum TimeError {
         reason: &'static str,
     },
     /// The fields parse but do not name a real UTC instant (e.g. month 13, Feb 30).
-    #[error("`{}` is not a valid UTC date and time: {reason}", crate::text::clip(.input))]
+    #[error("`{}` is not a valid UTC date and time: {reason}", pdcal_text::clip(.input))]
     Invalid {
         /// The text as given (the message quotes at most `text::QUOTE_MAX_CHARS` of it).
         input: String,

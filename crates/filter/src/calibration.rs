@@ -187,7 +187,7 @@ fn check_photodiode(i: usize, pd: &PdCalibration) -> Result<(), FilterError> {
     use pdcal_dataset::rules;
     let bad = |field: &str, value: f64, rule: String| FilterError::Invalid {
         field: format!("photodiodes[{i}].{field}"),
-        value: pdcal_ephem::text::number(value),
+        value: pdcal_text::number(value),
         rule,
     };
     if let Err((field, rule)) = rules::mounting(pd.azimuth_deg, pd.elevation_deg) {

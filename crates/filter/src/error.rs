@@ -6,7 +6,7 @@ use thiserror::Error;
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum FilterError {
     /// A configuration field is out of range.
-    #[error("filter config: {field} = {}: {rule}", pdcal_ephem::text::number(*.value))]
+    #[error("filter config: {field} = {}: {rule}", pdcal_text::number(*.value))]
     Config {
         /// Field name as in the RON file.
         field: &'static str,
@@ -154,7 +154,7 @@ impl FilterError {
             message: format!(
                 "{}: {}",
                 e.span,
-                pdcal_ephem::text::parser_message(&e.code.to_string())
+                pdcal_text::parser_message(&e.code.to_string())
             ),
         }
     }

@@ -602,11 +602,11 @@ fn dataset_epoch(
 }
 
 /// The header's names for a message: quoted, escaped, as many as fit in about
-/// [`pdcal_ephem::text::QUOTE_MAX_CHARS`] characters, then how many there are.
+/// [`pdcal_text::QUOTE_MAX_CHARS`] characters, then how many there are.
 fn listing(header: &StringRecord) -> String {
     let mut out = String::new();
     for (i, name) in header.iter().enumerate() {
-        if out.chars().count() > pdcal_ephem::text::QUOTE_MAX_CHARS {
+        if out.chars().count() > pdcal_text::QUOTE_MAX_CHARS {
             return format!("{out}, ... ({} columns)", header.len());
         }
         if i > 0 {

@@ -4,7 +4,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 use pdcal_dataset::DatasetError;
-pub(crate) use pdcal_dataset::quote;
+pub(crate) use pdcal_text::quote;
 
 /// An import that cannot be done, with the place of the fault.
 ///
@@ -376,7 +376,7 @@ impl fmt::Display for ImportError {
 // print it twice in an `anyhow` chain).
 impl std::error::Error for ImportError {}
 
-pub(crate) use pdcal_ephem::text::{clip, line_col, number};
+pub(crate) use pdcal_text::{clip, line_col, number};
 
 /// A name from the input for a message: as it is when it is short and printable, else
 /// quoted, with control characters escaped and cut to the limit of [`quote`] (so an ESC in

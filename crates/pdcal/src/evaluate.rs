@@ -72,7 +72,7 @@ pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
                     line + 2,
                     c + 1,
                     header.get(c).unwrap_or("?"),
-                    pdcal_dataset::quote(text)
+                    pdcal_text::quote(text)
                 )
             })
         };
@@ -113,7 +113,7 @@ pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
                         path.display(),
                         line + 2,
                         c + 1,
-                        pdcal_dataset::quote(text)
+                        pdcal_text::quote(text)
                     )
                 })?
             }

@@ -161,9 +161,9 @@ fn same_spacecraft(sets: &[(PathBuf, DatasetMeta, Telemetry)]) -> Result<()> {
                     "{}: its TLE is of object {}, but {}'s is of object {}: data sets of one \
                      calibration must be one spacecraft's (another spacecraft's TLE?)",
                     name(dir),
-                    pdcal_dataset::quote(&b),
+                    pdcal_text::quote(&b),
                     name(&first.0),
-                    pdcal_dataset::quote(&a)
+                    pdcal_text::quote(&a)
                 );
             }
         }

@@ -78,7 +78,7 @@ fn a_config_prior_obeys_the_dataset_rules() {
             format!(
                 "PRIOR: calibration: photodiodes[0].scale_V = {}: a scale factor must be positive \
                  and at most 100 V",
-                pdcal_ephem::text::number(value)
+                pdcal_text::number(value)
             ),
             "{shown}"
         );
@@ -236,15 +236,12 @@ fn non_regular_and_endless_inputs_are_refused() {
 
 #[test]
 fn messages_escape_control_characters_and_speak_our_words() {
-    assert_eq!(
-        pdcal_ephem::text::clip("pd01\u{1b}[2J\0_V"),
-        "pd01\\u{1b}[2J\\0_V"
-    );
+    assert_eq!(pdcal_text::clip("pd01\u{1b}[2J\0_V"), "pd01\\u{1b}[2J\\0_V");
     // ron's own text for input nested beyond its limit (ron::Error::ExceededRecursionLimit).
     let ron = "Exceeded recursion limit, try increasing `ron::Options::recursion_limit` and using \
                `serde_stacker` to protect against a stack overflow";
     assert_eq!(
-        pdcal_ephem::text::parser_message(ron),
+        pdcal_text::parser_message(ron),
         "nested too deeply: more brackets inside brackets than any pdcal file has"
     );
 }

@@ -10,7 +10,7 @@ use std::str::FromStr;
 use nalgebra::{Matrix3, Vector3};
 use pdcal_albedo::MapChoice;
 use pdcal_dataset::{Effect, EffectId, NominalMount};
-use pdcal_ephem::text::{number, quote};
+use pdcal_text::{number, quote};
 use serde::{Deserialize, Serialize};
 
 use crate::dynamics::{DEFAULT_MAX_STEP_S, RigidBody};
@@ -544,7 +544,7 @@ impl Scenario {
             .map_err(|e| ScenarioError::Ron {
                 line: e.span.start.line,
                 column: e.span.start.col,
-                message: pdcal_ephem::text::parser_message(&e.code.to_string()),
+                message: pdcal_text::parser_message(&e.code.to_string()),
             })?;
         scenario.validate()?;
         Ok(scenario)

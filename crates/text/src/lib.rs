@@ -1,7 +1,7 @@
 //! Input text quoted in error messages, cut to a bounded length: the one implementation
 //! every reader and catalogue uses (the effect catalogue's names, the UTC parser of
-//! `pdcal-ephem`, which re-exports it as `pdcal_ephem::text`, and through it the dataset,
-//! scenario, configuration and import readers), so that all of them cut the same way.
+//! `pdcal-ephem`, the dataset, scenario, configuration and import readers and the driver,
+//! each depending on this crate directly), so that all of them cut the same way.
 
 /// Characters of an offending value quoted in a message; longer values are cut, so that a
 /// 50 MB cell does not become a 50 MB error message.

@@ -49,13 +49,22 @@ pub const PDCAL: Rules = Rules {
         ),
         (
             "pdcal-dataset",
-            &["pdcal-effects", "pdcal-attitude", "pdcal-ephem"],
+            &[
+                "pdcal-text",
+                "pdcal-effects",
+                "pdcal-attitude",
+                "pdcal-ephem",
+            ],
         ),
-        ("pdcal-import", &["pdcal-dataset", "pdcal-ephem"]),
+        (
+            "pdcal-import",
+            &["pdcal-text", "pdcal-dataset", "pdcal-ephem"],
+        ),
         ("pdcal-magcal", &["pdcal-ephem"]),
         (
             "pdcal-sim",
             &[
+                "pdcal-text",
                 "pdcal-effects",
                 "pdcal-attitude",
                 "pdcal-ephem",
@@ -67,6 +76,7 @@ pub const PDCAL: Rules = Rules {
         (
             "pdcal-filter",
             &[
+                "pdcal-text",
                 "pdcal-effects",
                 "pdcal-attitude",
                 "pdcal-ephem",
@@ -94,6 +104,7 @@ pub const PDCAL: Rules = Rules {
         (
             "pdcal",
             &[
+                "pdcal-text",
                 "pdcal-effects",
                 "pdcal-attitude",
                 "pdcal-ephem",
