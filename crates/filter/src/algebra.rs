@@ -3,9 +3,9 @@
 //! lower triangle followed by the mirror that keeps `P` exactly symmetric.
 //!
 //! Why hand-written: the workspace forbids `unsafe`; `pulp` dispatches these loops at run
-//! time to AVX2+FMA or AVX-512 (4 to 8 times the SSE2 baseline's throughput). faer's (also
-//! pulp-based) triangular product does the downdate in about twice the time at n = 57 (its
-//! general kernels pay per-call overhead at this size) and nalgebra's `gemm`
+//! time to AVX2+FMA or AVX-512 (4 or 8 `f64` lanes per instruction). faer's (also
+//! pulp-based) triangular product is slower for the downdate at the filter's sizes (its
+//! general kernels pay per-call overhead when `n` is a few tens) and nalgebra's `gemm`
 //! (matrixmultiply) allocates its packing buffers per call.
 //!
 //! `W` is stored with a leading dimension of at least `n + ROW_BLOCK`, a multiple of the

@@ -647,6 +647,11 @@ fn history_patterns() -> Vec<(Regex, &'static str)> {
             ),
             "quotes a timing",
         ),
+        (
+            r"(?i)\b(twice|half|\d+(\.\d+)?( to \d+(\.\d+)?)? times) the\b[^.;]*\b(time|throughput|speed)\b"
+                .to_owned(),
+            "quotes a speed ratio",
+        ),
     ]
     .into_iter()
     .map(|(p, what)| (Regex::new(&p).expect("regex"), what))
