@@ -120,11 +120,7 @@ fn dataset_place(kind: &ErrorKind, is_ron: bool) -> Place {
     match kind {
         ErrorKind::Io { .. } | ErrorKind::Empty | ErrorKind::TruthIncomplete { .. } => Place::File,
         ErrorKind::NotUtf8 => Place::LineAndColumn,
-        ErrorKind::Ron { .. } | ErrorKind::UnknownField { .. } | ErrorKind::MissingField { .. }
-            if is_ron =>
-        {
-            Place::LineAndColumn
-        }
+        ErrorKind::Ron(_) if is_ron => Place::LineAndColumn,
         _ if is_ron => Place::LineOrField,
         ErrorKind::MissingHeader { .. }
         | ErrorKind::NotANumber { .. }
@@ -181,9 +177,7 @@ fn import_place(kind: &ImportKind, is_map: bool) -> Place {
     match kind {
         ImportKind::Empty | ImportKind::NoRows { .. } => Place::File,
         ImportKind::NotUtf8 => Place::LineAndColumn,
-        ImportKind::Ron { .. }
-        | ImportKind::UnknownField { .. }
-        | ImportKind::MissingField { .. } => Place::LineAndColumn,
+        ImportKind::Ron(_) => Place::LineAndColumn,
         _ if is_map => Place::LineOrField,
         ImportKind::WrongCellCount { .. }
         | ImportKind::Csv { .. }

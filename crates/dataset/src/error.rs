@@ -52,26 +52,10 @@ pub enum ErrorKind {
         /// The first cell of the first row.
         value: String,
     },
-    /// A RON syntax or type error (wrong type, bad value, unclosed bracket, ...).
-    #[error("{message}")]
-    Ron {
-        /// ron's description.
-        message: String,
-    },
-    /// A RON field that the format does not define.
-    #[error("unknown field `{name}`, expected one of {expected}")]
-    UnknownField {
-        /// The field found.
-        name: String,
-        /// The fields allowed there.
-        expected: String,
-    },
-    /// A required RON field is absent.
-    #[error("missing field `{name}`")]
-    MissingField {
-        /// The field that is required.
-        name: String,
-    },
+    /// A RON syntax or type error, a field the format does not define or a required one
+    /// absent.
+    #[error(transparent)]
+    Ron(crate::RonFaultKind),
     /// `format_version` is not one this reader knows.
     #[error("format_version {found} is not supported (this reader knows {known})")]
     UnsupportedVersion {

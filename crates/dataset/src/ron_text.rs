@@ -17,7 +17,7 @@ fn options() -> ron::Options {
 
 /// Why a user's RON text did not deserialise, and where: the one mapping of ron's errors
 /// for every reader of a user's RON file (dataset.ron and truth.ron here, the import map in
-/// `pdcal-import`), each of which turns the kind into its own error kind.
+/// `pdcal-import`), each of which carries the kind as its error kind's `Ron`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RonFault {
     /// 1-based line of the offending token.
@@ -28,16 +28,19 @@ pub struct RonFault {
     pub kind: RonFaultKind,
 }
 
-/// What is wrong with a RON text ([`RonFault`]).
-#[derive(Clone, Debug, PartialEq)]
+/// What is wrong with a RON text ([`RonFault`]): the one list of these kinds and their
+/// messages, which the dataset's and the import's error kinds both carry.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum RonFaultKind {
     /// A syntax or type error (wrong type, bad value, unclosed bracket, ...): ron's
     /// description, clipped.
+    #[error("{message}")]
     Ron {
         /// ron's description.
         message: String,
     },
     /// A field that the format does not define.
+    #[error("unknown field `{name}`, expected one of {expected}")]
     UnknownField {
         /// The field found (clipped).
         name: String,
@@ -45,6 +48,7 @@ pub enum RonFaultKind {
         expected: String,
     },
     /// A required field is absent.
+    #[error("missing field `{name}`")]
     MissingField {
         /// The field that is required.
         name: String,
@@ -74,20 +78,10 @@ pub fn parse_ron<T: DeserializeOwned>(text: &str) -> Result<T, RonFault> {
     })
 }
 
-impl From<RonFaultKind> for ErrorKind {
-    fn from(kind: RonFaultKind) -> Self {
-        use RonFaultKind as K;
-        match kind {
-            K::Ron { message } => ErrorKind::Ron { message },
-            K::UnknownField { name, expected } => ErrorKind::UnknownField { name, expected },
-            K::MissingField { name } => ErrorKind::MissingField { name },
-        }
-    }
-}
-
 /// Deserialises RON, mapping ron's 1-based span start to line:column.
 pub(crate) fn from_ron<T: DeserializeOwned>(file: &Path, text: &str) -> Result<T, DatasetError> {
-    parse_ron(text).map_err(|f| DatasetError::at(file, f.line, Some(f.column), f.kind.into()))
+    parse_ron(text)
+        .map_err(|f| DatasetError::at(file, f.line, Some(f.column), ErrorKind::Ron(f.kind)))
 }
 
 /// Pretty RON: four-space indent, one list entry per line with the entry itself on one line
@@ -100,9 +94,9 @@ pub(crate) fn to_ron<T: Serialize>(file: &Path, value: &T) -> Result<String, Dat
     let mut text = options().to_string_pretty(value, config).map_err(|e| {
         DatasetError::whole_file(
             file,
-            ErrorKind::Ron {
+            ErrorKind::Ron(RonFaultKind::Ron {
                 message: e.to_string(),
-            },
+            }),
         )
     })?;
     text.push('\n');

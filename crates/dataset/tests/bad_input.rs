@@ -6,7 +6,7 @@ mod common;
 use std::fs;
 
 use common::{TLE1, TLE2};
-use pdcal_dataset::{DatasetError, ErrorKind, read_dataset};
+use pdcal_dataset::{DatasetError, ErrorKind, RonFaultKind, read_dataset};
 
 /// dataset.ron of the base dataset; line numbers matter to the tests below.
 fn dataset_ron() -> String {
@@ -116,7 +116,9 @@ fn unknown_field() {
     let text = replace_line(&dataset_ron(), 3, "    colour: \"red\",");
     let e = fail("dataset.ron", &text);
     assert_eq!(place(&e), ("dataset.ron".into(), Some(3), Some(5), None));
-    assert!(matches!(e.kind(), ErrorKind::UnknownField { name, .. } if name == "colour"));
+    assert!(
+        matches!(e.kind(), ErrorKind::Ron(RonFaultKind::UnknownField { name, .. }) if name == "colour")
+    );
     assert!(
         shown(&e).starts_with(
             "dataset.ron:3:5: unknown field `colour`, expected one of format_version, name,"
@@ -154,7 +156,9 @@ fn missing_field() {
     let e = fail("dataset.ron", &text);
     // ron reports a missing field where the struct closes: the last line.
     assert_eq!(place(&e), ("dataset.ron".into(), Some(15), Some(1), None));
-    assert!(matches!(e.kind(), ErrorKind::MissingField { name } if name == "epoch_utc"));
+    assert!(
+        matches!(e.kind(), ErrorKind::Ron(RonFaultKind::MissingField { name }) if name == "epoch_utc")
+    );
     assert_eq!(shown(&e), "dataset.ron:15:1: missing field `epoch_utc`");
 
     let text = replace_line(&dataset_ron(), 11, "        (azimuth_deg: 0.0),");
@@ -171,7 +175,10 @@ fn wrong_type() {
     let text = replace_line(&dataset_ron(), 2, "    format_version: \"one\",");
     let e = fail("dataset.ron", &text);
     assert_eq!(place(&e), ("dataset.ron".into(), Some(2), Some(21), None));
-    assert!(matches!(e.kind(), ErrorKind::Ron { .. }), "{e}");
+    assert!(
+        matches!(e.kind(), ErrorKind::Ron(RonFaultKind::Ron { .. })),
+        "{e}"
+    );
     assert_eq!(shown(&e), "dataset.ron:2:21: Expected integer");
 
     let text = replace_line(

@@ -35,26 +35,10 @@ pub enum ErrorKind {
     /// The file has no content (only whitespace at most).
     #[error("file is empty")]
     Empty,
-    /// A RON syntax or type error in the map.
-    #[error("{message}")]
-    Ron {
-        /// ron's description, clipped.
-        message: String,
-    },
-    /// A map field that the format does not define.
-    #[error("unknown field `{name}`, expected one of {expected}")]
-    UnknownField {
-        /// The field found (clipped).
-        name: String,
-        /// The fields allowed there.
-        expected: String,
-    },
-    /// A required map field is absent.
-    #[error("missing field `{name}`")]
-    MissingField {
-        /// The field that is required.
-        name: String,
-    },
+    /// A RON syntax or type error in the map, a map field the format does not define or a
+    /// required one absent (the dataset reader's kinds).
+    #[error(transparent)]
+    Ron(pdcal_dataset::RonFaultKind),
     /// `format_version` is not one this reader knows.
     #[error("format_version {found} is not supported (this reader knows {known})")]
     UnsupportedVersion {
@@ -403,11 +387,6 @@ pub(crate) fn text_of(file: &Path, bytes: Vec<u8>) -> Result<String, ImportError
 
 impl From<pdcal_dataset::RonFaultKind> for ErrorKind {
     fn from(kind: pdcal_dataset::RonFaultKind) -> Self {
-        use pdcal_dataset::RonFaultKind as K;
-        match kind {
-            K::Ron { message } => ErrorKind::Ron { message },
-            K::UnknownField { name, expected } => ErrorKind::UnknownField { name, expected },
-            K::MissingField { name } => ErrorKind::MissingField { name },
-        }
+        ErrorKind::Ron(kind)
     }
 }

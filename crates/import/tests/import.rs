@@ -314,7 +314,13 @@ fn map_syntax_and_shape_errors_are_placed() {
         CSV,
     );
     assert_eq!(e.line(), Some(4), "{e}");
-    assert!(matches!(e.kind(), ErrorKind::UnknownField { .. }), "{e}");
+    assert!(
+        matches!(
+            e.kind(),
+            ErrorKind::Ron(pdcal_dataset::RonFaultKind::UnknownField { .. })
+        ),
+        "{e}"
+    );
     let e = error(
         &map_text().replace("format_version: 1", "format_version: 2"),
         CSV,
