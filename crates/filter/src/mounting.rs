@@ -36,6 +36,7 @@ use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_photodiode::{Photodiode, SunEstimate, SunVectorOptions, estimate_sun_vector};
 use serde::Serialize;
 
+use crate::references::albedo_into;
 use crate::{FilterConfig, FilterError, References};
 
 /// Most rows the check samples (evenly spread): enough for thousands of strong outputs
@@ -449,7 +450,7 @@ fn albedo_ratios(
             if !row.iter().zip(strong).any(|(y, s)| y.abs() >= *s) {
                 return Ok(0.0);
             }
-            references.at(k)?.albedo_into(model, &mut view, k)?;
+            albedo_into(&references.at(k)?, model, &mut view, k)?;
             Ok(view.max_ratio())
         })
         .collect()
