@@ -236,7 +236,7 @@ pub fn find_start(
         }
         let largest_albedo_ratio = match inputs.albedo {
             Some(model) => {
-                albedo_into(&reference, model, &mut view, k)?;
+                albedo_into(reference, model, &mut view, k)?;
                 view.max_ratio()
             }
             None => 0.0,

@@ -931,7 +931,7 @@ impl<'a> ForwardPass<'a> {
                 if reference.sun_fraction >= self.min_sun_fraction
                     && self.row.iter().any(Option::is_some) =>
             {
-                albedo_into(&reference, model, &mut self.view, k)?;
+                albedo_into(reference, model, &mut self.view, k)?;
                 Some(&self.view)
             }
             _ => None,
