@@ -102,6 +102,7 @@ pub mod init;
 pub mod layout;
 pub mod mounting;
 pub mod output;
+pub mod prepare;
 pub mod rate;
 pub mod references;
 pub mod run;
@@ -125,10 +126,11 @@ pub use layout::StateLayout;
 pub use output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
 /// The per-row reference model [`reference_model`] returns.
 pub use pdcal_ephem::ReferenceModel;
+pub use prepare::{Prepared, RunInputs};
 pub use references::{References, orbit_source, reference_model, step_references};
 pub use run::{
-    CANCEL_POLL_ROWS, ForwardPass, RunInputs, RunSink, SMOOTHER_BLOCK_ROWS, calibrate,
-    calibrate_streaming, calibrate_with_model, nominal_photodiodes, nominal_step_s, paper_model,
+    CANCEL_POLL_ROWS, ForwardPass, RunSink, SMOOTHER_BLOCK_ROWS, calibrate, calibrate_streaming,
+    calibrate_with_model, nominal_photodiodes, nominal_step_s, paper_model,
 };
 pub use screen::{Channel, ChannelRejections, Rejections, RowList};
 pub use segments::{

@@ -1,7 +1,5 @@
 //! The offline run over a dataset: initialisation, forward filter, RTS smoother.
 
-use std::borrow::Cow;
-
 use nalgebra::{Matrix3, Vector3};
 use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView};
 use pdcal_attitude::{GyroNoise, Quat, normal_from_az_el};
@@ -19,30 +17,14 @@ use crate::guard::RepairLog;
 use crate::init::{Start, StartInputs, find_start, initial_scales};
 use crate::layout::{ATTITUDE, BIAS, StateLayout};
 use crate::output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
+use crate::prepare::{Prepared, RunInputs};
 use crate::rate::{RateModel, StepEnvironment};
-use crate::screen::{Channel, Rejections, ScreenTolerances, find_outliers, remove_outliers};
+use crate::screen::{Channel, Rejections};
 use crate::segments::{
     Acquisition, GapRules, InnovationWindow, SegmentBreak, SegmentReport, attitude_sigma_rad,
 };
 use crate::smoother::SmootherStore;
 use crate::{BiasAcrossSets, FilterError, References, StepReference};
-
-/// What a run reads: the dataset's metadata and telemetry (never its truth), one reference
-/// per telemetry row, and optionally the albedo model.
-#[derive(Clone, Copy)]
-pub struct RunInputs<'a> {
-    /// dataset.ron.
-    pub meta: &'a DatasetMeta,
-    /// telemetry.csv.
-    pub telemetry: &'a Telemetry,
-    /// Sun, field, eclipse fraction and frames at every telemetry row.
-    pub references: References<'a>,
-    /// Albedo model (the paper's Eq. 13); `None` runs without albedo.
-    pub albedo: Option<&'a AlbedoModel>,
-    /// The first telemetry row of each data set of a joint run after the first (empty for
-    /// one set): where [`FilterConfig::gyro_bias_across_sets`] applies.
-    pub set_first_rows: &'a [usize],
-}
 
 /// The paper's measurement model (Eq. 15: direct Sun plus albedo) for `photodiodes`, with
 /// the configured albedo partials.
@@ -56,16 +38,18 @@ pub fn paper_model(photodiodes: Vec<Photodiode>, config: &FilterConfig) -> Measu
     model
 }
 
-/// Calibrates with the paper's model ([`paper_model`]).
+/// Prepares `inputs` ([`Prepared`]) and calibrates with the paper's model
+/// ([`paper_model`]).
 pub fn calibrate(
     inputs: &RunInputs<'_>,
     config: &FilterConfig,
     mode: &Mode,
 ) -> Result<CalibrationRun, FilterError> {
+    let prepared = Prepared::of(inputs, config)?;
     let photodiodes = nominal_photodiodes(inputs.meta);
     calibrate_with_model(
-        inputs,
-        config,
+        &prepared.inputs(inputs),
+        &prepared,
         mode,
         paper_model(photodiodes, config),
         Algebra::Structured,
@@ -90,12 +74,13 @@ pub fn nominal_photodiodes(meta: &DatasetMeta) -> Vec<Photodiode> {
 /// smoothed row), every residual.
 pub fn calibrate_with_model(
     inputs: &RunInputs<'_>,
-    config: &FilterConfig,
+    prepared: &Prepared<'_>,
     mode: &Mode,
     model: MeasurementModel,
     algebra: Algebra,
 ) -> Result<CalibrationRun, FilterError> {
-    let mut pass = ForwardPass::new(inputs, config, mode, model, algebra)?;
+    let config = prepared.config();
+    let mut pass = ForwardPass::new(inputs, prepared, mode, model, algebra)?;
     let steps = pass.remaining();
     let mut store = config
         .smoother
@@ -182,7 +167,7 @@ pub const SMOOTHER_BLOCK_ROWS: usize = 1024;
 /// `residuals` and (with the smoother) `smoothed` vectors: those went to `sink`.
 pub fn calibrate_streaming(
     inputs: &RunInputs<'_>,
-    config: &FilterConfig,
+    prepared: &Prepared<'_>,
     mode: &Mode,
     model: MeasurementModel,
     algebra: Algebra,
@@ -190,7 +175,8 @@ pub fn calibrate_streaming(
     sink: &mut dyn RunSink,
 ) -> Result<CalibrationRun, FilterError> {
     let block_rows = block_rows.max(1);
-    let mut pass = ForwardPass::new(inputs, config, mode, model, algebra)?;
+    let config = prepared.config();
+    let mut pass = ForwardPass::new(inputs, prepared, mode, model, algebra)?;
     let mut kept: Vec<(PassCheckpoint, bool)> = Vec::new();
     let mut residuals = Vec::new();
     let mut in_block = 0;
@@ -303,7 +289,7 @@ pub const FULL_GUARD_ROWS: usize = 1024;
 /// the attitude in the rows that follow. The one implementation of the run's step, shared
 /// by [`calibrate_with_model`] and the streaming run.
 pub struct ForwardPass<'a> {
-    telemetry: Cow<'a, Telemetry>,
+    telemetry: &'a Telemetry,
     references: References<'a>,
     albedo: Option<&'a AlbedoModel>,
     prior: Option<&'a Calibration>,
@@ -341,48 +327,31 @@ pub struct ForwardPass<'a> {
 }
 
 impl<'a> ForwardPass<'a> {
-    /// Screens the telemetry ([`crate::screen`]; a screened copy is made only when a
-    /// sample is rejected), initialises the filter and acquires the first attitude
-    /// (skipping, and reporting, segments where it cannot be acquired).
+    /// Initialises the filter on the prepared telemetry (`inputs.telemetry` must be
+    /// `prepared`'s, [`Prepared::inputs`]) and acquires the first attitude (skipping, and
+    /// reporting, segments where it cannot be acquired).
     pub fn new(
         inputs: &RunInputs<'a>,
-        config: &FilterConfig,
+        prepared: &'a Prepared<'a>,
         mode: &'a Mode,
         model: MeasurementModel,
         algebra: Algebra,
     ) -> Result<Self, FilterError> {
-        config.validate()?;
-        let m = inputs.meta.photodiodes.len();
-        check_len(
-            "references",
-            inputs.telemetry.len(),
-            inputs.references.len(),
-        )?;
-        check_len(
-            "telemetry photodiode columns",
-            m,
-            inputs.telemetry.pd_v.len(),
-        )?;
-        check_len("model photodiodes", m, model.photodiodes().len())?;
-        let sigmas = config.resolve(inputs.meta.noise.as_ref());
-        let mut rejections = Rejections::new(m);
-        let outliers = find_outliers(inputs.telemetry, &ScreenTolerances::new(config, &sigmas));
-        let telemetry = if outliers.is_empty() {
-            Cow::Borrowed(inputs.telemetry)
-        } else {
-            let mut screened = inputs.telemetry.clone();
-            remove_outliers(&mut screened, &outliers);
-            for &(channel, k) in &outliers {
-                rejections.push_screened(channel, k);
-            }
-            Cow::Owned(screened)
-        };
-        let tel: &Telemetry = &telemetry;
-        if tel.is_empty() {
-            return Err(FilterError::NoInitialSample {
-                reason: "the telemetry has no rows".to_owned(),
-            });
+        let telemetry = prepared.telemetry();
+        if !std::ptr::eq(inputs.telemetry, telemetry) {
+            return Err(FilterError::Missing(
+                "the run's telemetry is not its prepared (screened) telemetry: build the run \
+                 inputs with Prepared::inputs"
+                    .to_owned(),
+            ));
         }
+        let config = prepared.config();
+        let m = inputs.meta.photodiodes.len();
+        check_len("references", telemetry.len(), inputs.references.len())?;
+        check_len("model photodiodes", m, model.photodiodes().len())?;
+        let sigmas = prepared.sigmas();
+        let rejections = prepared.screened().clone();
+        let tel: &Telemetry = telemetry;
         let has_mag = tel.mag_nt.is_some();
         let (mode_used, use_mag) = match mode {
             Mode::Full if has_mag => (ModeUsed::Full, true),
@@ -444,7 +413,7 @@ impl<'a> ForwardPass<'a> {
             ),
         };
         let layout = StateLayout::new(&model, prior.is_none());
-        let rules = GapRules::new(&config.segments, tel);
+        let rules = prepared.rules();
         let (extra_sigma, extra_walk): (Vec<f64>, Vec<f64>) = layout
             .extras()
             .iter()

@@ -132,21 +132,6 @@ impl Rejections {
         }
     }
 
-    /// Adds the screened samples of `other` (an earlier screening of the same telemetry,
-    /// e.g. the driver's before the run's own) to this record.
-    pub fn absorb_screened(&mut self, other: &Rejections) {
-        for theirs in &other.channels {
-            if let Some(ours) = self.get_mut(theirs.channel) {
-                let list = &mut ours.screened;
-                list.count += theirs.screened.count;
-                list.first.extend(&theirs.screened.first);
-                list.first.sort_unstable();
-                list.first.dedup();
-                list.first.truncate(LISTED_ROWS);
-            }
-        }
-    }
-
     /// Screened samples over all sensors.
     pub fn screened_total(&self) -> usize {
         self.channels.iter().map(|c| c.screened.count).sum()
@@ -247,19 +232,6 @@ pub fn remove_outliers(telemetry: &mut Telemetry, outliers: &[(Channel, usize)])
                 }
             }
         }
-    }
-}
-
-/// Screens `telemetry` in place: finds the outliers, empties their cells and records them.
-pub fn screen_in_place(
-    telemetry: &mut Telemetry,
-    tol: &ScreenTolerances,
-    rejections: &mut Rejections,
-) {
-    let outliers = find_outliers(telemetry, tol);
-    remove_outliers(telemetry, &outliers);
-    for &(channel, k) in &outliers {
-        rejections.push_screened(channel, k);
     }
 }
 

@@ -1,5 +1,6 @@
 //! `pdcal calibrate`: a dataset in, the calibration and its evidence out.
 
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 
 use std::time::Instant;
@@ -10,8 +11,7 @@ use pdcal_albedo::{AlbedoModel, MapChoice};
 /// The albedo model type, re-exported for callers that hold one (xtask).
 pub type AlbedoModelType = AlbedoModel;
 use pdcal_dataset::{DatasetMeta, Telemetry};
-use pdcal_filter::screen::ScreenTolerances;
-use pdcal_filter::{Algebra, Calibration, FilterConfig, Mode, References, Rejections, RunInputs};
+use pdcal_filter::{Algebra, Calibration, FilterConfig, Mode, Prepared, References, RunInputs};
 
 use crate::output::OutputDir;
 pub use crate::schema::{DatasetSummary, Outcome};
@@ -349,44 +349,44 @@ pub fn run_sets(
         check_photodiode_count(meta.photodiodes.len(), &dir.display().to_string())?;
     }
     let joint = crate::joint::join(sets)?;
-    let (mut meta, mut telemetry) = (joint.meta, joint.telemetry);
-    let mut warnings = crate::checks::check_telemetry(&telemetry)?;
-    // Screened here, not only inside the filter, so that the Sun-vector metrics and the
-    // figures never see a wild sample either.
-    config.filter.validate().context("calibration filter")?;
-    let sigmas = config.filter.resolve(meta.noise.as_ref());
-    let mut screened = Rejections::new(meta.photodiodes.len());
-    pdcal_filter::screen::screen_in_place(
-        &mut telemetry,
-        &ScreenTolerances::new(&config.filter, &sigmas),
-        &mut screened,
-    );
+    let mut meta = joint.meta;
+    let mut warnings = crate::checks::check_telemetry(&joint.telemetry)?;
+    // Prepared (screened) once, here: the mounting check, the Sun-vector metrics and the
+    // figures read the telemetry the filter reads, and never see a wild sample.
+    let mut prepared = Prepared::new(&meta, Cow::Owned(joint.telemetry), &config.filter)
+        .context("calibration filter")?;
     let albedo = albedo_model()?;
-    let reference_model = pdcal_filter::reference_model(&meta, &telemetry)?;
+    let reference_model = pdcal_filter::reference_model(&meta, prepared.telemetry())?;
     let stored = match joint.references {
         Some(joint) => Some(joint),
-        None if telemetry.len() <= STORED_REFERENCE_ROWS => {
-            Some(pdcal_filter::step_references(&meta, &telemetry)?)
+        None if prepared.telemetry().len() <= STORED_REFERENCE_ROWS => {
+            Some(pdcal_filter::step_references(&meta, prepared.telemetry())?)
         }
         None => None,
     };
     let mountings = crate::mounting::check(
         &meta,
-        &telemetry,
-        references_of(stored.as_deref(), &reference_model, &telemetry.t_s),
+        prepared.telemetry(),
+        references_of(
+            stored.as_deref(),
+            &reference_model,
+            &prepared.telemetry().t_s,
+        ),
         &config.filter,
     )?;
-    crate::mounting::apply(&mountings, &mut meta, &mut telemetry);
+    crate::mounting::apply(&mountings, &mut meta, prepared.telemetry_mut());
     warnings.extend(mountings.iter().map(|f| f.message()));
+    let telemetry = prepared.telemetry();
     let references = references_of(stored.as_deref(), &reference_model, &telemetry.t_s);
     let set_starts: Vec<usize> = joint.sets.iter().map(|s| s.first_row).collect();
     let inputs = RunInputs {
         meta: &meta,
-        telemetry: &telemetry,
+        telemetry,
         references,
         albedo: Some(&albedo),
         set_first_rows: &set_starts[1.min(set_starts.len())..],
     };
+    let sigmas = prepared.sigmas();
     let mut sink = StreamSink::new(
         &dir,
         meta.photodiodes.len(),
@@ -400,7 +400,7 @@ pub fn run_sets(
     let model = pdcal_filter::paper_model(pdcal_filter::nominal_photodiodes(&meta), &config.filter);
     let mut run = pdcal_filter::calibrate_streaming(
         &inputs,
-        &config.filter,
+        &prepared,
         &config.mode,
         model,
         Algebra::Structured,
@@ -410,13 +410,12 @@ pub fn run_sets(
     .context("calibration filter")?;
     let runtime_s = start.elapsed().as_secs_f64();
     let streamed = sink.finish()?;
-    run.rejections.absorb_screened(&screened);
     run.forward = streamed.forward_sample;
     run.residuals = streamed.residual_sample;
     run.smoothed = None;
     let sun_vector = crate::sunvec::metrics_along(
         &meta,
-        &telemetry,
+        telemetry,
         references,
         &run,
         streamed.attitudes.rows()?,
@@ -426,7 +425,7 @@ pub fn run_sets(
     streamed.attitudes.remove()?;
     let mut consistency = streamed.consistency;
     let repeatability = match stored.as_deref() {
-        Some(stored) => repeatability_of(&meta, &telemetry, stored, &joint.sets, config, &albedo),
+        Some(stored) => repeatability_of(&meta, telemetry, stored, &joint.sets, config, &albedo),
         None => None,
     };
     if let Some(r) = &repeatability {
@@ -461,6 +460,6 @@ pub fn run_sets(
         repeatability,
     };
     let summary = crate::schema::summary(&meta, &outcome);
-    crate::files::write_summary_and_figures(dir, &telemetry, &outcome, &summary, None)?;
+    crate::files::write_summary_and_figures(dir, telemetry, &outcome, &summary, None)?;
     Ok((outcome, summary))
 }
