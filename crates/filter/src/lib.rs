@@ -95,6 +95,7 @@ pub mod consistency;
 pub mod dense;
 mod error;
 pub mod filter;
+pub mod forward;
 pub mod gate;
 pub mod guard;
 pub mod identifiability;
@@ -121,6 +122,7 @@ pub use filter::{
     Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Propagation, Sensor,
     SensorCounts, UpdateCounts, UpdateRecord,
 };
+pub use forward::ForwardPass;
 pub use guard::{CovarianceRepair, RepairKind, RepairLog};
 pub use layout::StateLayout;
 pub use output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
@@ -129,7 +131,7 @@ pub use pdcal_ephem::ReferenceModel;
 pub use prepare::{Prepared, RunInputs};
 pub use references::{References, orbit_source, reference_model, step_references};
 pub use run::{
-    CANCEL_POLL_ROWS, ForwardPass, RunSink, SMOOTHER_BLOCK_ROWS, calibrate, calibrate_streaming,
+    CANCEL_POLL_ROWS, RunSink, SMOOTHER_BLOCK_ROWS, calibrate, calibrate_streaming,
     calibrate_with_model, nominal_photodiodes, nominal_step_s, paper_model,
 };
 pub use screen::{Channel, ChannelRejections, Rejections, RowList};

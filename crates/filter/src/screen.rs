@@ -28,7 +28,7 @@
 
 use pdcal_dataset::Telemetry;
 
-use crate::bounded::{Bounded, LISTED_ROWS};
+use crate::bounded::Bounded;
 use crate::config::{FilterConfig, SensorSigmas};
 use crate::filter::Sensor;
 
@@ -73,7 +73,8 @@ impl From<Sensor> for Channel {
     }
 }
 
-/// Telemetry rows (increasing), counted, the first [`LISTED_ROWS`] listed.
+/// Telemetry rows (increasing), counted, the first
+/// [`LISTED_ROWS`](crate::bounded::LISTED_ROWS) listed.
 pub type RowList = Bounded<usize>;
 
 /// One sensor's rejected samples.
