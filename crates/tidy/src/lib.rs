@@ -586,8 +586,10 @@ fn check_chains(root: &Path, rules: &Rules, out: &mut Vec<Violation>) -> Result<
                 continue;
             }
             let names = later.join("|");
-            let re = Regex::new(&format!(r"crate::(?:({names})|\{{[^}}]*?({names})::)"))
-                .map_err(|e| e.to_string())?;
+            let re = Regex::new(&format!(
+                r"\bcrate::(?:({names})\b|\{{[^}}]*?\b({names})::)"
+            ))
+            .map_err(|e| e.to_string())?;
             let text = read(&path)?;
             for (k, line) in text.lines().enumerate() {
                 if let Some(c) = re.captures(code_part(line)) {
