@@ -4,8 +4,9 @@
 //! photodiodes; plus the offline RTS smoother and the run over a dataset.
 //!
 //! This crate owns the filter ([`Filter`]), its tuning ([`FilterConfig`], RON), the run modes
-//! ([`Mode`]), the initialisation ([`init`]), the run over a dataset ([`calibrate`]), the
-//! smoother, the calibration file type ([`Calibration`]) and the run's plain-data outputs
+//! ([`Mode`]), the initialisation ([`init`]), the run over a dataset ([`calibrate`]) in its
+//! stages (prepared once, [`Prepared`]; the forward pass, [`ForwardPass`]; the smoother,
+//! [`smoother`]), the calibration file type ([`Calibration`]) and the run's plain-data outputs
 //! ([`CalibrationRun`]). It reads the dataset only through `pdcal-dataset`'s `DatasetMeta`
 //! and `Telemetry`, never the truth; reference vectors come in as [`StepReference`]s (one per
 //! telemetry row, from `pdcal-ephem`; stored or computed per row, [`References`]) and albedo
