@@ -358,7 +358,7 @@ impl<'a> ForwardPass<'a> {
             let bias_var = (0..3).map(|k| p[(BIAS + k, BIAS + k)]).fold(0.0, f64::max);
             let found = find_start(
                 &StartInputs {
-                    telemetry: &self.telemetry,
+                    telemetry: self.telemetry,
                     references: self.references,
                     photodiodes: &photodiodes,
                     used: &self.used,
@@ -500,7 +500,7 @@ impl<'a> ForwardPass<'a> {
                     .into_owned(),
             };
             let inputs = FitInputs {
-                telemetry: &self.telemetry,
+                telemetry: self.telemetry,
                 references: self.references,
                 photodiodes: &photodiodes,
                 used: &self.used,
@@ -638,7 +638,7 @@ impl<'a> ForwardPass<'a> {
             }
             self.choose_about_sun_line()?;
         }
-        let tel: &Telemetry = &self.telemetry;
+        let tel: &Telemetry = self.telemetry;
         let k = self.at.next;
         if k >= tel.len() {
             return Ok(None);
@@ -681,7 +681,7 @@ impl<'a> ForwardPass<'a> {
             *slot = column.get(k);
         }
         self.hold_temperatures(k);
-        let tel: &Telemetry = &self.telemetry;
+        let tel: &Telemetry = self.telemetry;
         let mag_nt = if self.use_mag {
             tel.mag_nt.as_ref().and_then(|col| col[k])
         } else {
@@ -930,7 +930,7 @@ impl<'a> ForwardPass<'a> {
 
     /// The first gyro sample after row `k` within the gyro hold of the last one.
     fn gyro_after(&self, k: usize) -> Option<GyroSample> {
-        let tel: &Telemetry = &self.telemetry;
+        let tel: &Telemetry = self.telemetry;
         let limit = self.at.last_gyro_t_s + self.rules.gyro_hold_s;
         (k + 1..tel.len())
             .take_while(|&j| tel.t_s[j] <= limit)
@@ -939,7 +939,7 @@ impl<'a> ForwardPass<'a> {
 
     /// Holds each photodiode's temperature sample of row `k`, if it has one.
     fn hold_temperatures(&mut self, k: usize) {
-        let tel: &Telemetry = &self.telemetry;
+        let tel: &Telemetry = self.telemetry;
         for (held, column) in self
             .temperatures_c
             .iter_mut()
