@@ -5,10 +5,14 @@
 //! it and the corrected magnetometer; the magnetometer is rotated back and the photodiodes
 //! calibrated again.
 
-use anyhow::Result;
-use pdcal_dataset::Telemetry;
-use pdcal_filter::{StepEstimate, StepReference};
+use anyhow::{Context, Result};
+use nalgebra::Matrix3;
+use pdcal_albedo::AlbedoModel;
+use pdcal_dataset::{DatasetMeta, Telemetry};
+use pdcal_filter::{Mode, StepEstimate, StepReference};
 use pdcal_magcal::{AlignSample, Misalignment};
+
+use crate::calibrate::RunConfig;
 
 /// The rows whose attitude the photodiodes help determine: the Sun's whole disc in view.
 /// In eclipse the attitude comes from the magnetometer and the gyro alone and follows the
@@ -17,10 +21,18 @@ fn sunlit(reference: &StepReference) -> bool {
     reference.sun_fraction >= 1.0
 }
 
+/// The estimate's attitude covariance about the body axes, rad^2.
+fn attitude_cov_rad2(e: &StepEstimate) -> Matrix3<f64> {
+    let [sx, sy, sz] = e.attitude_sigma_deg.map(|s| s * s);
+    let [xy, xz, yz] = e.attitude_cov_offdiag_deg2;
+    Matrix3::new(sx, xy, xz, xy, sy, yz, xz, yz, sz) * DEG.powi(2)
+}
+
+const DEG: f64 = std::f64::consts::PI / 180.0;
+
 /// One [`AlignSample`] per sunlit row with a magnetometer reading and an attitude estimate:
-/// the reading against `A(q) B_ref`, with the variance of the magnetometer's noise
-/// `mag_sigma_nt` and of the attitude's error across the field (the estimate's mean
-/// variance about two axes times `|B|^2`, per axis).
+/// the reading against `A(q) B_ref`, with the magnetometer's noise `mag_sigma_nt` and the
+/// estimate's attitude covariance.
 pub fn samples(
     telemetry: &Telemetry,
     references: &[StepReference],
@@ -38,18 +50,11 @@ pub fn samples(
             if !sunlit(reference) {
                 return None;
             }
-            let predicted_nt = e.q.to_body(&reference.b_gcrf_nt);
-            let attitude_var_rad2 = e
-                .attitude_sigma_deg
-                .iter()
-                .map(|s| s.to_radians().powi(2))
-                .sum::<f64>()
-                / 3.0;
             Some(AlignSample {
                 measured_nt,
-                predicted_nt,
-                variance_nt2: mag_sigma_nt.powi(2)
-                    + (2.0 / 3.0) * attitude_var_rad2 * predicted_nt.norm_squared(),
+                predicted_nt: e.q.to_body(&reference.b_gcrf_nt),
+                variance_nt2: mag_sigma_nt.powi(2),
+                attitude_cov_rad2: attitude_cov_rad2(e),
             })
         })
         .collect()
@@ -71,4 +76,100 @@ pub fn apply(telemetry: &mut Telemetry, misalignment: &Misalignment) {
     for m in telemetry.mag_nt.iter_mut().flatten().flatten() {
         *m = misalignment.to_body(m);
     }
+}
+
+/// The rotation found against the photodiodes' own frame, and what it adds to the
+/// magnetometer's noise.
+#[derive(Debug, Clone)]
+pub struct PhotodiodeAlignment {
+    /// The rotation, removed from the telemetry when `applied`.
+    pub misalignment: Misalignment,
+    /// Whether the residuals agreed with the attitude covariance well enough to use it.
+    pub applied: bool,
+    /// The rotation's uncertainty as noise per magnetometer axis, nT (0 when not applied):
+    /// `sqrt((2/3) tr(Cov) / 3) |B|_rms`.
+    pub sigma_nt: f64,
+}
+
+/// `r^T C^-1 r / 3` beyond which the photodiode-only attitude does not describe the
+/// corrected magnetometer up to one rotation (a mirror attitude, a lost segment, a sensor
+/// that is not rigid): the rotation is then not applied. Three times the noise the
+/// covariances give.
+const MAX_NORMALIZED_RESIDUAL: f64 = 9.0;
+
+/// The magnetometer's rotation against the body frame as the gyro and the photodiodes
+/// define it, without the magnetometer (docs/magcal.md, "The rotation against the body"):
+/// a photodiode-only calibration of the same rows gives an attitude that does not turn with
+/// the magnetometer, against which [`pdcal_magcal::align::solve_gated`] finds the rotation
+/// of the corrected magnetometer; `telemetry`'s magnetometer is rotated back when the fit is
+/// consistent.
+pub fn against_photodiodes(
+    meta: &DatasetMeta,
+    telemetry: &mut Telemetry,
+    references: &[StepReference],
+    config: &RunConfig,
+    albedo: &AlbedoModel,
+    sets: &[crate::joint::SetSpan],
+) -> Result<PhotodiodeAlignment> {
+    let mut photodiode_only = config.clone();
+    photodiode_only.mode = Mode::PhotodiodeOnly;
+    let mut without_mag = telemetry.clone();
+    without_mag.mag_nt = None;
+    let outcome = crate::calibrate::run_with_references(
+        meta,
+        &without_mag,
+        references.to_vec(),
+        &photodiode_only,
+        albedo,
+        sets,
+    )
+    .context("the photodiode-only calibration for the magnetometer's rotation")?;
+    let estimates = (outcome.run.smoothed.as_ref()).unwrap_or(&outcome.run.forward);
+    let mag_sigma_nt = config.filter.resolve(meta.noise.as_ref()).mag_nt;
+    let samples = samples(telemetry, references, estimates, mag_sigma_nt);
+    let misalignment = pdcal_magcal::align::solve_gated(&samples)?;
+    let applied = misalignment.normalized_residual <= MAX_NORMALIZED_RESIDUAL;
+    let field_ms = samples
+        .iter()
+        .map(|s| s.predicted_nt.norm_squared())
+        .sum::<f64>()
+        / samples.len().max(1) as f64;
+    let sigma_nt = if applied {
+        apply(telemetry, &misalignment);
+        ((2.0 / 3.0) * misalignment.covariance_rad2.trace() / 3.0 * field_ms).sqrt()
+    } else {
+        0.0
+    };
+    Ok(PhotodiodeAlignment {
+        misalignment,
+        applied,
+        sigma_nt,
+    })
+}
+
+/// One line for the user: the rotation with its sigma, the rows, and whether it was removed.
+pub fn describe(alignment: &PhotodiodeAlignment) -> String {
+    let m = &alignment.misalignment;
+    let deg = |v: nalgebra::Vector3<f64>| {
+        let v = v.map(f64::to_degrees);
+        format!("({:.3}, {:.3}, {:.3})", v.x, v.y, v.z)
+    };
+    let verdict = if alignment.applied {
+        format!(
+            "removed; its uncertainty adds {:.0} nT to the magnetometer's noise",
+            alignment.sigma_nt
+        )
+    } else {
+        format!(
+            "NOT removed: the residuals are {:.1} times what the noise and the attitude covariance give (beyond {MAX_NORMALIZED_RESIDUAL}), so the photodiode-only attitude does not describe the magnetometer up to one rotation",
+            m.normalized_residual
+        )
+    };
+    format!(
+        "magnetometer rotation against the photodiode-only attitude: {} deg +- {} deg (rotation vector, sensor from body), {} sunlit rows, {} left out as outliers: {verdict}",
+        deg(m.angles_rad),
+        deg(m.sigma_rad()),
+        m.rows,
+        m.rows_rejected
+    )
 }

@@ -339,16 +339,45 @@ pub fn run_seed(
         .transpose()?
         .map(|outcome| outcome.calibration);
     let cal = fitted.or_else(|| config.mag_cal.clone());
-    let mut config = config.clone();
-    if let Some(cal) = &cal {
-        let sigma = crate::calibrate::with_mag_cal(&config, cal, &joint.meta, &mut telemetry)?;
-        config.filter.mag_sigma_nt = Some(sigma);
-    }
-    let config = &config;
     let references = match joint.references.clone() {
         Some(references) => references,
         None => pdcal_filter::step_references(&joint.meta, &joint.telemetry)?,
     };
+    let mut config = config.clone();
+    if let Some(cal) = &cal {
+        let mut sigma = crate::calibrate::with_mag_cal(&config, cal, &joint.meta, &mut telemetry)?;
+        if config.mag_align == crate::calibrate::MagAlign::Photodiodes {
+            let alignment = crate::mag_align::against_photodiodes(
+                &joint.meta,
+                &mut telemetry,
+                &references,
+                &config,
+                albedo,
+                &joint.sets,
+            )?;
+            if std::env::var_os("PDCAL_ALIGN_DEBUG").is_some() {
+                let truth = sims[0].constants.magnetometer.as_ref().map(|m| {
+                    let t = nalgebra::Matrix3::from_fn(|a, b| m.matrix[a][b]);
+                    let e = (t * t.transpose()).symmetric_eigen();
+                    let s = e.eigenvectors
+                        * nalgebra::Matrix3::from_diagonal(&e.eigenvalues.map(f64::sqrt))
+                        * e.eigenvectors.transpose();
+                    let q = s.try_inverse().unwrap_or_default() * t;
+                    nalgebra::Rotation3::from_matrix(&q)
+                        .scaled_axis()
+                        .map(f64::to_degrees)
+                });
+                eprintln!(
+                    "seed {seed}: truth {:?} deg; {}",
+                    truth.map(|v| [v.x, v.y, v.z]),
+                    crate::mag_align::describe(&alignment)
+                );
+            }
+            sigma = sigma.hypot(alignment.sigma_nt);
+        }
+        config.filter.mag_sigma_nt = Some(sigma);
+    }
+    let config = &config;
     let calibrate = |telemetry: &pdcal_dataset::Telemetry| {
         crate::calibrate::run_with_references(
             &joint.meta,
