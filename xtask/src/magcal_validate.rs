@@ -81,7 +81,7 @@ fn check_seed(
     let outcome = pdcal::magcal::run(&sim.meta, &telemetry)?;
     let cal = &outcome.calibration;
     let t = Matrix3::from_fn(|a, b| truth.matrix[a][b]);
-    let s = symmetric_factor(&t);
+    let (s, _) = pdcal_magcal::align::polar(&t).context("singular truth")?;
     if let Some(dir) = export {
         let sigma = scenario.magnetometer.noise_nt;
         write_export(dir, seed, &outcome, &truth, &s, sigma)?;
@@ -203,14 +203,6 @@ fn write_export(
         format!("seed-{seed}.json"),
         serde_json::to_string_pretty(&json)?,
     )
-}
-
-/// `(T T^T)^(1/2)`.
-fn symmetric_factor(t: &Matrix3<f64>) -> Matrix3<f64> {
-    let e = (t * t.transpose()).symmetric_eigen();
-    e.eigenvectors
-        * Matrix3::from_diagonal(&e.eigenvalues.map(f64::sqrt))
-        * e.eigenvectors.transpose()
 }
 
 fn table(name: &str, duration_s: f64, every_s: Option<f64>, checks: &[SeedCheck]) -> String {

@@ -73,6 +73,18 @@ impl Misalignment {
     }
 }
 
+/// The polar decomposition `T = S Q` of a sensor matrix: `S = (T T^T)^(1/2)` symmetric
+/// positive definite (what the field magnitude determines, pdcal's convention for `T`) and
+/// `Q = S^-1 T` the rotation it cannot see; `None` for a singular `T`.
+pub fn polar(t: &Matrix3<f64>) -> Option<(Matrix3<f64>, Matrix3<f64>)> {
+    let e = (t * t.transpose()).symmetric_eigen();
+    let s = e.eigenvectors
+        * Matrix3::from_diagonal(&e.eigenvalues.map(|v| v.max(0.0).sqrt()))
+        * e.eigenvectors.transpose();
+    let q = s.try_inverse()? * t;
+    Some((s, q))
+}
+
 /// The rotation minimizing `sum r^T C^-1 r`, `r = measured - Q predicted` and `C` each
 /// row's residual covariance: Wahba's problem with scalar weights `tr C / 3`, solved by the
 /// SVD of the attitude profile matrix (Markley's method), then Gauss-Newton steps with the
@@ -386,5 +398,15 @@ mod tests {
         let z = (gated.angles_rad - phi).component_div(&gated.sigma_rad());
         assert!(z.abs().max() < 4.0, "{z}");
         assert!(plain.normalized_residual > 10.0 * gated.normalized_residual);
+    }
+
+    /// `T = S Q` with `S` symmetric and `Q` a rotation, for a `T` built that way.
+    #[test]
+    fn polar_splits_a_symmetric_factor_and_a_rotation() {
+        let s0 = Matrix3::new(1.03, 0.02, -0.01, 0.02, 0.98, 0.04, -0.01, 0.04, 1.05);
+        let q0 = *Rotation3::new(Vector3::new(0.01, -0.02, 0.015)).matrix();
+        let (s, q) = polar(&(s0 * q0)).unwrap();
+        assert!((s - s0).abs().max() < 1e-12);
+        assert!((q - q0).abs().max() < 1e-12);
     }
 }

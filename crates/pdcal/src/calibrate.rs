@@ -42,7 +42,7 @@ pub struct RunConfig {
 
 /// The magnetometer's rotation against the body after `--mag-cal` (docs/magcal.md, "The
 /// rotation against the body").
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum MagAlign {
     /// Left as the calibration gives it (the symmetric form's frame).
     Off,
@@ -320,9 +320,9 @@ fn align_sets(
         &joint.sets,
     )?;
     eprintln!("{}", crate::mag_align::describe(&alignment));
-    if alignment.applied {
+    if let (None, Some(misalignment)) = (&alignment.refused, &alignment.misalignment) {
         for (_, _, telemetry) in sets.iter_mut() {
-            crate::mag_align::apply(telemetry, &alignment.misalignment);
+            crate::mag_align::apply(telemetry, misalignment);
         }
     }
     Ok(alignment)

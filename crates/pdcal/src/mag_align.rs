@@ -82,13 +82,21 @@ pub fn apply(telemetry: &mut Telemetry, misalignment: &Misalignment) {
 /// magnetometer's noise.
 #[derive(Debug, Clone)]
 pub struct PhotodiodeAlignment {
-    /// The rotation, removed from the telemetry when `applied`.
-    pub misalignment: Misalignment,
-    /// Whether the residuals agreed with the attitude covariance well enough to use it.
-    pub applied: bool,
-    /// The rotation's uncertainty as noise per magnetometer axis, nT (0 when not applied):
+    /// The rotation (`None` when it could not be solved), removed from the telemetry unless
+    /// `refused`.
+    pub misalignment: Option<Misalignment>,
+    /// Why the rotation was left in (`None`: removed).
+    pub refused: Option<String>,
+    /// The rotation's uncertainty as noise per magnetometer axis, nT (0 when refused):
     /// `sqrt((2/3) tr(Cov) / 3) |B|_rms`.
     pub sigma_nt: f64,
+}
+
+impl PhotodiodeAlignment {
+    /// Whether the rotation was removed from the telemetry.
+    pub fn applied(&self) -> bool {
+        self.refused.is_none()
+    }
 }
 
 /// `r^T C^-1 r / 3` beyond which the photodiode-only attitude does not describe the
@@ -96,6 +104,32 @@ pub struct PhotodiodeAlignment {
 /// that is not rigid): the rotation is then not applied. Three times the noise the
 /// covariances give.
 const MAX_NORMALIZED_RESIDUAL: f64 = 9.0;
+
+/// The rotation an uncalibrated magnetometer may have against the body before any attitude
+/// is used, deg: its mounting and the antisymmetric part of its non-orthogonality, a few
+/// degrees. The fit's sigma is judged against it by the calibration's own rule
+/// ([`pdcal_filter::identifiability::CALIBRATED_SIGMA_RATIO`]): a rotation whose sigma on
+/// some axis exceeds that fraction of it is not determined and not applied.
+pub const ROTATION_PRIOR_DEG: f64 = 5.0;
+
+/// Why `m` should not be applied, if it should not.
+fn refusal(m: &Misalignment) -> Option<String> {
+    let limit_deg = pdcal_filter::identifiability::CALIBRATED_SIGMA_RATIO * ROTATION_PRIOR_DEG;
+    let sigma_deg = m.sigma_rad().max().to_degrees();
+    if m.normalized_residual > MAX_NORMALIZED_RESIDUAL {
+        Some(format!(
+            "the residuals are {:.1} times what the noise and the attitude covariance give (beyond {MAX_NORMALIZED_RESIDUAL}): the photodiode-only attitude does not describe the magnetometer up to one rotation",
+            m.normalized_residual
+        ))
+    } else if sigma_deg > limit_deg {
+        Some(format!(
+            "its sigma ({sigma_deg:.2} deg on the worst axis) exceeds {limit_deg:.1} deg ({} of the {ROTATION_PRIOR_DEG} deg a magnetometer may be turned): the photodiode-only attitude does not determine it",
+            pdcal_filter::identifiability::CALIBRATED_SIGMA_RATIO
+        ))
+    } else {
+        None
+    }
+}
 
 /// The magnetometer's rotation against the body frame as the gyro and the photodiodes
 /// define it, without the magnetometer (docs/magcal.md, "The rotation against the body"):
@@ -111,6 +145,41 @@ pub fn against_photodiodes(
     albedo: &AlbedoModel,
     sets: &[crate::joint::SetSpan],
 ) -> Result<PhotodiodeAlignment> {
+    let solved = solve_without_magnetometer(meta, telemetry, references, config, albedo, sets);
+    let (misalignment, field_ms) = match solved {
+        Ok(found) => found,
+        Err(e) => {
+            return Ok(PhotodiodeAlignment {
+                misalignment: None,
+                refused: Some(format!("not solved: {e:#}")),
+                sigma_nt: 0.0,
+            });
+        }
+    };
+    let refused = refusal(&misalignment);
+    let sigma_nt = if refused.is_none() {
+        apply(telemetry, &misalignment);
+        ((2.0 / 3.0) * misalignment.covariance_rad2.trace() / 3.0 * field_ms).sqrt()
+    } else {
+        0.0
+    };
+    Ok(PhotodiodeAlignment {
+        misalignment: Some(misalignment),
+        refused,
+        sigma_nt,
+    })
+}
+
+/// The photodiode-only calibration and the rotation solved against its attitude (the
+/// smoothed one when there is), with the mean square field over the rows used, nT^2.
+fn solve_without_magnetometer(
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+    references: &[StepReference],
+    config: &RunConfig,
+    albedo: &AlbedoModel,
+    sets: &[crate::joint::SetSpan],
+) -> Result<(Misalignment, f64)> {
     let mut photodiode_only = config.clone();
     photodiode_only.mode = Mode::PhotodiodeOnly;
     let mut without_mag = telemetry.clone();
@@ -123,53 +192,40 @@ pub fn against_photodiodes(
         albedo,
         sets,
     )
-    .context("the photodiode-only calibration for the magnetometer's rotation")?;
+    .context("the photodiode-only calibration")?;
     let estimates = (outcome.run.smoothed.as_ref()).unwrap_or(&outcome.run.forward);
     let mag_sigma_nt = config.filter.resolve(meta.noise.as_ref()).mag_nt;
     let samples = samples(telemetry, references, estimates, mag_sigma_nt);
     let misalignment = pdcal_magcal::align::solve_gated(&samples)?;
-    let applied = misalignment.normalized_residual <= MAX_NORMALIZED_RESIDUAL;
     let field_ms = samples
         .iter()
         .map(|s| s.predicted_nt.norm_squared())
         .sum::<f64>()
         / samples.len().max(1) as f64;
-    let sigma_nt = if applied {
-        apply(telemetry, &misalignment);
-        ((2.0 / 3.0) * misalignment.covariance_rad2.trace() / 3.0 * field_ms).sqrt()
-    } else {
-        0.0
-    };
-    Ok(PhotodiodeAlignment {
-        misalignment,
-        applied,
-        sigma_nt,
-    })
+    Ok((misalignment, field_ms))
 }
 
 /// One line for the user: the rotation with its sigma, the rows, and whether it was removed.
 pub fn describe(alignment: &PhotodiodeAlignment) -> String {
-    let m = &alignment.misalignment;
     let deg = |v: nalgebra::Vector3<f64>| {
         let v = v.map(f64::to_degrees);
         format!("({:.3}, {:.3}, {:.3})", v.x, v.y, v.z)
     };
-    let verdict = if alignment.applied {
-        format!(
+    let verdict = match &alignment.refused {
+        None => format!(
             "removed; its uncertainty adds {:.0} nT to the magnetometer's noise",
             alignment.sigma_nt
-        )
-    } else {
-        format!(
-            "NOT removed: the residuals are {:.1} times what the noise and the attitude covariance give (beyond {MAX_NORMALIZED_RESIDUAL}), so the photodiode-only attitude does not describe the magnetometer up to one rotation",
-            m.normalized_residual
-        )
+        ),
+        Some(why) => format!("NOT removed: {why}"),
     };
-    format!(
-        "magnetometer rotation against the photodiode-only attitude: {} deg +- {} deg (rotation vector, sensor from body), {} sunlit rows, {} left out as outliers: {verdict}",
-        deg(m.angles_rad),
-        deg(m.sigma_rad()),
-        m.rows,
-        m.rows_rejected
-    )
+    match &alignment.misalignment {
+        Some(m) => format!(
+            "magnetometer rotation against the photodiode-only attitude: {} deg +- {} deg (rotation vector, sensor from body), {} sunlit rows, {} left out as outliers: {verdict}",
+            deg(m.angles_rad),
+            deg(m.sigma_rad()),
+            m.rows,
+            m.rows_rejected
+        ),
+        None => format!("magnetometer rotation against the photodiode-only attitude: {verdict}"),
+    }
 }

@@ -355,24 +355,21 @@ pub fn run_seed(
                 albedo,
                 &joint.sets,
             )?;
-            if std::env::var_os("PDCAL_ALIGN_DEBUG").is_some() {
-                let truth = sims[0].constants.magnetometer.as_ref().map(|m| {
-                    let t = nalgebra::Matrix3::from_fn(|a, b| m.matrix[a][b]);
-                    let e = (t * t.transpose()).symmetric_eigen();
-                    let s = e.eigenvectors
-                        * nalgebra::Matrix3::from_diagonal(&e.eigenvalues.map(f64::sqrt))
-                        * e.eigenvectors.transpose();
-                    let q = s.try_inverse().unwrap_or_default() * t;
+            // The Monte Carlo's record of the rotation found against the truth's.
+            let truth = (sims[0].constants.magnetometer.as_ref())
+                .and_then(|m| {
+                    pdcal_magcal::align::polar(&nalgebra::Matrix3::from(m.matrix).transpose())
+                })
+                .map(|(_, q)| {
                     nalgebra::Rotation3::from_matrix(&q)
                         .scaled_axis()
                         .map(f64::to_degrees)
                 });
-                eprintln!(
-                    "seed {seed}: truth {:?} deg; {}",
-                    truth.map(|v| [v.x, v.y, v.z]),
-                    crate::mag_align::describe(&alignment)
-                );
-            }
+            eprintln!(
+                "seed {seed}: truth {:?} deg; {}",
+                truth.map(|v| [v.x, v.y, v.z]),
+                crate::mag_align::describe(&alignment)
+            );
             sigma = sigma.hypot(alignment.sigma_nt);
         }
         config.filter.mag_sigma_nt = Some(sigma);
