@@ -229,3 +229,33 @@ pub fn describe(alignment: &PhotodiodeAlignment) -> String {
         None => format!("magnetometer rotation against the photodiode-only attitude: {verdict}"),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Vector3;
+
+    fn misalignment(sigma_deg: f64, normalized_residual: f64) -> Misalignment {
+        Misalignment {
+            rotation: Matrix3::identity(),
+            angles_rad: Vector3::zeros(),
+            covariance_rad2: Matrix3::identity() * (sigma_deg * DEG).powi(2),
+            rows: 100,
+            residual_rms_nt: 300.0,
+            rows_rejected: 0,
+            normalized_residual,
+        }
+    }
+
+    /// Applied when consistent and determined; refused, with the reason, when the residuals
+    /// are beyond three times the noise or the sigma beyond 0.2 of the prior (1 deg).
+    #[test]
+    fn a_rotation_is_refused_when_inconsistent_or_not_determined() {
+        assert_eq!(refusal(&misalignment(0.05, 1.2)), None);
+        assert_eq!(refusal(&misalignment(0.99, 8.9)), None);
+        let inconsistent = refusal(&misalignment(0.05, 9.5)).expect("refused");
+        assert!(inconsistent.contains("9.5 times"), "{inconsistent}");
+        let undetermined = refusal(&misalignment(1.01, 1.0)).expect("refused");
+        assert!(undetermined.contains("1.01 deg"), "{undetermined}");
+    }
+}
