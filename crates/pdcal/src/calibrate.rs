@@ -311,14 +311,12 @@ fn align_sets(
         None => pdcal_filter::step_references(&joint.meta, &joint.telemetry)?,
     };
     let mut telemetry = joint.telemetry;
-    let alignment = crate::mag_align::against_photodiodes(
-        &joint.meta,
-        &mut telemetry,
-        &references,
-        config,
-        &albedo_model()?,
-        &joint.sets,
-    )?;
+    let albedo = albedo_model()?;
+    let mag_sigma_nt = config.filter.resolve(joint.meta.noise.as_ref()).mag_nt;
+    let alignment =
+        crate::mag_align::against_photodiodes(&mut telemetry, &references, mag_sigma_nt, |t| {
+            photodiode_only_attitude(&joint.meta, t, &references, config, &albedo, &joint.sets)
+        })?;
     eprintln!("{}", crate::mag_align::describe(&alignment));
     if let (None, Some(misalignment)) = (&alignment.refused, &alignment.misalignment) {
         for (_, _, telemetry) in sets.iter_mut() {
@@ -326,6 +324,33 @@ fn align_sets(
         }
     }
     Ok(alignment)
+}
+
+/// The attitude estimates (smoothed when there are) of a photodiode-only calibration of
+/// `telemetry` with `config`'s tuning: the attitude in the frame the gyro and the
+/// photodiodes define, for [`crate::mag_align::against_photodiodes`].
+pub fn photodiode_only_attitude(
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+    references: &[pdcal_filter::StepReference],
+    config: &RunConfig,
+    albedo: &AlbedoModel,
+    sets: &[crate::joint::SetSpan],
+) -> Result<Vec<pdcal_filter::StepEstimate>> {
+    let photodiode_only = RunConfig {
+        mode: Mode::PhotodiodeOnly,
+        ..config.clone()
+    };
+    let outcome = run_with_references(
+        meta,
+        telemetry,
+        references.to_vec(),
+        &photodiode_only,
+        albedo,
+        sets,
+    )
+    .context("the photodiode-only calibration")?;
+    Ok(outcome.run.smoothed.unwrap_or(outcome.run.forward))
 }
 
 /// Corrects `telemetry`'s magnetometer with `cal` and returns the magnetometer noise the

@@ -5,14 +5,11 @@
 //! it and the corrected magnetometer; the magnetometer is rotated back and the photodiodes
 //! calibrated again.
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use nalgebra::Matrix3;
-use pdcal_albedo::AlbedoModel;
-use pdcal_dataset::{DatasetMeta, Telemetry};
-use pdcal_filter::{Mode, StepEstimate, StepReference};
+use pdcal_dataset::Telemetry;
+use pdcal_filter::{StepEstimate, StepReference};
 use pdcal_magcal::{AlignSample, Misalignment};
-
-use crate::calibrate::RunConfig;
 
 /// The rows whose attitude the photodiodes help determine: the Sun's whole disc in view.
 /// In eclipse the attitude comes from the magnetometer and the gyro alone and follows the
@@ -132,20 +129,31 @@ fn refusal(m: &Misalignment) -> Option<String> {
 }
 
 /// The magnetometer's rotation against the body frame as the gyro and the photodiodes
-/// define it, without the magnetometer (docs/magcal.md, "The rotation against the body"):
-/// a photodiode-only calibration of the same rows gives an attitude that does not turn with
-/// the magnetometer, against which [`pdcal_magcal::align::solve_gated`] finds the rotation
-/// of the corrected magnetometer; `telemetry`'s magnetometer is rotated back when the fit is
-/// consistent.
+/// define it, without the magnetometer (docs/magcal.md, "Against the photodiodes alone"):
+/// `photodiode_only` calibrates the rows with the magnetometer removed (its attitude does not
+/// turn with the magnetometer) and returns its estimates (the smoothed ones when there are),
+/// against which [`pdcal_magcal::align::solve_gated`] finds the rotation of the corrected
+/// magnetometer (noise `mag_sigma_nt` per axis); `telemetry`'s magnetometer is rotated back
+/// when the fit is consistent and determined. A photodiode-only run or a fit that fails is a
+/// refusal with its reason, not an error: the calibration then goes on with the rotation in.
 pub fn against_photodiodes(
-    meta: &DatasetMeta,
     telemetry: &mut Telemetry,
     references: &[StepReference],
-    config: &RunConfig,
-    albedo: &AlbedoModel,
-    sets: &[crate::joint::SetSpan],
+    mag_sigma_nt: f64,
+    photodiode_only: impl FnOnce(&Telemetry) -> Result<Vec<StepEstimate>>,
 ) -> Result<PhotodiodeAlignment> {
-    let solved = solve_without_magnetometer(meta, telemetry, references, config, albedo, sets);
+    let mut without_mag = telemetry.clone();
+    without_mag.mag_nt = None;
+    let solved = photodiode_only(&without_mag).and_then(|estimates| {
+        let samples = samples(telemetry, references, &estimates, mag_sigma_nt);
+        let misalignment = pdcal_magcal::align::solve_gated(&samples)?;
+        let field_ms = samples
+            .iter()
+            .map(|s| s.predicted_nt.norm_squared())
+            .sum::<f64>()
+            / samples.len().max(1) as f64;
+        Ok((misalignment, field_ms))
+    });
     let (misalignment, field_ms) = match solved {
         Ok(found) => found,
         Err(e) => {
@@ -168,41 +176,6 @@ pub fn against_photodiodes(
         refused,
         sigma_nt,
     })
-}
-
-/// The photodiode-only calibration and the rotation solved against its attitude (the
-/// smoothed one when there is), with the mean square field over the rows used, nT^2.
-fn solve_without_magnetometer(
-    meta: &DatasetMeta,
-    telemetry: &Telemetry,
-    references: &[StepReference],
-    config: &RunConfig,
-    albedo: &AlbedoModel,
-    sets: &[crate::joint::SetSpan],
-) -> Result<(Misalignment, f64)> {
-    let mut photodiode_only = config.clone();
-    photodiode_only.mode = Mode::PhotodiodeOnly;
-    let mut without_mag = telemetry.clone();
-    without_mag.mag_nt = None;
-    let outcome = crate::calibrate::run_with_references(
-        meta,
-        &without_mag,
-        references.to_vec(),
-        &photodiode_only,
-        albedo,
-        sets,
-    )
-    .context("the photodiode-only calibration")?;
-    let estimates = (outcome.run.smoothed.as_ref()).unwrap_or(&outcome.run.forward);
-    let mag_sigma_nt = config.filter.resolve(meta.noise.as_ref()).mag_nt;
-    let samples = samples(telemetry, references, estimates, mag_sigma_nt);
-    let misalignment = pdcal_magcal::align::solve_gated(&samples)?;
-    let field_ms = samples
-        .iter()
-        .map(|s| s.predicted_nt.norm_squared())
-        .sum::<f64>()
-        / samples.len().max(1) as f64;
-    Ok((misalignment, field_ms))
 }
 
 /// One line for the user: the rotation with its sigma, the rows, and whether it was removed.

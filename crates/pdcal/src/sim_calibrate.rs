@@ -347,13 +347,21 @@ pub fn run_seed(
     if let Some(cal) = &cal {
         let mut sigma = crate::calibrate::with_mag_cal(&config, cal, &joint.meta, &mut telemetry)?;
         if config.mag_align == crate::calibrate::MagAlign::Photodiodes {
+            let mag_sigma_nt = config.filter.resolve(joint.meta.noise.as_ref()).mag_nt;
             let alignment = crate::mag_align::against_photodiodes(
-                &joint.meta,
                 &mut telemetry,
                 &references,
-                &config,
-                albedo,
-                &joint.sets,
+                mag_sigma_nt,
+                |t| {
+                    crate::calibrate::photodiode_only_attitude(
+                        &joint.meta,
+                        t,
+                        &references,
+                        &config,
+                        albedo,
+                        &joint.sets,
+                    )
+                },
             )?;
             // The Monte Carlo's record of the rotation found against the truth's.
             let truth = (sims[0].constants.magnetometer.as_ref())

@@ -32,15 +32,19 @@ fn the_rotation_found_against_the_photodiodes_is_the_truths() {
     let config = RunConfig::default();
     let joint = pdcal::joint::join(vec![("set".into(), sim.meta.clone(), telemetry.clone())])
         .expect("one set");
-    let alignment = pdcal::mag_align::against_photodiodes(
-        &sim.meta,
-        &mut telemetry,
-        &references,
-        &config,
-        &albedo_model().expect("albedo"),
-        &joint.sets,
-    )
-    .expect("runs");
+    let albedo = albedo_model().expect("albedo");
+    let alignment =
+        pdcal::mag_align::against_photodiodes(&mut telemetry, &references, 320.0, |t| {
+            pdcal::calibrate::photodiode_only_attitude(
+                &sim.meta,
+                t,
+                &references,
+                &config,
+                &albedo,
+                &joint.sets,
+            )
+        })
+        .expect("runs");
     eprintln!("{}", pdcal::mag_align::describe(&alignment));
     assert!(alignment.applied(), "{:?}", alignment.refused);
     let m = alignment.misalignment.expect("solved");
