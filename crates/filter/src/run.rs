@@ -986,11 +986,13 @@ impl<'a> ForwardPass<'a> {
         let until_t_s = self.telemetry.t_s[k] + self.config.about_sun_probe_s;
         let start = self.probe_point();
         let kept = self.probe(until_t_s)?;
+        let kept_end = self.probe_end();
         self.back_to(&start)?;
         self.filter.turn_attitude(&half_turn);
         let turned = self.probe(until_t_s)?;
+        let turned_end = self.probe_end();
         self.back_to(&start)?;
-        let choice = crate::sun_line::compare(&kept, &turned);
+        let choice = crate::sun_line::compare(&kept, &turned, [&kept_end, &turned_end]);
         if choice.turned {
             self.filter.turn_attitude(&half_turn);
             self.at.prior_q = self.filter.q();
@@ -1019,6 +1021,18 @@ impl<'a> ForwardPass<'a> {
             );
         }
         Ok(terms)
+    }
+
+    /// The attitude and its covariance where a probe ended.
+    fn probe_end(&self) -> crate::sun_line::ProbeEnd {
+        crate::sun_line::ProbeEnd {
+            q: self.filter.q(),
+            p_aa: self
+                .filter
+                .covariance()
+                .fixed_view::<3, 3>(ATTITUDE, ATTITUDE)
+                .into_owned(),
+        }
     }
 
     /// Everything a step changes, to come back to after a probe.
