@@ -35,6 +35,21 @@ pub struct RunConfig {
     /// (docs/magcal.md, "The rotation against the body": each pass recovers only a few
     /// percent of the rotation).
     pub mag_align_passes: usize,
+    /// How the magnetometer's rotation against the body, which the field magnitude cannot
+    /// see, is found after a magnetometer calibration (docs/magcal.md).
+    pub mag_align: MagAlign,
+}
+
+/// The magnetometer's rotation against the body after `--mag-cal` (docs/magcal.md, "The
+/// rotation against the body").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum MagAlign {
+    /// Left as the calibration gives it (the symmetric form's frame).
+    Off,
+    /// Solved against the attitude of a photodiode-only calibration of the same rows
+    /// ([`crate::mag_align::against_photodiodes`]), then removed.
+    #[default]
+    Photodiodes,
 }
 
 impl Default for RunConfig {
@@ -45,6 +60,7 @@ impl Default for RunConfig {
             mag_cal: None,
             fit_mag_cal: false,
             mag_align_passes: 0,
+            mag_align: MagAlign::default(),
         }
     }
 }
@@ -280,8 +296,67 @@ pub fn run_dirs_forced(
             .with_context(|| format!("--mag-cal on {}", path.display()))?;
         worst_sigma_nt = worst_sigma_nt.max(sigma);
     }
+    if config.mag_align == MagAlign::Photodiodes {
+        let alignment = align_sets(&mut sets, &config)?;
+        worst_sigma_nt = worst_sigma_nt.hypot(alignment.sigma_nt);
+    }
     config.filter.mag_sigma_nt = Some(worst_sigma_nt);
     run_sets(sets, dir, &config, None)
+}
+
+/// The magnetometer's rotation against the photodiodes' frame, solved over every set at
+/// once (it is the hardware's) and removed from each ([`crate::mag_align`]); said on
+/// stderr, and when the fit is not consistent, why it was left in.
+fn align_sets(
+    sets: &mut [(PathBuf, DatasetMeta, Telemetry)],
+    config: &RunConfig,
+) -> Result<crate::mag_align::PhotodiodeAlignment> {
+    let joint = crate::joint::join(sets.to_vec())?;
+    let references = match joint.references {
+        Some(references) => references,
+        None => pdcal_filter::step_references(&joint.meta, &joint.telemetry)?,
+    };
+    let mut telemetry = joint.telemetry;
+    let albedo = albedo_model()?;
+    let mag_sigma_nt = config.filter.resolve(joint.meta.noise.as_ref()).mag_nt;
+    let alignment =
+        crate::mag_align::against_photodiodes(&mut telemetry, &references, mag_sigma_nt, |t| {
+            photodiode_only_attitude(&joint.meta, t, &references, config, &albedo, &joint.sets)
+        })?;
+    eprintln!("{}", crate::mag_align::describe(&alignment));
+    if let (None, Some(misalignment)) = (&alignment.refused, &alignment.misalignment) {
+        for (_, _, telemetry) in sets.iter_mut() {
+            crate::mag_align::apply(telemetry, misalignment);
+        }
+    }
+    Ok(alignment)
+}
+
+/// The attitude estimates (smoothed when there are) of a photodiode-only calibration of
+/// `telemetry` with `config`'s tuning: the attitude in the frame the gyro and the
+/// photodiodes define, for [`crate::mag_align::against_photodiodes`].
+pub fn photodiode_only_attitude(
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+    references: &[pdcal_filter::StepReference],
+    config: &RunConfig,
+    albedo: &AlbedoModel,
+    sets: &[crate::joint::SetSpan],
+) -> Result<Vec<pdcal_filter::StepEstimate>> {
+    let photodiode_only = RunConfig {
+        mode: Mode::PhotodiodeOnly,
+        ..config.clone()
+    };
+    let outcome = run_with_references(
+        meta,
+        telemetry,
+        references.to_vec(),
+        &photodiode_only,
+        albedo,
+        sets,
+    )
+    .context("the photodiode-only calibration")?;
+    Ok(outcome.run.smoothed.unwrap_or(outcome.run.forward))
 }
 
 /// Corrects `telemetry`'s magnetometer with `cal` and returns the magnetometer noise the
