@@ -284,6 +284,16 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
             r.len()
         );
     }
+    let (probes, turned, undecided) = r.iter().fold((0, 0, 0), |acc, x| {
+        let p = x.about_sun_probes;
+        (acc.0 + p.0, acc.1 + p.1, acc.2 + p.2)
+    });
+    if probes > 0 {
+        let _ = writeln!(
+            s,
+            "| Sun-only acquisitions probed for the half turn about the Sun line: kept the half turn / not decided (all seeds: {probes}) | {turned} / {undecided} | - | - |"
+        );
+    }
     let (m, wi, _) = stats(r.iter().map(|x| x.attitude_about_sun_inside));
     let _ = writeln!(
         s,

@@ -508,8 +508,12 @@ fn sun_vector(
     sun_distance_factor: f64,
 ) -> Result<Option<Vector3<f64>>, FilterError> {
     let tel = inputs.telemetry;
+    // As in the acquisition, a photodiode whose scale the filter has driven to zero or
+    // below cannot turn its output into a direction.
     let sampled: Vec<usize> = (0..inputs.photodiodes.len())
-        .filter(|&i| inputs.used[i] && tel.pd_v[i].get(k).is_some())
+        .filter(|&i| {
+            inputs.used[i] && inputs.photodiodes[i].scale_v > 0.0 && tel.pd_v[i].get(k).is_some()
+        })
         .collect();
     let pds: Vec<Photodiode> = sampled.iter().map(|&i| inputs.photodiodes[i]).collect();
     let outputs: Vec<f64> = sampled

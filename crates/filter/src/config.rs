@@ -107,6 +107,12 @@ pub struct FilterConfig {
     /// Initial sigma of the rotation about the Sun line when the attitude comes from the Sun
     /// alone (photodiode-only), deg. Default 90.
     pub unobserved_axis_sigma_deg: f64,
+    /// Sun alone (no magnetometer) with albedo modelled: after each acquisition the filter
+    /// follows this long, s, both the acquired attitude and its half turn about the Sun line,
+    /// and keeps the one the data favour ([`crate::sun_line`]). 0 turns the probe off.
+    /// Default 1800 (half an orbit's sunlit arc of a low orbit: long enough for the albedo
+    /// pattern to move across the photodiodes).
+    pub about_sun_probe_s: f64,
     /// Smallest angle between Sun and field for the two-vector initialisation, deg.
     /// Default 20 (the q-method's cross-axis error grows as 1/sin of that angle).
     pub initial_min_sun_field_angle_deg: f64,
@@ -248,6 +254,7 @@ impl Default for FilterConfig {
             initial_sun_sigma_deg: 10.0,
             initial_attitude_sigma_floor_deg: 1.0,
             unobserved_axis_sigma_deg: 90.0,
+            about_sun_probe_s: 1800.0,
             initial_min_sun_field_angle_deg: 20.0,
             fov_half_angle_deg: 60.0,
             min_sun_fraction: 0.999,
@@ -365,6 +372,7 @@ impl FilterConfig {
                 self.normal_walk_deg_per_sqrt_h,
             ),
             ("min_lit_output_sigmas", self.min_lit_output_sigmas),
+            ("about_sun_probe_s", self.about_sun_probe_s),
         ];
         for (field, value) in non_negative {
             if !(value >= 0.0 && value.is_finite()) {

@@ -1209,6 +1209,14 @@ impl Filter {
         self.q
     }
 
+    /// Turns the attitude estimate by `turn_body`, a rotation of the body frame, keeping
+    /// the covariance: for the half turn about the Sun line ([`crate::sun_line`]), under
+    /// which the Sun's direction in the body, and with it every error the photodiodes
+    /// tie to it, stays the same.
+    pub fn turn_attitude(&mut self, turn_body: &nalgebra::Matrix3<f64>) {
+        self.q = Quat::from_attitude_matrix(&(turn_body * self.q.attitude_matrix()));
+    }
+
     /// Gyro bias estimate, rad/s.
     pub fn bias_rad_s(&self) -> Vector3<f64> {
         self.bias

@@ -248,7 +248,11 @@ pub fn find_start(
         // whole and every sampled photodiode takes part; with the Sun alone its rotation
         // about the Sun line is arbitrary, so is the albedo it predicts, and only the
         // photodiodes above any albedo do.
-        let lit = if field.is_some() { sampled } else { above };
+        let lit = if field.is_some() {
+            sampled.clone()
+        } else {
+            above
+        };
         let pds: Vec<Photodiode> = lit.iter().map(|&i| inputs.photodiodes[i]).collect();
         let outputs: Vec<f64> = lit
             .iter()
@@ -264,6 +268,19 @@ pub fn find_start(
             continue;
         };
         let mut q = attitude(&sun_body, field.as_ref(), reference, config)?;
+        // Sun alone, the albedo on every sampled photodiode is what tells the rotation
+        // about the Sun line; the filter's linearisation needs a start in the right basin.
+        let albedo_probe = (field.is_none() && inputs.albedo.is_some()).then(|| AlbedoProbe {
+            pds: sampled.iter().map(|&i| inputs.photodiodes[i]).collect(),
+            outputs: sampled
+                .iter()
+                .map(|&i| tel.pd_v[i].get(k).unwrap_or(0.0))
+                .collect(),
+            factor: reference.sun_distance_factor(),
+        });
+        if let Some(probe) = &albedo_probe {
+            q = about_sun_line(&q, &sun_body, probe.best_angle(&q, &sun_body, &view));
+        }
         if inputs.albedo.is_some() {
             let mut refined = true;
             for _ in 0..2 {
@@ -279,6 +296,9 @@ pub fn find_start(
                 };
                 sun_body = s;
                 q = attitude(&sun_body, field.as_ref(), reference, config)?;
+                if let Some(probe) = &albedo_probe {
+                    q = about_sun_line(&q, &sun_body, probe.best_angle(&q, &sun_body, &view));
+                }
             }
             if !refined {
                 reached(5);
@@ -334,6 +354,54 @@ fn above_albedo(
             inputs.telemetry.pd_v[i].get(k).is_some_and(|v| v > bound)
         })
         .collect()
+}
+
+/// The outputs of every sampled photodiode at an acquisition row, to choose the rotation
+/// about the Sun line (which the Sun alone leaves open) by the albedo each would see.
+struct AlbedoProbe {
+    pds: Vec<Photodiode>,
+    outputs: Vec<f64>,
+    factor: f64,
+}
+
+impl AlbedoProbe {
+    /// Candidate rotations about the Sun line, evenly spaced over a turn.
+    const ANGLES: usize = 72;
+
+    /// The rotation about the Sun line (from `q`, rad) whose predicted outputs (direct Sun,
+    /// which no such rotation changes, plus the albedo at that attitude) fit the measured
+    /// ones best in the least-squares sense of the photodiodes' noise.
+    fn best_angle(&self, q: &Quat, sun_body: &Vector3<f64>, view: &AlbedoView) -> f64 {
+        let cost = |angle: f64| {
+            let a = about_sun_line(q, sun_body, angle).attitude_matrix();
+            self.pds
+                .iter()
+                .zip(&self.outputs)
+                .map(|(pd, &y)| {
+                    let direct = self.factor * pd.n_body.dot(sun_body).max(0.0);
+                    let albedo = view.ratio(&(a.transpose() * pd.n_body), 0.0);
+                    ((y - pd.scale_v * (direct + albedo)) / pd.noise_v).powi(2)
+                })
+                .sum::<f64>()
+        };
+        (0..Self::ANGLES)
+            .map(|j| std::f64::consts::TAU * j as f64 / Self::ANGLES as f64)
+            .map(|angle| (angle, cost(angle)))
+            .fold((0.0, f64::INFINITY), |best, (angle, c)| {
+                if c < best.1 { (angle, c) } else { best }
+            })
+            .0
+    }
+}
+
+/// `q` turned by `angle_rad` about the body Sun direction: the same Sun in the body, the
+/// rest of the attitude rotated about it.
+fn about_sun_line(q: &Quat, sun_body: &Vector3<f64>, angle_rad: f64) -> Quat {
+    let Some(axis) = nalgebra::Unit::try_new(*sun_body, 1e-12) else {
+        return *q;
+    };
+    let turn = nalgebra::Rotation3::from_axis_angle(&axis, angle_rad);
+    Quat::from_attitude_matrix(&(turn.matrix() * q.attitude_matrix()))
 }
 
 /// The least-squares Sun vector of the lit photodiodes, linearised: `s = G H^T y` with

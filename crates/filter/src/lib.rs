@@ -109,6 +109,7 @@ pub mod screen;
 pub mod segments;
 mod sequential;
 pub mod smoother;
+pub mod sun_line;
 
 pub use bias_fit::{BiasSource, InitialBias};
 pub use bounded::{Bounded, LISTED_ROWS};

@@ -254,6 +254,16 @@ struct PassCheckpoint {
     current: SegmentReport,
 }
 
+/// A [`ForwardPass`] before a probe ([`ForwardPass::choose_about_sun_line`]): a
+/// checkpoint and the run's records, which a probe's steps must not keep.
+struct ProbePoint {
+    pass: PassCheckpoint,
+    photodiode_time_s: Vec<f64>,
+    temperatures_c: Vec<f64>,
+    rejections: Rejections,
+    repairs: RepairLog,
+}
+
 /// Where a [`ForwardPass`] stands between two steps, besides the filter and the segment
 /// records: what a replay from a checkpoint restores.
 #[derive(Clone)]
@@ -560,6 +570,7 @@ impl<'a> ForwardPass<'a> {
             .held_temperatures(inputs.meta)
             .at(pass.start)
             .to_vec();
+        pass.choose_about_sun_line()?;
         Ok(pass)
     }
 
@@ -859,6 +870,7 @@ impl<'a> ForwardPass<'a> {
             for k in from..self.at.next {
                 self.hold_temperatures(k);
             }
+            self.choose_about_sun_line()?;
         }
         let tel: &Telemetry = &self.telemetry;
         let k = self.at.next;
@@ -952,6 +964,95 @@ impl<'a> ForwardPass<'a> {
         self.at.held = self.attitude_sigma_deg(k) <= self.config.segments.held_attitude_sigma_deg;
         self.end_segment_if_due(k);
         Ok(Some(k))
+    }
+
+    /// Right after a Sun-only acquisition with albedo: follows the probe window twice, from the
+    /// acquired attitude and from its half turn about the Sun line, and goes on from the
+    /// start the data favour ([`crate::sun_line`]). Everything the probe steps changed is
+    /// put back, so the rows are then processed once, as in any run.
+    fn choose_about_sun_line(&mut self) -> Result<(), FilterError> {
+        if self.current.acquisition != Acquisition::SunOnly
+            || self.albedo.is_none()
+            || self.config.about_sun_probe_s <= 0.0
+        {
+            return Ok(());
+        }
+        let k = self.at.next;
+        let sun_gcrf = self.references.at(k)?.sun_gcrf_unit;
+        let Some(axis) = nalgebra::Unit::try_new(self.filter.q().to_body(&sun_gcrf), 1e-12) else {
+            return Ok(());
+        };
+        let half_turn = *nalgebra::Rotation3::from_axis_angle(&axis, std::f64::consts::PI).matrix();
+        let until_t_s = self.telemetry.t_s[k] + self.config.about_sun_probe_s;
+        let start = self.probe_point();
+        let kept = self.probe(until_t_s)?;
+        let kept_end = self.probe_end();
+        self.back_to(&start)?;
+        self.filter.turn_attitude(&half_turn);
+        let turned = self.probe(until_t_s)?;
+        let turned_end = self.probe_end();
+        self.back_to(&start)?;
+        let choice = crate::sun_line::compare(&kept, &turned, [&kept_end, &turned_end]);
+        if choice.turned {
+            self.filter.turn_attitude(&half_turn);
+            self.at.prior_q = self.filter.q();
+        }
+        self.current.about_sun_line = Some(choice);
+        Ok(())
+    }
+
+    /// Steps on until `until_t_s` or the segment's end: every scalar update's term of the
+    /// predictive likelihood.
+    fn probe(&mut self, until_t_s: f64) -> Result<Vec<crate::sun_line::ProbeTerm>, FilterError> {
+        let mut terms = Vec::new();
+        while !self.at.acquiring
+            && self
+                .telemetry
+                .t_s
+                .get(self.at.next)
+                .is_some_and(|&t| t <= until_t_s)
+        {
+            let Some(k) = self.step()? else { break };
+            terms.extend(
+                self.filter
+                    .records()
+                    .iter()
+                    .filter_map(|r| crate::sun_line::ProbeTerm::new(k, r)),
+            );
+        }
+        Ok(terms)
+    }
+
+    /// The attitude and its covariance where a probe ended.
+    fn probe_end(&self) -> crate::sun_line::ProbeEnd {
+        crate::sun_line::ProbeEnd {
+            q: self.filter.q(),
+            p_aa: self
+                .filter
+                .covariance()
+                .fixed_view::<3, 3>(ATTITUDE, ATTITUDE)
+                .into_owned(),
+        }
+    }
+
+    /// Everything a step changes, to come back to after a probe.
+    fn probe_point(&self) -> ProbePoint {
+        ProbePoint {
+            pass: self.checkpoint(),
+            photodiode_time_s: self.photodiode_time_s.clone(),
+            temperatures_c: self.temperatures_c.clone(),
+            rejections: self.rejections.clone(),
+            repairs: self.repairs.clone(),
+        }
+    }
+
+    fn back_to(&mut self, point: &ProbePoint) -> Result<(), FilterError> {
+        self.restore(&point.pass)?;
+        self.photodiode_time_s.clone_from(&point.photodiode_time_s);
+        self.temperatures_c.clone_from(&point.temperatures_c);
+        self.rejections.clone_from(&point.rejections);
+        self.repairs.clone_from(&point.repairs);
+        Ok(())
     }
 
     /// The gated samples of the last update, counted per sensor (one magnetometer

@@ -263,6 +263,9 @@ pub struct SegmentReport {
     /// The gyro bias at the acquisition and where it came from (the fit of
     /// [`crate::bias_fit`] or the prior); `None` for a skipped segment.
     pub initial_bias: Option<crate::bias_fit::InitialBias>,
+    /// Sun-only acquisitions with albedo: whether the probe kept the acquired attitude or
+    /// its half turn about the Sun line, and how clearly ([`crate::sun_line`]).
+    pub about_sun_line: Option<crate::sun_line::AboutSunLine>,
 }
 
 impl SegmentReport {
@@ -281,6 +284,7 @@ impl SegmentReport {
             ended_by: SegmentBreak::End,
             skipped: None,
             lost: None,
+            about_sun_line: None,
             initial_bias: None,
         }
     }

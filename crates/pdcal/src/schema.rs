@@ -462,6 +462,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
                     .as_ref()
                     .and_then(|b| bias_beyond_fit(b, &run.calibration)),
             )
+            .chain(about_sun_line_undecided(&run.segments))
             .collect(),
         segment_rules: run.segment_rules,
         segments: run.segments.clone(),
@@ -470,6 +471,28 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         mounting_findings: outcome.mountings.clone(),
         reported,
     }
+}
+
+/// A warning naming the Sun-only segments whose attitude the data did not tell from its
+/// half turn about the Sun line ([`pdcal_filter::sun_line`]): their attitude estimates
+/// may be the mirrored one, whatever their sigmas say.
+fn about_sun_line_undecided(segments: &[pdcal_filter::SegmentReport]) -> Option<String> {
+    let undecided: Vec<String> = segments
+        .iter()
+        .enumerate()
+        .filter_map(|(i, s)| {
+            let a = s.about_sun_line.as_ref()?;
+            (!a.decided).then(|| format!("{i} (-2 ln odds {:.1})", a.neg2_ln_likelihood_ratio))
+        })
+        .collect();
+    (!undecided.is_empty()).then(|| {
+        format!(
+            "segments {}: the photodiodes alone did not tell the attitude about the Sun line \
+             from its half turn (odds below those of a 3-sigma event); their attitude \
+             estimates may be the mirrored one, whatever the sigmas say",
+            undecided.join(", ")
+        )
+    })
 }
 
 /// A warning per gyro-bias axis whose estimate lies beyond 3 sigma of its prior: the prior

@@ -60,6 +60,10 @@ pub struct SeedResult {
     /// set-against-the-others) whose `|z|` exceeds 3, how many tests there were, and the
     /// sum of their `z^2`.
     pub repeat_tests_beyond_3: (usize, usize, f64),
+    /// Sun-only acquisitions probed for the half turn about the Sun line
+    /// (`segments[].about_sun_line`): how many, how many kept the half turn, and how many
+    /// were not decided.
+    pub about_sun_probes: (usize, usize, usize),
 }
 
 /// What a downlink keeps and what the filter is told, comma-separated parts:
@@ -439,6 +443,17 @@ pub fn run_seed(
             .as_ref()
             .map_or(0, |r| r.bias_warnings.len()),
         repeat_tests_beyond_3: s.repeatability.as_ref().map_or((0, 0, 0.0), tests_beyond_3),
+        about_sun_probes: s
+            .segments
+            .iter()
+            .filter_map(|g| g.about_sun_line.as_ref())
+            .fold((0, 0, 0), |(n, turned, undecided), a| {
+                (
+                    n + 1,
+                    turned + usize::from(a.turned),
+                    undecided + usize::from(!a.decided),
+                )
+            }),
     };
     Ok(SeedRun {
         result,
