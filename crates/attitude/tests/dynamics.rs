@@ -19,12 +19,19 @@ fn moment_fractions_scale_the_diagonal_keep_the_products_and_invert() {
     let (j0, j) = (body.inertia_kg_m2(), corrected.inertia_kg_m2());
     for r in 0..3 {
         for c in 0..3 {
-            let expected = if r == c { j0[(r, c)] * (1.0 + f[r]) } else { j0[(r, c)] };
+            let expected = if r == c {
+                j0[(r, c)] * (1.0 + f[r])
+            } else {
+                j0[(r, c)]
+            };
             assert_eq!(j[(r, c)], expected, "({r}, {c})");
         }
     }
     let identity = j * corrected.inertia_inv();
-    assert!((identity - Matrix3::identity()).abs().max() < 1e-12, "{identity}");
+    assert!(
+        (identity - Matrix3::identity()).abs().max() < 1e-12,
+        "{identity}"
+    );
 }
 
 #[test]
@@ -37,5 +44,8 @@ fn moment_fractions_need_positive_definiteness_not_the_triangle_inequality() {
         .with_moment_fractions(&Vector3::new(0.2, 0.0, 0.0))
         .expect("positive definite");
     assert!(RigidBody::new(*past.inertia_kg_m2()).is_err());
-    assert!(long.with_moment_fractions(&Vector3::new(0.0, -1.5, 0.0)).is_none());
+    assert!(
+        long.with_moment_fractions(&Vector3::new(0.0, -1.5, 0.0))
+            .is_none()
+    );
 }

@@ -212,14 +212,8 @@ impl Linearised {
         a.fixed_view_mut::<3, 3>(3, 3)
             .copy_from(&(j_inv * (skew(&(j * w)) - skew(w) * j)));
         let mut b = Matrix6::zeros();
-        b.fixed_view_mut::<3, 3>(3, 0)
-            .copy_from(&(-j_inv * b_skew));
-        let torque_b = torque(
-            body,
-            &motion.dipole_body_a_m2,
-            q,
-            (r_gcrf_km, b_gcrf_nt),
-        );
+        b.fixed_view_mut::<3, 3>(3, 0).copy_from(&(-j_inv * b_skew));
+        let torque_b = torque(body, &motion.dipole_body_a_m2, q, (r_gcrf_km, b_gcrf_nt));
         let w_dot = body.angular_acceleration(w, &torque_b);
         for i in 0..3 {
             // `E_i v = J0_ii v_i e_i`.
@@ -670,7 +664,10 @@ mod tests {
         // dense 15x15 computation's to round-off, on a tumble with every block non-zero.
         let m = model();
         let q0 = Quat::new_normalized(0.3, -0.5, 0.2, 0.78).expect("non-zero");
-        let mo = motion(Vector3::new(0.06, -0.08, 0.05), Vector3::new(0.1, -0.2, 0.2));
+        let mo = motion(
+            Vector3::new(0.06, -0.08, 0.05),
+            Vector3::new(0.1, -0.2, 0.2),
+        );
         let env = environment();
         for dt in [1.0, 10.0] {
             let step = propagate(&m, &q0, &mo, &env, dt);
@@ -740,7 +737,12 @@ mod tests {
         for qd in [&short, &long] {
             assert_eq!(qd, &qd.transpose());
             // The inertia's correction is a constant: no noise; the rest is positive.
-            assert!(qd.fixed_view::<12, 12>(0, 0).into_owned().cholesky().is_some());
+            assert!(
+                qd.fixed_view::<12, 12>(0, 0)
+                    .into_owned()
+                    .cholesky()
+                    .is_some()
+            );
             assert_eq!(qd.fixed_view::<3, 3>(12, 12).abs().max(), 0.0);
         }
         assert!(long[(6, 6)] > 5.0 * short[(6, 6)]);

@@ -353,12 +353,9 @@ impl SmoothedState {
             d.fixed_rows_mut::<3>(k)
                 .copy_from(&(w.w_body_rad_s - rate.w_prior_body_rad_s));
         }
-        if let (Some(k), Some(c), Some(w), Some(prev_w)) = (
-            layout.dipole(),
-            layout.moment_fraction(),
-            self.w,
-            prev.w,
-        ) {
+        if let (Some(k), Some(c), Some(w), Some(prev_w)) =
+            (layout.dipole(), layout.moment_fraction(), self.w, prev.w)
+        {
             d.fixed_rows_mut::<3>(k)
                 .copy_from(&(w.dipole_body_a_m2 - prev_w.dipole_body_a_m2));
             d.fixed_rows_mut::<3>(c)
