@@ -462,7 +462,12 @@ pub(crate) fn right_multiply_transpose(p: &mut DMatrix<f64>, idx: &RateIndex, ph
 }
 
 /// `P <- Phi P Phi^T + Q`: `Phi` as in [`left_multiply`], `Q` = `qd` on `idx` and
-/// `other_noise` on the diagonal elsewhere; made exactly symmetric (`P` and `Q` are).
+/// `other_noise` on the diagonal elsewhere; `P` symmetric, and kept exactly so.
+///
+/// After `P1 = Phi P`, only the columns `idx[r]` of the moved rows `r` change in
+/// `P1 Phi^T`, and outside the moved rows they are the moved rows of `P1` transposed
+/// (`P1[i, :] Phi[r, :]^T = Phi[r, :] P[:, i] = P1[r, i]` for a row `i` that `Phi` left
+/// alone, `P` being symmetric): only the block of moved rows and columns needs the product.
 pub(crate) fn propagate_covariance(
     p: &mut DMatrix<f64>,
     idx: &RateIndex,
@@ -471,18 +476,28 @@ pub(crate) fn propagate_covariance(
     other_noise: &[f64],
 ) {
     left_multiply(p, idx, phi);
-    right_multiply_transpose(p, idx, phi);
-    add_noise(p, idx, qd, other_noise);
-    // Only the rows and columns `Phi` moved can have lost symmetry to round-off.
     let (rows, m) = moving_rows(phi);
-    for &r in &rows[..m] {
-        let k = idx[r];
-        for j in 0..p.nrows() {
-            let mean = 0.5 * (p[(k, j)] + p[(j, k)]);
-            p[(k, j)] = mean;
-            p[(j, k)] = mean;
+    let rows = &rows[..m];
+    let mut block = [[0.0; RATE_STATES]; RATE_STATES];
+    for (a, &ra) in rows.iter().enumerate() {
+        for (b, &rb) in rows.iter().enumerate() {
+            block[a][b] = (0..RATE_STATES)
+                .map(|j| p[(idx[ra], idx[j])] * phi[(rb, j)])
+                .sum();
         }
     }
+    for &r in rows {
+        let k = idx[r];
+        for c in 0..p.nrows() {
+            p[(c, k)] = p[(k, c)];
+        }
+    }
+    for (a, &ra) in rows.iter().enumerate() {
+        for (b, &rb) in rows.iter().enumerate() {
+            p[(idx[ra], idx[rb])] = 0.5 * (block[a][b] + block[b][a]);
+        }
+    }
+    add_noise(p, idx, qd, other_noise);
 }
 
 /// `P += Q` with `Q` as in [`propagate_covariance`].
