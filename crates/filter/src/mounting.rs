@@ -13,8 +13,12 @@
 //! factors, back-facing photodiodes dropped), and the photodiode's strong outputs are
 //! regressed on it: `y_k / F_k = g^T s_k` (paper Eq. 15 without albedo, `F` the Sun's
 //! distance factor). `g / |g|` is the normal the data support and `|g|` its scale factor.
-//! Only outputs above [`STRONG_FRACTION`] of the photodiode's peak enter, so the direct
-//! Sun dominates the albedo the regression leaves out. A photodiode whose strong outputs
+//! Only outputs above [`STRONG_FRACTION`] of the photodiode's peak enter, and, with the
+//! albedo model, only outputs above the largest albedo any attitude could give at that row
+//! (the photodiode's scale, its peak or the lit photodiodes' median peak whichever is
+//! larger, times the sum over the lit cells in view, `AlbedoView::max_ratio`), in the Sun
+//! vectors as in the regression: a face that rarely sees the Sun reads albedo at a third
+//! of its peak and more, and a regression on it finds the Earth's side, not its normal. A photodiode whose strong outputs
 //! are negative is fitted on the negated outputs, and is a polarity finding when that fit
 //! explains them ([`MIN_EXPLAINED`]); a normal more than [`finding_angle_deg`] from the
 //! nominal one is a mounting finding. Photodiodes with a finding are left out of the Sun
@@ -26,6 +30,7 @@
 //! direction, the photodiode is left out, with that reason).
 
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+use pdcal_albedo::{AlbedoModel, AlbedoView};
 use pdcal_attitude::{az_el_from_normal, normal_from_az_el};
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_photodiode::{Photodiode, SunEstimate, SunVectorOptions, estimate_sun_vector};
@@ -164,6 +169,8 @@ struct Fit {
 /// The sampled sunlit rows: distance factor and the outputs of every photodiode.
 struct Sampled {
     factor: Vec<f64>,
+    /// The telemetry row of each sampled row.
+    rows: Vec<usize>,
     /// `outputs[k][i]`: photodiode `i` at sampled row `k` (NaN when not sampled).
     outputs: Vec<Vec<f64>>,
 }
@@ -176,6 +183,7 @@ pub fn check_mountings(
     references: &References<'_>,
     config: &FilterConfig,
     pd_sigma_v: f64,
+    albedo: Option<&AlbedoModel>,
 ) -> Result<Vec<MountingFinding>, FilterError> {
     let m = meta.photodiodes.len();
     if m < 4 || telemetry.is_empty() {
@@ -198,11 +206,23 @@ pub fn check_mountings(
         .iter()
         .map(|p| normal_from_az_el(p.azimuth_deg.to_radians(), p.elevation_deg.to_radians()))
         .collect();
+    let strong = strong_outputs(&peaks, lit_v);
+    let albedo_ratio = match albedo {
+        Some(model) => albedo_ratios(&sampled, &strong, references, model)?,
+        None => vec![0.0; sampled.rows.len()],
+    };
+    let bounds = Bounds {
+        strong,
+        albedo_scale: albedo_scales(&peaks, lit_v),
+        albedo_ratio,
+    };
     let mut left_out = vec![false; m];
     let mut findings = Vec::new();
     // Two passes: the second without the photodiodes the first found wrong.
     for _ in 0..2 {
-        let fits = fit_all(&sampled, &nominal, &peaks, &left_out, lit_v, pd_sigma_v)?;
+        let fits = fit_all(
+            &sampled, &bounds, &nominal, &peaks, &left_out, lit_v, pd_sigma_v,
+        )?;
         findings = (0..m)
             .filter_map(|i| judge(i, &fits[i], &nominal[i], meta, config))
             .collect::<Vec<_>>();
@@ -274,6 +294,7 @@ fn sample_rows(
     let stride = rows.div_ceil(MAX_SAMPLED_ROWS).max(1);
     let mut sampled = Sampled {
         factor: Vec::new(),
+        rows: Vec::new(),
         outputs: Vec::new(),
     };
     for k in (0..rows).step_by(stride) {
@@ -288,6 +309,7 @@ fn sample_rows(
             continue;
         }
         sampled.factor.push(reference.sun_distance_factor());
+        sampled.rows.push(k);
         sampled.outputs.push(outputs);
     }
     Ok(sampled)
@@ -298,6 +320,7 @@ fn sample_rows(
 #[allow(clippy::type_complexity)]
 fn fit_all(
     sampled: &Sampled,
+    bounds: &Bounds,
     nominal: &[Vector3<f64>],
     peaks: &[f64],
     left_out: &[bool],
@@ -316,19 +339,22 @@ fn fit_all(
         })
         .collect();
     let mut accumulators = vec![[Accumulator::default(), Accumulator::default()]; m];
-    let strong: Vec<f64> = peaks
-        .iter()
-        .map(|&p| (STRONG_FRACTION * p).max(lit_v))
-        .collect();
+    let strong = &bounds.strong;
     let options = SunVectorOptions::default();
     let lit_sigmas = options.threshold.volts(pd_sigma_v);
     let mut others = vec![f64::NAN; m];
-    for (row, &factor) in sampled.outputs.iter().zip(&sampled.factor) {
-        if !row.iter().enumerate().any(|(i, y)| y.abs() >= strong[i]) {
+    for ((row, &factor), &ratio) in sampled
+        .outputs
+        .iter()
+        .zip(&sampled.factor)
+        .zip(&bounds.albedo_ratio)
+    {
+        let direct = |i: usize| row[i].abs() > bounds.albedo_scale[i] * ratio;
+        if !(0..m).any(|i| row[i].abs() >= strong[i] && direct(i)) {
             continue;
         }
         for (i, o) in others.iter_mut().enumerate() {
-            *o = if left_out[i] || peaks[i] <= lit_v {
+            *o = if left_out[i] || peaks[i] <= lit_v || !direct(i) {
                 f64::NAN
             } else {
                 row[i]
@@ -360,7 +386,7 @@ fn fit_all(
         }
         for i in 0..m {
             let y = row[i];
-            if y.is_nan() || y.abs() < strong[i] {
+            if y.is_nan() || y.abs() < strong[i] || !direct(i) {
                 continue;
             }
             let s = match used[i] {
@@ -385,6 +411,59 @@ fn fit_all(
         .iter()
         .map(|[pos, neg]| (pos.fit(), neg.fit()))
         .collect())
+}
+
+/// Which outputs enter the regressions.
+struct Bounds {
+    /// Per photodiode, the least output of a regression ([`STRONG_FRACTION`] of its peak).
+    strong: Vec<f64>,
+    /// Per photodiode, its scale for the albedo bound ([`albedo_scales`]).
+    albedo_scale: Vec<f64>,
+    /// Per sampled row, the largest albedo ratio any attitude could give (0 without the
+    /// albedo model, and at rows without a strong output, which no regression uses).
+    albedo_ratio: Vec<f64>,
+}
+
+/// Per photodiode, the least output of a regression.
+fn strong_outputs(peaks: &[f64], lit_v: f64) -> Vec<f64> {
+    peaks
+        .iter()
+        .map(|&p| (STRONG_FRACTION * p).max(lit_v))
+        .collect()
+}
+
+/// The largest albedo ratio at each sampled row with a strong output
+/// (`AlbedoView::max_ratio`), 0 at the others.
+fn albedo_ratios(
+    sampled: &Sampled,
+    strong: &[f64],
+    references: &References<'_>,
+    model: &AlbedoModel,
+) -> Result<Vec<f64>, FilterError> {
+    let mut view = AlbedoView::new();
+    sampled
+        .rows
+        .iter()
+        .zip(&sampled.outputs)
+        .map(|(&k, row)| {
+            if !row.iter().zip(strong).any(|(y, s)| y.abs() >= *s) {
+                return Ok(0.0);
+            }
+            references.at(k)?.albedo_into(model, &mut view, k)?;
+            Ok(view.max_ratio())
+        })
+        .collect()
+}
+
+/// Each photodiode's scale for the albedo bound: its peak, or the median peak of the lit
+/// photodiodes when larger (a photodiode that never faced the Sun peaks at albedo; the
+/// photodiodes are assumed of one type, as the initial scales are,
+/// [`crate::init::initial_scales`]).
+fn albedo_scales(peaks: &[f64], lit_v: f64) -> Vec<f64> {
+    let mut lit: Vec<f64> = peaks.iter().copied().filter(|&p| p > lit_v).collect();
+    lit.sort_by(f64::total_cmp);
+    let median = lit.get(lit.len() / 2).copied().unwrap_or(0.0);
+    peaks.iter().map(|&p| p.max(median)).collect()
 }
 
 /// The unit Sun direction of the normal equations of `used` photodiodes, when observable

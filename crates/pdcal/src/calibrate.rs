@@ -144,7 +144,13 @@ pub fn run_with_references(
     sets: &[crate::joint::SetSpan],
 ) -> Result<Outcome> {
     let mut warnings = crate::checks::check_telemetry(telemetry)?;
-    let mountings = crate::mounting::check(meta, telemetry, (&references).into(), &config.filter)?;
+    let mountings = crate::mounting::check(
+        meta,
+        telemetry,
+        (&references).into(),
+        &config.filter,
+        albedo,
+    )?;
     warnings.extend(mountings.iter().map(|f| f.message()));
     let corrected = (!mountings.is_empty()).then(|| {
         let (mut meta, mut telemetry) = (meta.clone(), telemetry.clone());
@@ -375,6 +381,7 @@ pub fn run_sets(
         &telemetry,
         references_of(stored.as_deref(), &reference_model, &telemetry.t_s),
         &config.filter,
+        &albedo,
     )?;
     crate::mounting::apply(&mountings, &mut meta, &mut telemetry);
     warnings.extend(mountings.iter().map(|f| f.message()));

@@ -16,8 +16,16 @@ pub fn check(
     telemetry: &Telemetry,
     references: References<'_>,
     config: &FilterConfig,
+    albedo: &pdcal_albedo::AlbedoModel,
 ) -> Result<Vec<MountingFinding>> {
     let sigmas = config.resolve(meta.noise.as_ref());
-    check_mountings(meta, telemetry, &references, config, sigmas.photodiode_v)
-        .context("mounting check")
+    check_mountings(
+        meta,
+        telemetry,
+        &references,
+        config,
+        sigmas.photodiode_v,
+        Some(albedo),
+    )
+    .context("mounting check")
 }

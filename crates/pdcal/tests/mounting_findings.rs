@@ -43,7 +43,16 @@ fn findings(
     let references = pdcal_filter::step_references(meta, telemetry).unwrap();
     let config = pdcal_filter::FilterConfig::default();
     let sigma = config.resolve(meta.noise.as_ref()).photodiode_v;
-    check_mountings(meta, telemetry, &(&references).into(), &config, sigma).unwrap()
+    let albedo = pdcal::calibrate::albedo_model().unwrap();
+    check_mountings(
+        meta,
+        telemetry,
+        &(&references).into(),
+        &config,
+        sigma,
+        Some(&albedo),
+    )
+    .unwrap()
 }
 
 #[test]
