@@ -5,6 +5,8 @@
 
 use std::fmt::Write;
 
+use std::path::Path;
+
 use anyhow::{Context, Result, bail};
 use nalgebra::{Matrix3, Vector3};
 use pdcal_magcal::MatrixForm;
@@ -31,14 +33,20 @@ pub fn run(
     scenario_name: &str,
     duration_s: Option<f64>,
     every_s: Option<f64>,
+    export: Option<&Path>,
 ) -> Result<()> {
     let mut scenario = pdcal::simulate::load_scenario(scenario_name)?;
     if let Some(d) = duration_s {
         scenario.duration_s = d;
     }
+    if let Some(dir) = export {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
     let checks: Vec<SeedCheck> = (1..=n)
         .into_par_iter()
-        .map(|seed| check_seed(&scenario, seed, every_s).with_context(|| format!("seed {seed}")))
+        .map(|seed| {
+            check_seed(&scenario, seed, every_s, export).with_context(|| format!("seed {seed}"))
+        })
         .collect::<Result<_>>()?;
     print!(
         "{}",
@@ -56,6 +64,7 @@ fn check_seed(
     scenario: &pdcal_sim::Scenario,
     seed: u64,
     every_s: Option<f64>,
+    export: Option<&Path>,
 ) -> Result<SeedCheck> {
     let sim = pdcal::simulate::run_downlink(scenario, seed, 0)?;
     let Some(truth) = sim.constants.magnetometer.clone() else {
@@ -72,7 +81,11 @@ fn check_seed(
     let outcome = pdcal::magcal::run(&sim.meta, &telemetry)?;
     let cal = &outcome.calibration;
     let t = Matrix3::from_fn(|a, b| truth.matrix[a][b]);
-    let s = symmetric_factor(&t);
+    let (s, _) = pdcal_magcal::align::polar(&t).context("singular truth")?;
+    if let Some(dir) = export {
+        let sigma = scenario.magnetometer.noise_nt;
+        write_export(dir, seed, &outcome, &truth, &s, sigma)?;
+    }
     let mut z = Vec::new();
     let ts = cal.matrix_sigma();
     let entries: &[(usize, usize)] = match cal.params.form {
@@ -129,12 +142,67 @@ fn check_seed(
     })
 }
 
-/// `(T T^T)^(1/2)`.
-fn symmetric_factor(t: &Matrix3<f64>) -> Matrix3<f64> {
-    let e = (t * t.transpose()).symmetric_eigen();
-    e.eigenvectors
-        * Matrix3::from_diagonal(&e.eigenvalues.map(f64::sqrt))
-        * e.eigenvectors.transpose()
+/// For a check outside pdcal (`tools/magyc_compare.py`): `seed-N.csv`, the samples the fit
+/// used (raw magnetometer, the IGRF-14 magnitude along the orbit, every current column),
+/// and `seed-N.json`, the truth (`T`, its symmetric form, `b`, `c_j`), pdcal's estimate and
+/// the noise.
+fn write_export(
+    dir: &Path,
+    seed: u64,
+    outcome: &pdcal::magcal::MagCalOutcome,
+    truth: &pdcal_dataset::TrueMagnetometer,
+    symmetric: &Matrix3<f64>,
+    noise_nt: f64,
+) -> Result<()> {
+    let mut csv = String::from("row,t_s,mag_x_nT,mag_y_nT,mag_z_nT,field_nT");
+    for name in &outcome.names {
+        let _ = write!(csv, ",{name}");
+    }
+    csv.push('\n');
+    for sample in &outcome.samples {
+        let m = sample.mag_nt;
+        let _ = write!(
+            csv,
+            "{},{},{},{},{},{}",
+            sample.row, sample.t_s, m.x, m.y, m.z, sample.field_nt
+        );
+        for u in &sample.u {
+            let _ = write!(csv, ",{u}");
+        }
+        csv.push('\n');
+    }
+    let cal = &outcome.calibration;
+    let rows = |m: &Matrix3<f64>| [0, 1, 2].map(|a| [0, 1, 2].map(|b| m[(a, b)]));
+    let estimate_c: serde_json::Map<String, serde_json::Value> = (cal.regressors.iter())
+        .zip(&cal.params.coeff_nt)
+        .map(|(n, c)| (n.clone(), serde_json::json!([c.x, c.y, c.z])))
+        .collect();
+    let json = serde_json::json!({
+        "seed": seed,
+        "noise_nT": noise_nt,
+        "truth": {
+            "matrix": truth.matrix,
+            "symmetric_matrix": rows(symmetric),
+            "bias_nT": truth.bias_nt,
+            "current_bias_nT_per_A": truth.current_bias_nt_per_a.iter().cloned().collect::<std::collections::BTreeMap<_, _>>(),
+        },
+        "pdcal": {
+            "form": format!("{:?}", cal.params.form),
+            "matrix": rows(&cal.matrix),
+            "bias_nT": [cal.params.bias_nt.x, cal.params.bias_nt.y, cal.params.bias_nt.z],
+            "current_bias_nT_per_A": estimate_c,
+            "rejected_rows": cal.rejected_rows,
+        },
+    });
+    let write = |name: String, text: String| {
+        let path = dir.join(name);
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))
+    };
+    write(format!("seed-{seed}.csv"), csv)?;
+    write(
+        format!("seed-{seed}.json"),
+        serde_json::to_string_pretty(&json)?,
+    )
 }
 
 fn table(name: &str, duration_s: f64, every_s: Option<f64>, checks: &[SeedCheck]) -> String {

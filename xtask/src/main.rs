@@ -6,7 +6,8 @@
 //! - `diagnose-demo`: simulates rax2-like with albedo and dark offsets hidden, diagnoses
 //!   it from the `cosine` base, prints the rounds and gaps; outputs in `out/diagnose-demo/`.
 //! - `magcal-validate [--seeds N] [--scenario FILE] [--duration-s S] [--every-s S]`: the
-//!   magnetometer calibration over seeds against the simulator's truth (docs/magcal.md).
+//!   magnetometer calibration over seeds against the simulator's truth (docs/magcal.md);
+//!   `--export DIR` writes each seed's samples, truth and estimate for `tools/magyc_compare.py`.
 //! - `bench`: runs the criterion benches that `docs/performance.md` quotes.
 //! - `make-import-fixture`: rewrites `fixtures/import/` (export.csv and its maps) from the
 //!   simulator, seeded (`xtask::import_fixture`).
@@ -58,6 +59,11 @@ enum Task {
         /// attitude, each followed by a calibration again (docs/magcal.md).
         #[arg(long, default_value_t = 0)]
         mag_align_passes: usize,
+        /// With `--magcal`: leave the magnetometer's rotation against the body as the
+        /// magnitude fit gives it (by default it is solved against a photodiode-only
+        /// calibration's attitude and removed, docs/magcal.md).
+        #[arg(long)]
+        no_mag_align: bool,
         /// A seed that ends with an error is listed under the table (with the error)
         /// instead of stopping the run: for weak-data scenarios whose filter may fail.
         #[arg(long)]
@@ -78,6 +84,10 @@ enum Task {
         /// Keep one row every this many seconds (sparse data).
         #[arg(long)]
         every_s: Option<f64>,
+        /// Also write each seed's samples, truth and estimate to this directory
+        /// (`seed-N.csv`, `seed-N.json`) for `tools/magyc_compare.py`.
+        #[arg(long)]
+        export: Option<std::path::PathBuf>,
     },
     /// Simulate rax2-like with albedo and dark offsets hidden, diagnose from `cosine`.
     DiagnoseDemo,
@@ -99,6 +109,7 @@ fn main() -> ExitCode {
             sets,
             magcal,
             mag_align_passes,
+            no_mag_align,
             keep_going,
         } => monte_carlo::run(
             seeds,
@@ -106,7 +117,7 @@ fn main() -> ExitCode {
             photodiode_only,
             config.as_deref(),
             (cut, sets),
-            (magcal, mag_align_passes),
+            (magcal, mag_align_passes, no_mag_align),
             keep_going,
         ),
         Task::MagcalValidate {
@@ -114,7 +125,8 @@ fn main() -> ExitCode {
             scenario,
             duration_s,
             every_s,
-        } => magcal_validate::run(seeds, &scenario, duration_s, every_s),
+            export,
+        } => magcal_validate::run(seeds, &scenario, duration_s, every_s, export.as_deref()),
         Task::DiagnoseDemo => diagnose_demo::run(std::path::Path::new("out/diagnose-demo")),
         Task::Bench => bench(),
         Task::MakeImportFixture => make_import_fixture(),

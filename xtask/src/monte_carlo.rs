@@ -19,7 +19,7 @@ pub fn run(
     photodiode_only: bool,
     config_file: Option<&std::path::Path>,
     (cut, sets): (Option<Cut>, usize),
-    (magcal, mag_align_passes): (bool, usize),
+    (magcal, mag_align_passes, no_mag_align): (bool, usize, bool),
     keep_going: bool,
 ) -> Result<()> {
     let scenario = pdcal::simulate::load_scenario(scenario_name)?;
@@ -32,6 +32,9 @@ pub fn run(
     }
     config.fit_mag_cal = magcal;
     config.mag_align_passes = mag_align_passes;
+    if no_mag_align {
+        config.mag_align = pdcal::calibrate::MagAlign::Off;
+    }
     let albedo = albedo_model()?;
     let bar = ProgressBar::new(n);
     bar.set_style(ProgressStyle::with_template(
@@ -79,6 +82,11 @@ pub fn run(
     if magcal {
         mode = format!("{mode}, magnetometer calibrated first (pdcal magcal)");
     }
+    if magcal && no_mag_align {
+        mode = format!("{mode}, its rotation left in (--no-mag-align)");
+    } else if magcal {
+        mode = format!("{mode}, its rotation against the photodiode-only attitude removed");
+    }
     if magcal && mag_align_passes > 0 {
         mode = format!("{mode}, {mag_align_passes} passes of its rotation against the attitude");
     }
@@ -103,6 +111,9 @@ pub fn run(
     }
     if magcal {
         tag = format!("{tag}-magcal");
+    }
+    if magcal && no_mag_align {
+        tag = format!("{tag}-noalign");
     }
     if magcal && mag_align_passes > 0 {
         tag = format!("{tag}-align{mag_align_passes}");

@@ -82,6 +82,27 @@ impl RigidBody {
         &self.inertia_kg_m2
     }
 
+    /// Its inverse `J^-1`, kg^-1 m^-2.
+    pub fn inertia_inv(&self) -> &Matrix3<f64> {
+        &self.inertia_inv
+    }
+
+    /// The body with each diagonal moment `J_ii` multiplied by `1 + f_i` (the products of
+    /// inertia kept): an estimate's hypothesis about the inertia, so only positive
+    /// definiteness is required, not the triangle inequality (which an estimate near a
+    /// long or flat body may cross while it converges). `None` when not positive definite.
+    pub fn with_moment_fractions(&self, fractions: &Vector3<f64>) -> Option<Self> {
+        let mut inertia_kg_m2 = self.inertia_kg_m2;
+        for i in 0..3 {
+            inertia_kg_m2[(i, i)] *= 1.0 + fractions[i];
+        }
+        let inertia_inv = inertia_kg_m2.cholesky()?.inverse();
+        Some(Self {
+            inertia_kg_m2,
+            inertia_inv,
+        })
+    }
+
     /// Euler's equations: `w_dot = J^-1 (tau - w x J w)`, rad/s^2.
     pub fn angular_acceleration(
         &self,

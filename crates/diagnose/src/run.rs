@@ -3,10 +3,14 @@
 //! without the residuals over every sample. The rounds ([`crate::diagnose`]) and the refit
 //! scores ([`crate::refit`]) both run it.
 
+use std::borrow::Cow;
+
 use pdcal_albedo::AlbedoModel;
 use pdcal_dataset::{DatasetMeta, EffectId, Telemetry};
 use pdcal_ephem::Reference;
-use pdcal_filter::{Algebra, CalibrationRun, FilterConfig, Mode, RunInputs, calibrate_with_model};
+use pdcal_filter::{
+    Algebra, CalibrationRun, FilterConfig, Mode, Prepared, RunInputs, calibrate_with_model,
+};
 use pdcal_photodiode::Photodiode;
 
 use crate::DiagnoseError;
@@ -143,16 +147,17 @@ fn filter_run(
     let albedo = spec
         .contains(EffectId::Albedo)
         .then_some(corrected.as_ref().unwrap_or(inputs.albedo));
+    let prepared = Prepared::new(inputs.meta, Cow::Borrowed(telemetry), filter)?;
     let run_inputs = RunInputs {
         meta: inputs.meta,
-        telemetry,
+        telemetry: prepared.telemetry(),
         references: inputs.references.into(),
         albedo,
         set_first_rows: &[],
     };
     Ok(calibrate_with_model(
         &run_inputs,
-        filter,
+        &prepared,
         &Mode::Full,
         model,
         Algebra::Structured,

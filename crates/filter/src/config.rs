@@ -171,7 +171,7 @@ pub struct FilterConfig {
     /// with a slow gyro of a large unknown bias and the Sun alone (the pyramid head of
     /// docs/validation.md) a torque noise near theirs holds the rate too tightly, while
     /// rows every 10 s with a magnetometer and the dipole estimated lose nothing at 1e-4
-    /// (docs/validation.md has both). The uncertain inertia adds its own
+    /// (docs/validation.md has both). The uncertain inertia is estimated, not added here
     /// ([`FilterConfig::inertia_sigma_fraction`]).
     pub torque_noise_n_m_sqrt_s: f64,
     /// With `dynamics: Auto`, the dynamics run when the gyro's median spacing exceeds this,
@@ -187,11 +187,10 @@ pub struct FilterConfig {
     /// With dynamics, the random walk of the residual dipole (currents that change), A m^2
     /// per sqrt(s). Default 1e-4 (0.008 A m^2 over 2 h).
     pub dipole_walk_a_m2_sqrt_s: f64,
-    /// With dynamics, the fractional sigma of the dataset's inertia: its error acts as an
-    /// unknown torque of about this fraction of `|J| |w|^2`, added to the torque noise
-    /// ([`crate::rate`], "Uncertain inertia"). Default 0.1 (a CAD inertia's typical error;
-    /// `0` trusts the inertia exactly, which thinned rows need to hold the attitude within
-    /// 1 deg: docs/validation.md).
+    /// With dynamics, the fractional sigma of each diagonal moment of the dataset's
+    /// inertia: the prior of the correction the filter estimates from the motion
+    /// ([`crate::rate`], "Uncertain inertia"). Default 0.1 (a CAD inertia's typical
+    /// error); `0` trusts the inertia.
     pub inertia_sigma_fraction: f64,
 }
 

@@ -16,7 +16,7 @@ use crate::dense;
 use crate::error::check_len;
 use crate::guard::{self, CovarianceRepair};
 use crate::layout::{ATTITUDE, BIAS, CORE, StateLayout};
-use crate::rate::{Matrix12, Motion, RateIndex, RateModel, StepEnvironment};
+use crate::rate::{Motion, RateIndex, RateMatrix, RateModel, StepEnvironment};
 use crate::sequential::{self, Outcome, Rows, Workspace};
 
 /// How the covariance algebra is done. Both give the same numbers to rounding (a test
@@ -162,7 +162,7 @@ pub struct Propagation {
     pub qd: Matrix6<f64>,
     /// Step, s.
     pub dt_s: f64,
-    /// With dynamics ([`crate::rate`]): `Phi` and `Qd` of `[a, beta, w, m]` (`phi` and `qd`
+    /// With dynamics ([`crate::rate`]): `Phi` and `Qd` of `[a, beta, w, m, c]` (`phi` and `qd`
     /// above are then unused) and the body rate the step ended with.
     pub rate: Option<Box<RatePropagation>>,
 }
@@ -170,11 +170,11 @@ pub struct Propagation {
 /// One dynamics-aided propagation as the smoother needs it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RatePropagation {
-    /// `Phi` of `[a, beta, w, m]`.
-    pub phi: Matrix12,
-    /// `Qd` of `[a, beta, w, m]`.
-    pub qd: Matrix12,
-    /// The states `[a, beta, w, m]` index.
+    /// `Phi` of `[a, beta, w, m, c]`.
+    pub phi: RateMatrix,
+    /// `Qd` of `[a, beta, w, m, c]`.
+    pub qd: RateMatrix,
+    /// The states `[a, beta, w, m, c]` index.
     pub idx: RateIndex,
     /// Body rate at the end of the step (the prior), rad/s.
     pub w_prior_body_rad_s: Vector3<f64>,
@@ -184,7 +184,7 @@ pub struct RatePropagation {
 #[derive(Debug, Clone)]
 struct RateFilter {
     model: RateModel,
-    /// `[a, beta, w, m]` state indices.
+    /// `[a, beta, w, m, c]` state indices.
     idx: RateIndex,
     motion: Motion,
     /// Gyro noise variance per sample, (rad/s)^2.
@@ -391,12 +391,13 @@ impl Filter {
         })
     }
 
-    /// Adds the body rate `w` and the residual dipole `m` as three states each (last in the
-    /// layout) propagated by `model`'s dynamics ([`crate::rate`]): [`Filter::propagate_dynamics`]
-    /// then replaces [`Filter::propagate`], and [`Filter::update_gyro`] takes the gyro as a
-    /// measurement of `w + beta` with variance `gyro_sigma_rad_s^2`. The rate starts from
-    /// `w0` with sigma `w_sigma_rad_s` per axis, the dipole from zero with sigma
-    /// `dipole_sigma_a_m2` per axis, uncorrelated.
+    /// Adds the body rate `w`, the residual dipole `m` and the inertia's moment correction
+    /// `c` as three states each (last in the layout) propagated by `model`'s dynamics
+    /// ([`crate::rate`]): [`Filter::propagate_dynamics`] then replaces
+    /// [`Filter::propagate`], and [`Filter::update_gyro`] takes the gyro as a measurement
+    /// of `w + beta` with variance `gyro_sigma_rad_s^2`. The rate starts from `w0` with
+    /// sigma `w_sigma_rad_s` per axis, the dipole from zero with sigma `dipole_sigma_a_m2`
+    /// per axis, `c` from zero with the model's [`RateModel::moment_sigma`], uncorrelated.
     pub fn enable_dynamics(
         &mut self,
         model: RateModel,
@@ -411,6 +412,7 @@ impl Filter {
             for k in index..index + 3 {
                 self.p[(k, k)] = w_sigma_rad_s * w_sigma_rad_s;
                 self.p[(k + 3, k + 3)] = dipole_sigma_a_m2 * dipole_sigma_a_m2;
+                self.p[(k + 6, k + 6)] = model.moment_sigma().powi(2);
             }
             self.initial_variance = self.p.diagonal().iter().copied().collect();
             let m = self.scale.len();
@@ -429,6 +431,7 @@ impl Filter {
             motion: Motion {
                 w_body_rad_s: w0_body_rad_s,
                 dipole_body_a_m2: Vector3::zeros(),
+                moment_fraction: Vector3::zeros(),
             },
             gyro_var: gyro_sigma_rad_s * gyro_sigma_rad_s,
         });
@@ -573,14 +576,9 @@ impl Filter {
         if let Some(r) = &self.rate {
             // The unknown torque's walk of the rate over the gap (the rate keeps its value:
             // the gyro or the vector measurements correct it).
-            let j_inv = r
-                .model
-                .body
-                .inertia_kg_m2()
-                .try_inverse()
-                .unwrap_or_default();
-            let psd = r.model.torque_psd_at(&r.motion.w_body_rad_s);
-            let walk = j_inv * j_inv.transpose() * (psd * dt_s);
+            let body = r.model.body_at(&r.motion.moment_fraction);
+            let j_inv = body.inertia_inv();
+            let walk = j_inv * j_inv.transpose() * (r.model.torque_psd * dt_s);
             let k = r.idx[6];
             let mut block = self.p.fixed_view_mut::<3, 3>(k, k);
             block += walk;
@@ -1139,9 +1137,10 @@ impl Filter {
         let turn = self.q.attitude_matrix() * before.transpose();
         self.bias += Vector3::new(dx[BIAS], dx[BIAS + 1], dx[BIAS + 2]);
         if let Some(r) = self.rate.as_mut() {
-            let (k, d) = (r.idx[6], r.idx[9]);
+            let (k, d, c) = (r.idx[6], r.idx[9], r.idx[12]);
             r.motion.w_body_rad_s += Vector3::new(dx[k], dx[k + 1], dx[k + 2]);
             r.motion.dipole_body_a_m2 += Vector3::new(dx[d], dx[d + 1], dx[d + 2]);
+            r.motion.moment_fraction += Vector3::new(dx[c], dx[c + 1], dx[c + 2]);
         }
         self.reset_photodiodes();
         let dx = &self.scratch.dx;

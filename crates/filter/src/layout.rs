@@ -106,13 +106,13 @@ impl StateLayout {
         }
     }
 
-    /// Appends the three body-rate states and the three residual-dipole states of the
-    /// dynamics-aided propagation ([`crate::rate`]) after every other state, once; the
-    /// first index of the rate's.
+    /// Appends the three body-rate states, the three residual-dipole states and the three
+    /// moment corrections of the inertia of the dynamics-aided propagation
+    /// ([`crate::rate`]) after every other state, once; the first index of the rate's.
     pub fn add_rate_states(&mut self) -> usize {
         *self.rate.get_or_insert_with(|| {
-            self.len += 6;
-            self.len - 6
+            self.len += 9;
+            self.len - 9
         })
     }
 
@@ -124,6 +124,12 @@ impl StateLayout {
     /// State index of the residual-dipole error `dm` (3 states), with dynamics only.
     pub fn dipole(&self) -> Option<usize> {
         self.rate.map(|k| k + 3)
+    }
+
+    /// State index of the inertia's moment-correction error `dc` (3 states), with
+    /// dynamics only.
+    pub fn moment_fraction(&self) -> Option<usize> {
+        self.rate.map(|k| k + 6)
     }
 
     /// Sets the normals the tangent bases are taken about (the filter's initial normals).

@@ -4,8 +4,9 @@
 //! photodiodes; plus the offline RTS smoother and the run over a dataset.
 //!
 //! This crate owns the filter ([`Filter`]), its tuning ([`FilterConfig`], RON), the run modes
-//! ([`Mode`]), the initialisation ([`init`]), the run over a dataset ([`calibrate`]), the
-//! smoother, the calibration file type ([`Calibration`]) and the run's plain-data outputs
+//! ([`Mode`]), the initialisation ([`init`]), the run over a dataset ([`calibrate`]) in its
+//! stages (prepared once, [`Prepared`]; the forward pass, [`ForwardPass`]; the smoother,
+//! [`smoother`]), the calibration file type ([`Calibration`]) and the run's plain-data outputs
 //! ([`CalibrationRun`]). It reads the dataset only through `pdcal-dataset`'s `DatasetMeta`
 //! and `Telemetry`, never the truth; reference vectors come in as `pdcal_ephem::Reference`s (one per
 //! telemetry row; stored or computed per row, [`References`]) and albedo
@@ -95,6 +96,7 @@ pub mod consistency;
 pub mod dense;
 mod error;
 pub mod filter;
+pub mod forward;
 pub mod gate;
 pub mod guard;
 pub mod identifiability;
@@ -102,6 +104,7 @@ pub mod init;
 pub mod layout;
 pub mod mounting;
 pub mod output;
+pub mod prepare;
 pub mod rate;
 pub mod references;
 pub mod run;
@@ -121,15 +124,17 @@ pub use filter::{
     Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Propagation, Sensor,
     SensorCounts, UpdateCounts, UpdateRecord,
 };
+pub use forward::ForwardPass;
 pub use guard::{CovarianceRepair, RepairKind, RepairLog};
 pub use layout::StateLayout;
 pub use output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
 /// The per-row reference model [`reference_model`] returns.
 pub use pdcal_ephem::ReferenceModel;
+pub use prepare::{Prepared, RunInputs};
 pub use references::{References, orbit_source, reference_model, step_references};
 pub use run::{
-    CANCEL_POLL_ROWS, ForwardPass, RunInputs, RunSink, SMOOTHER_BLOCK_ROWS, calibrate,
-    calibrate_streaming, calibrate_with_model, nominal_photodiodes, nominal_step_s, paper_model,
+    CANCEL_POLL_ROWS, RunSink, SMOOTHER_BLOCK_ROWS, calibrate, calibrate_streaming,
+    calibrate_with_model, nominal_photodiodes, nominal_step_s, paper_model,
 };
 pub use screen::{Channel, ChannelRejections, Rejections, RowList};
 pub use segments::{

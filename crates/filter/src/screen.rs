@@ -28,7 +28,7 @@
 
 use pdcal_dataset::Telemetry;
 
-use crate::bounded::{Bounded, LISTED_ROWS};
+use crate::bounded::Bounded;
 use crate::config::{FilterConfig, SensorSigmas};
 use crate::filter::Sensor;
 
@@ -73,7 +73,8 @@ impl From<Sensor> for Channel {
     }
 }
 
-/// Telemetry rows (increasing), counted, the first [`LISTED_ROWS`] listed.
+/// Telemetry rows (increasing), counted, the first
+/// [`LISTED_ROWS`](crate::bounded::LISTED_ROWS) listed.
 pub type RowList = Bounded<usize>;
 
 /// One sensor's rejected samples.
@@ -129,21 +130,6 @@ impl Rejections {
     pub fn push_gated(&mut self, channel: Channel, row: usize) {
         if let Some(c) = self.get_mut(channel) {
             c.gated.push(row);
-        }
-    }
-
-    /// Adds the screened samples of `other` (an earlier screening of the same telemetry,
-    /// e.g. the driver's before the run's own) to this record.
-    pub fn absorb_screened(&mut self, other: &Rejections) {
-        for theirs in &other.channels {
-            if let Some(ours) = self.get_mut(theirs.channel) {
-                let list = &mut ours.screened;
-                list.count += theirs.screened.count;
-                list.first.extend(&theirs.screened.first);
-                list.first.sort_unstable();
-                list.first.dedup();
-                list.first.truncate(LISTED_ROWS);
-            }
         }
     }
 
@@ -247,19 +233,6 @@ pub fn remove_outliers(telemetry: &mut Telemetry, outliers: &[(Channel, usize)])
                 }
             }
         }
-    }
-}
-
-/// Screens `telemetry` in place: finds the outliers, empties their cells and records them.
-pub fn screen_in_place(
-    telemetry: &mut Telemetry,
-    tol: &ScreenTolerances,
-    rejections: &mut Rejections,
-) {
-    let outliers = find_outliers(telemetry, tol);
-    remove_outliers(telemetry, &outliers);
-    for &(channel, k) in &outliers {
-        rejections.push_screened(channel, k);
     }
 }
 

@@ -353,9 +353,13 @@ impl SmoothedState {
             d.fixed_rows_mut::<3>(k)
                 .copy_from(&(w.w_body_rad_s - rate.w_prior_body_rad_s));
         }
-        if let (Some(k), Some(w), Some(prev_w)) = (layout.dipole(), self.w, prev.w) {
+        if let (Some(k), Some(c), Some(w), Some(prev_w)) =
+            (layout.dipole(), layout.moment_fraction(), self.w, prev.w)
+        {
             d.fixed_rows_mut::<3>(k)
                 .copy_from(&(w.dipole_body_a_m2 - prev_w.dipole_body_a_m2));
+            d.fixed_rows_mut::<3>(c)
+                .copy_from(&(w.moment_fraction - prev_w.moment_fraction));
         }
         let a = error_vector(&self.q, q_prior);
         d.fixed_rows_mut::<3>(ATTITUDE).copy_from(&a);
@@ -397,6 +401,7 @@ impl SmoothedState {
         if let (Some(k), Some(w)) = (layout.rate(), self.w.as_mut()) {
             w.w_body_rad_s += Vector3::new(delta[k], delta[k + 1], delta[k + 2]);
             w.dipole_body_a_m2 += Vector3::new(delta[k + 3], delta[k + 4], delta[k + 5]);
+            w.moment_fraction += Vector3::new(delta[k + 6], delta[k + 7], delta[k + 8]);
         }
         self
     }

@@ -11,8 +11,8 @@ use pdcal_attitude::Quat;
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_ephem::Reference;
 use pdcal_filter::{
-    Algebra, Calibration, Channel, FilterConfig, ForwardPass, Mode, Rejections, RepairKind,
-    RepairLog, RunInputs, calibrate, paper_model, step_references,
+    Algebra, Calibration, Channel, FilterConfig, ForwardPass, Mode, Prepared, Rejections,
+    RepairKind, RepairLog, RunInputs, calibrate, paper_model, step_references,
 };
 use pdcal_photodiode::Photodiode;
 
@@ -74,8 +74,10 @@ fn run_checked(telemetry: &Telemetry, mut corrupt: impl FnMut(usize, &mut Forwar
         .map(|m| Photodiode::from_az_el_deg(1.0, m.azimuth_deg, m.elevation_deg, 0.0))
         .collect();
     let model = paper_model(pds, &config);
+    let prepared = Prepared::of(&inputs, &config).unwrap();
+    let inputs = prepared.inputs(&inputs);
     let mut pass =
-        ForwardPass::new(&inputs, &config, &Mode::Full, model, Algebra::Structured).unwrap();
+        ForwardPass::new(&inputs, &prepared, &Mode::Full, model, Algebra::Structured).unwrap();
     let mut attitude = Vec::new();
     while let Some(k) = pass.step().unwrap() {
         let e = pass.estimate();

@@ -12,8 +12,8 @@ use pdcal_attitude::{Quat, mekf::error_vector, normal_from_az_el};
 use pdcal_dataset::{DatasetMeta, Telemetry, TruthConstants, TruthSeries};
 use pdcal_ephem::Reference;
 use pdcal_filter::{
-    Acquisition, Algebra, Calibration, FilterConfig, ForwardPass, Mode, RunInputs, SegmentBreak,
-    SegmentReport, StepEstimate, paper_model, step_references,
+    Acquisition, Algebra, Calibration, FilterConfig, ForwardPass, Mode, Prepared, RunInputs,
+    SegmentBreak, SegmentReport, StepEstimate, paper_model, step_references,
 };
 use pdcal_photodiode::Photodiode;
 
@@ -79,8 +79,10 @@ fn run_checked(
         .map(|m| Photodiode::from_az_el_deg(1.0, m.azimuth_deg, m.elevation_deg, 0.0))
         .collect();
     let model = paper_model(pds, config);
+    let prepared = Prepared::of(&inputs, config).unwrap();
+    let inputs = prepared.inputs(&inputs);
     let mut pass =
-        ForwardPass::new(&inputs, config, &Mode::Full, model, Algebra::Structured).unwrap();
+        ForwardPass::new(&inputs, &prepared, &Mode::Full, model, Algebra::Structured).unwrap();
     let mut estimates = Vec::new();
     while let Some(k) = pass.step().unwrap() {
         let e = pass.estimate();

@@ -6,7 +6,7 @@ mod common;
 
 use common::Case;
 use pdcal_filter::{
-    Algebra, FilterConfig, Mode, ResidualRecord, RunInputs, RunSink, StepEstimate,
+    Algebra, FilterConfig, Mode, Prepared, ResidualRecord, RunInputs, RunSink, StepEstimate,
     calibrate_streaming, calibrate_with_model, paper_model,
 };
 use pdcal_photodiode::Photodiode;
@@ -83,15 +83,23 @@ fn compare(
             .collect();
         paper_model(pds, &config)
     };
-    let memory =
-        calibrate_with_model(&inputs, &config, &Mode::Full, model(), Algebra::Structured).unwrap();
+    let prepared = Prepared::of(&inputs, &config).unwrap();
+    let inputs = prepared.inputs(&inputs);
+    let memory = calibrate_with_model(
+        &inputs,
+        &prepared,
+        &Mode::Full,
+        model(),
+        Algebra::Structured,
+    )
+    .unwrap();
     let smoothed = memory.smoothed.as_ref().unwrap();
     assert_eq!(smoothed.len(), memory.forward.len());
     for block_rows in [1, 97, 5000] {
         let mut sink = Collect::default();
         let streamed = calibrate_streaming(
             &inputs,
-            &config,
+            &prepared,
             &Mode::Full,
             model(),
             Algebra::Structured,
@@ -158,9 +166,10 @@ fn a_sink_can_cancel_the_forward_pass_and_the_smoother() {
             set_first_rows: &[],
         };
         let model = paper_model(pdcal_filter::nominal_photodiodes(&meta), &config);
+        let prepared = Prepared::of(&inputs, &config).unwrap();
         let result = calibrate_streaming(
-            &inputs,
-            &config,
+            &prepared.inputs(&inputs),
+            &prepared,
             &Mode::Full,
             model,
             Algebra::Structured,

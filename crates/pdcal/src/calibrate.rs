@@ -1,5 +1,6 @@
 //! `pdcal calibrate`: a dataset in, the calibration and its evidence out.
 
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 
 use std::time::Instant;
@@ -10,8 +11,7 @@ use pdcal_albedo::{AlbedoModel, MapChoice};
 /// The albedo model type, re-exported for callers that hold one (xtask).
 pub type AlbedoModelType = AlbedoModel;
 use pdcal_dataset::{DatasetMeta, Telemetry};
-use pdcal_filter::screen::ScreenTolerances;
-use pdcal_filter::{Algebra, Calibration, FilterConfig, Mode, References, Rejections, RunInputs};
+use pdcal_filter::{Algebra, Calibration, FilterConfig, Mode, Prepared, References, RunInputs};
 
 use crate::output::OutputDir;
 pub use crate::schema::{DatasetSummary, Outcome};
@@ -35,6 +35,21 @@ pub struct RunConfig {
     /// (docs/magcal.md, "The rotation against the body": each pass recovers only a few
     /// percent of the rotation).
     pub mag_align_passes: usize,
+    /// How the magnetometer's rotation against the body, which the field magnitude cannot
+    /// see, is found after a magnetometer calibration (docs/magcal.md).
+    pub mag_align: MagAlign,
+}
+
+/// The magnetometer's rotation against the body after `--mag-cal` (docs/magcal.md, "The
+/// rotation against the body").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum MagAlign {
+    /// Left as the calibration gives it (the symmetric form's frame).
+    Off,
+    /// Solved against the attitude of a photodiode-only calibration of the same rows
+    /// ([`crate::mag_align::against_photodiodes`]), then removed.
+    #[default]
+    Photodiodes,
 }
 
 impl Default for RunConfig {
@@ -45,6 +60,7 @@ impl Default for RunConfig {
             mag_cal: None,
             fit_mag_cal: false,
             mag_align_passes: 0,
+            mag_align: MagAlign::default(),
         }
     }
 }
@@ -280,8 +296,67 @@ pub fn run_dirs_forced(
             .with_context(|| format!("--mag-cal on {}", path.display()))?;
         worst_sigma_nt = worst_sigma_nt.max(sigma);
     }
+    if config.mag_align == MagAlign::Photodiodes {
+        let alignment = align_sets(&mut sets, &config)?;
+        worst_sigma_nt = worst_sigma_nt.hypot(alignment.sigma_nt);
+    }
     config.filter.mag_sigma_nt = Some(worst_sigma_nt);
     run_sets(sets, dir, &config, None)
+}
+
+/// The magnetometer's rotation against the photodiodes' frame, solved over every set at
+/// once (it is the hardware's) and removed from each ([`crate::mag_align`]); said on
+/// stderr, and when the fit is not consistent, why it was left in.
+fn align_sets(
+    sets: &mut [(PathBuf, DatasetMeta, Telemetry)],
+    config: &RunConfig,
+) -> Result<crate::mag_align::PhotodiodeAlignment> {
+    let joint = crate::joint::join(sets.to_vec())?;
+    let references = match joint.references {
+        Some(references) => references,
+        None => pdcal_filter::step_references(&joint.meta, &joint.telemetry)?,
+    };
+    let mut telemetry = joint.telemetry;
+    let albedo = albedo_model()?;
+    let mag_sigma_nt = config.filter.resolve(joint.meta.noise.as_ref()).mag_nt;
+    let alignment =
+        crate::mag_align::against_photodiodes(&mut telemetry, &references, mag_sigma_nt, |t| {
+            photodiode_only_attitude(&joint.meta, t, &references, config, &albedo, &joint.sets)
+        })?;
+    eprintln!("{}", crate::mag_align::describe(&alignment));
+    if let (None, Some(misalignment)) = (&alignment.refused, &alignment.misalignment) {
+        for (_, _, telemetry) in sets.iter_mut() {
+            crate::mag_align::apply(telemetry, misalignment);
+        }
+    }
+    Ok(alignment)
+}
+
+/// The attitude estimates (smoothed when there are) of a photodiode-only calibration of
+/// `telemetry` with `config`'s tuning: the attitude in the frame the gyro and the
+/// photodiodes define, for [`crate::mag_align::against_photodiodes`].
+pub fn photodiode_only_attitude(
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+    references: &[pdcal_ephem::Reference],
+    config: &RunConfig,
+    albedo: &AlbedoModel,
+    sets: &[crate::joint::SetSpan],
+) -> Result<Vec<pdcal_filter::StepEstimate>> {
+    let photodiode_only = RunConfig {
+        mode: Mode::PhotodiodeOnly,
+        ..config.clone()
+    };
+    let outcome = run_with_references(
+        meta,
+        telemetry,
+        references.to_vec(),
+        &photodiode_only,
+        albedo,
+        sets,
+    )
+    .context("the photodiode-only calibration")?;
+    Ok(outcome.run.smoothed.unwrap_or(outcome.run.forward))
 }
 
 /// Corrects `telemetry`'s magnetometer with `cal` and returns the magnetometer noise the
@@ -355,45 +430,45 @@ pub fn run_sets(
         check_photodiode_count(meta.photodiodes.len(), &dir.display().to_string())?;
     }
     let joint = crate::joint::join(sets)?;
-    let (mut meta, mut telemetry) = (joint.meta, joint.telemetry);
-    let mut warnings = crate::checks::check_telemetry(&telemetry)?;
-    // Screened here, not only inside the filter, so that the Sun-vector metrics and the
-    // figures never see a wild sample either.
-    config.filter.validate().context("calibration filter")?;
-    let sigmas = config.filter.resolve(meta.noise.as_ref());
-    let mut screened = Rejections::new(meta.photodiodes.len());
-    pdcal_filter::screen::screen_in_place(
-        &mut telemetry,
-        &ScreenTolerances::new(&config.filter, &sigmas),
-        &mut screened,
-    );
+    let mut meta = joint.meta;
+    let mut warnings = crate::checks::check_telemetry(&joint.telemetry)?;
+    // Prepared (screened) once, here: the mounting check, the Sun-vector metrics and the
+    // figures read the telemetry the filter reads, and never see a wild sample.
+    let mut prepared = Prepared::new(&meta, Cow::Owned(joint.telemetry), &config.filter)
+        .context("calibration filter")?;
     let albedo = albedo_model()?;
-    let reference_model = pdcal_filter::reference_model(&meta, &telemetry)?;
+    let reference_model = pdcal_filter::reference_model(&meta, prepared.telemetry())?;
     let stored = match joint.references {
         Some(joint) => Some(joint),
-        None if telemetry.len() <= STORED_REFERENCE_ROWS => {
-            Some(pdcal_filter::step_references(&meta, &telemetry)?)
+        None if prepared.telemetry().len() <= STORED_REFERENCE_ROWS => {
+            Some(pdcal_filter::step_references(&meta, prepared.telemetry())?)
         }
         None => None,
     };
     let mountings = crate::mounting::check(
         &meta,
-        &telemetry,
-        references_of(stored.as_deref(), &reference_model, &telemetry.t_s),
+        prepared.telemetry(),
+        references_of(
+            stored.as_deref(),
+            &reference_model,
+            &prepared.telemetry().t_s,
+        ),
         &config.filter,
         &albedo,
     )?;
-    crate::mounting::apply(&mountings, &mut meta, &mut telemetry);
+    crate::mounting::apply(&mountings, &mut meta, prepared.telemetry_mut());
     warnings.extend(mountings.iter().map(|f| f.message()));
+    let telemetry = prepared.telemetry();
     let references = references_of(stored.as_deref(), &reference_model, &telemetry.t_s);
     let set_starts: Vec<usize> = joint.sets.iter().map(|s| s.first_row).collect();
     let inputs = RunInputs {
         meta: &meta,
-        telemetry: &telemetry,
+        telemetry,
         references,
         albedo: Some(&albedo),
         set_first_rows: &set_starts[1.min(set_starts.len())..],
     };
+    let sigmas = prepared.sigmas();
     let mut sink = StreamSink::new(
         &dir,
         meta.photodiodes.len(),
@@ -407,7 +482,7 @@ pub fn run_sets(
     let model = pdcal_filter::paper_model(pdcal_filter::nominal_photodiodes(&meta), &config.filter);
     let mut run = pdcal_filter::calibrate_streaming(
         &inputs,
-        &config.filter,
+        &prepared,
         &config.mode,
         model,
         Algebra::Structured,
@@ -417,13 +492,12 @@ pub fn run_sets(
     .context("calibration filter")?;
     let runtime_s = start.elapsed().as_secs_f64();
     let streamed = sink.finish()?;
-    run.rejections.absorb_screened(&screened);
     run.forward = streamed.forward_sample;
     run.residuals = streamed.residual_sample;
     run.smoothed = None;
     let sun_vector = crate::sunvec::metrics_along(
         &meta,
-        &telemetry,
+        telemetry,
         references,
         &run,
         streamed.attitudes.rows()?,
@@ -433,7 +507,7 @@ pub fn run_sets(
     streamed.attitudes.remove()?;
     let mut consistency = streamed.consistency;
     let repeatability = match stored.as_deref() {
-        Some(stored) => repeatability_of(&meta, &telemetry, stored, &joint.sets, config, &albedo),
+        Some(stored) => repeatability_of(&meta, telemetry, stored, &joint.sets, config, &albedo),
         None => None,
     };
     if let Some(r) = &repeatability {
@@ -468,6 +542,6 @@ pub fn run_sets(
         repeatability,
     };
     let summary = crate::schema::summary(&meta, &outcome);
-    crate::files::write_summary_and_figures(dir, &telemetry, &outcome, &summary, None)?;
+    crate::files::write_summary_and_figures(dir, telemetry, &outcome, &summary, None)?;
     Ok((outcome, summary))
 }

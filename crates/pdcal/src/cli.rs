@@ -76,6 +76,11 @@ pub enum Command {
         /// filter, and its uncertainty added to the magnetometer noise.
         #[arg(long)]
         mag_cal: Option<PathBuf>,
+        /// With --mag-cal: how the magnetometer's rotation against the body, which the
+        /// field magnitude cannot see, is found: `photodiodes` (solved against a
+        /// photodiode-only calibration's attitude and removed when consistent) or `off`.
+        #[arg(long, value_enum, default_value_t = crate::calibrate::MagAlign::Photodiodes)]
+        mag_align: crate::calibrate::MagAlign,
         /// Replace an earlier output of this command in OUT even where its files were
         /// changed since pdcal wrote them (never files pdcal did not write).
         #[arg(long)]
@@ -178,6 +183,7 @@ pub fn run(cli: Cli) -> Result<()> {
             out,
             config,
             mag_cal,
+            mag_align,
             force,
         }) => {
             let mut config = match config {
@@ -185,6 +191,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 None => crate::calibrate::RunConfig::default(),
             };
             config.mag_cal = mag_cal.as_deref().map(crate::magcal::load).transpose()?;
+            config.mag_align = mag_align;
             let (outcome, summary) =
                 crate::calibrate::run_dirs_forced(&datasets, &out, &config, force)?;
             print_warnings(&outcome.warnings);

@@ -353,16 +353,18 @@ fn own_estimate(
 ) -> Result<crate::repeatability::SetEstimate, String> {
     let part = telemetry.select_rows(|k| rows.contains(&k));
     let refs = references.get(rows).ok_or("no references for its rows")?;
+    let mut filter = config.clone();
+    filter.smoother = false;
+    let prepared = pdcal_filter::Prepared::new(meta, std::borrow::Cow::Owned(part), &filter)
+        .map_err(|e| format!("its own pass failed: {e}"))?;
     let inputs = pdcal_filter::RunInputs {
         meta,
-        telemetry: &part,
+        telemetry: prepared.telemetry(),
         references: pdcal_filter::References::Stored(refs),
         albedo: Some(albedo),
         set_first_rows: &[],
     };
-    let mut filter = config.clone();
-    filter.smoother = false;
-    let sigmas = filter.resolve(meta.noise.as_ref());
+    let sigmas = prepared.sigmas();
     let mut sink = VerdictSink(pdcal_filter::ConsistencyAccumulator::new(
         meta.photodiodes.len(),
         sigmas.photodiode_v,
@@ -371,7 +373,7 @@ fn own_estimate(
     let model = pdcal_filter::paper_model(pdcal_filter::nominal_photodiodes(meta), &filter);
     let run = pdcal_filter::calibrate_streaming(
         &inputs,
-        &filter,
+        &prepared,
         mode,
         model,
         pdcal_filter::Algebra::Structured,

@@ -4,8 +4,8 @@
 use pdcal_dataset::DatasetMeta;
 use pdcal_filter::identifiability::{Evidence, Judged, PdIdentifiability, Status};
 use pdcal_filter::{
-    Calibration, CalibrationRun, GapRules, ModeUsed, RepairKind, ResidualRecord, SegmentReport,
-    Sensor,
+    Calibration, CalibrationRun, GapRules, ModeUsed, PdCalibration, RepairKind, ResidualRecord,
+    SegmentReport, Sensor,
 };
 use serde::Serialize;
 
@@ -91,22 +91,14 @@ pub struct Summary {
 
 /// One photodiode in `summary.json`.
 #[derive(Debug, Clone, Serialize)]
-#[allow(non_snake_case)]
 pub struct PdSummary {
     /// 1-based index.
     pub index: usize,
-    /// Calibrated scale factor, V.
-    pub scale_V: f64,
-    /// Its 1-sigma, V.
-    pub scale_sigma_V: f64,
-    /// Calibrated azimuth, deg.
-    pub azimuth_deg: f64,
-    /// Its 1-sigma, deg; null where undefined (elevation +-90 deg).
-    pub azimuth_sigma_deg: Option<f64>,
-    /// Calibrated elevation, deg.
-    pub elevation_deg: f64,
-    /// Its 1-sigma, deg.
-    pub elevation_sigma_deg: f64,
+    /// The calibrated scale factor and normal with their sigmas (`scale_V`,
+    /// `scale_sigma_V`, `azimuth_deg`, `azimuth_sigma_deg`, `elevation_deg`,
+    /// `elevation_sigma_deg` in the JSON, as in calibration.ron).
+    #[serde(flatten)]
+    pub calibration: PdCalibration,
     /// Whether the photodiode took part (false: never lit).
     pub used: bool,
     /// How well the data determined it: the weakest of its three quantities
@@ -397,12 +389,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
             let change = (normal_change_deg, cal.scale_v - init.scale_v);
             PdSummary {
                 index: i + 1,
-                scale_V: cal.scale_v,
-                scale_sigma_V: cal.scale_sigma_v,
-                azimuth_deg: cal.azimuth_deg,
-                azimuth_sigma_deg: cal.azimuth_sigma_deg,
-                elevation_deg: cal.elevation_deg,
-                elevation_sigma_deg: cal.elevation_sigma_deg,
+                calibration: *cal,
                 used: *used,
                 status: determination.status,
                 status_reason: status_reason(&determination),

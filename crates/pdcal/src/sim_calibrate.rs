@@ -343,16 +343,50 @@ pub fn run_seed(
         .transpose()?
         .map(|outcome| outcome.calibration);
     let cal = fitted.or_else(|| config.mag_cal.clone());
-    let mut config = config.clone();
-    if let Some(cal) = &cal {
-        let sigma = crate::calibrate::with_mag_cal(&config, cal, &joint.meta, &mut telemetry)?;
-        config.filter.mag_sigma_nt = Some(sigma);
-    }
-    let config = &config;
     let references = match joint.references.clone() {
         Some(references) => references,
         None => pdcal_filter::step_references(&joint.meta, &joint.telemetry)?,
     };
+    let mut config = config.clone();
+    if let Some(cal) = &cal {
+        let mut sigma = crate::calibrate::with_mag_cal(&config, cal, &joint.meta, &mut telemetry)?;
+        if config.mag_align == crate::calibrate::MagAlign::Photodiodes {
+            let mag_sigma_nt = config.filter.resolve(joint.meta.noise.as_ref()).mag_nt;
+            let alignment = crate::mag_align::against_photodiodes(
+                &mut telemetry,
+                &references,
+                mag_sigma_nt,
+                |t| {
+                    crate::calibrate::photodiode_only_attitude(
+                        &joint.meta,
+                        t,
+                        &references,
+                        &config,
+                        albedo,
+                        &joint.sets,
+                    )
+                },
+            )?;
+            // The Monte Carlo's record of the rotation found against the truth's.
+            let truth = (sims[0].constants.magnetometer.as_ref())
+                .and_then(|m| {
+                    pdcal_magcal::align::polar(&nalgebra::Matrix3::from(m.matrix).transpose())
+                })
+                .map(|(_, q)| {
+                    nalgebra::Rotation3::from_matrix(&q)
+                        .scaled_axis()
+                        .map(f64::to_degrees)
+                });
+            eprintln!(
+                "seed {seed}: truth {:?} deg; {}",
+                truth.map(|v| [v.x, v.y, v.z]),
+                crate::mag_align::describe(&alignment)
+            );
+            sigma = sigma.hypot(alignment.sigma_nt);
+        }
+        config.filter.mag_sigma_nt = Some(sigma);
+    }
+    let config = &config;
     let calibrate = |telemetry: &pdcal_dataset::Telemetry| {
         crate::calibrate::run_with_references(
             &joint.meta,

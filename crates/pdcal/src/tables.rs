@@ -32,19 +32,20 @@ pub fn photodiode_table(summary: &Summary) -> Table {
         .iter()
         .map(|p| {
             let azimuth_sigma = p
+                .calibration
                 .azimuth_sigma_deg
                 .map_or("undefined".to_owned(), |s| format!("{s:.2}"));
-            let d = &p.determination;
+            let (d, cal) = (&p.determination, &p.calibration);
             vec![
                 format!("pd{:02}", p.index),
                 or_undetermined(d.scale.status, || {
-                    format!("{:.4} +- {:.4}", p.scale_V, p.scale_sigma_V)
+                    format!("{:.4} +- {:.4}", cal.scale_v, cal.scale_sigma_v)
                 }),
                 or_undetermined(d.azimuth.status, || {
-                    format!("{:.2} +- {azimuth_sigma}", p.azimuth_deg)
+                    format!("{:.2} +- {azimuth_sigma}", cal.azimuth_deg)
                 }),
                 or_undetermined(d.elevation.status, || {
-                    format!("{:.2} +- {:.2}", p.elevation_deg, p.elevation_sigma_deg)
+                    format!("{:.2} +- {:.2}", cal.elevation_deg, cal.elevation_sigma_deg)
                 }),
                 format!("{:.4}", p.initial.scale_V),
                 format!(

@@ -31,6 +31,9 @@ pub struct Rules {
     pub above_driver: &'static [&'static str],
     /// Members whose library or binary code may touch files.
     pub file_members: &'static [&'static str],
+    /// Chains of files whose imports run one way: `(source directory, module names)`, each
+    /// module naming (`crate::NAME`) none of the modules after it.
+    pub chains: &'static [(&'static str, &'static [&'static str])],
 }
 
 /// pdcal's rules; `docs/ARCHITECTURE.md` ("Layering") states the same, and a test keeps
@@ -169,6 +172,12 @@ pub const PDCAL: Rules = Rules {
         "pdcal-fuzz",
         "pdcal-tidy",
     ],
+    // The filter's run: prepare, then the forward pass, which records into the smoother's
+    // store, then the run that chains them.
+    chains: &[(
+        "crates/filter/src",
+        &["prepare", "smoother", "forward", "run"],
+    )],
 };
 
 /// Which table of a manifest a dependency is declared in.
@@ -220,6 +229,8 @@ pub enum Rule {
     Unused,
     /// History or a timing in a comment.
     History,
+    /// A module of a chain names one after it, or a chain names a file that does not exist.
+    Chain,
 }
 
 /// One broken rule, with where.
@@ -249,6 +260,7 @@ pub fn check(root: &Path, rules: &Rules) -> Result<Vec<Violation>, String> {
         check_unused(root, m, &mut out)?;
         check_history_in_member(root, m, &mut out)?;
     }
+    check_chains(root, rules, &mut out)?;
     for extra in [".cargo/config.toml", "Cargo.toml"] {
         let path = root.join(extra);
         if path.is_file() {
@@ -560,6 +572,45 @@ fn check_files(
                         found.as_str()
                     ),
                 });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Each chain's modules against the ones after them ([`Rules::chains`]).
+fn check_chains(root: &Path, rules: &Rules, out: &mut Vec<Violation>) -> Result<(), String> {
+    for (dir, modules) in rules.chains {
+        let order = modules.join(" -> ");
+        for (i, module) in modules.iter().enumerate() {
+            let path = root.join(dir).join(format!("{module}.rs"));
+            if !path.is_file() {
+                out.push(Violation {
+                    rule: Rule::Chain,
+                    place: format!("{dir}/{module}.rs"),
+                    message: format!("the chain {order} names {module}, which does not exist"),
+                });
+                continue;
+            }
+            let later = &modules[i + 1..];
+            if later.is_empty() {
+                continue;
+            }
+            let names = later.join("|");
+            let re = Regex::new(&format!(
+                r"\bcrate::(?:({names})\b|\{{[^}}]*?\b({names})::)"
+            ))
+            .map_err(|e| e.to_string())?;
+            let text = read(&path)?;
+            for (k, line) in text.lines().enumerate() {
+                if let Some(c) = re.captures(code_part(line)) {
+                    let named = c.get(1).or_else(|| c.get(2)).map_or("", |m| m.as_str());
+                    out.push(Violation {
+                        rule: Rule::Chain,
+                        place: format!("{}:{}", relative(root, &path), k + 1),
+                        message: format!("{module} names {named}, which comes after it in {order}"),
+                    });
+                }
             }
         }
     }

@@ -16,6 +16,7 @@ const RULES: Rules = Rules {
     driver: "pdcal",
     above_driver: &["pdcal"],
     file_members: &["pdcal"],
+    chains: &[("crates/filter/src", &["prepare", "run"])],
 };
 
 fn write(root: &Path, path: &str, text: &str) {
@@ -68,6 +69,16 @@ fn tidy_tree(root: &Path) {
         root,
         "crates/filter/tests/t.rs",
         "use rand::Rng;\n#[test]\nfn t() {}\n",
+    );
+    write(
+        root,
+        "crates/filter/src/prepare.rs",
+        "//! Prepare (before crate::run).\n/// Prepared.\npub struct Prepared;\n",
+    );
+    write(
+        root,
+        "crates/filter/src/run.rs",
+        "//! Run.\nuse crate::prepare::Prepared;\n/// Runs.\npub fn run(_: Prepared) {}\n",
     );
     write(
         root,
@@ -163,6 +174,12 @@ fn each_broken_rule_is_reported_at_its_place() {
         "crates/filter/tests/t.rs",
         "use rand::Rng;\nuse pdcal::M;\n#[test]\nfn t() {}\n",
     );
+    // The first stage of the filter's chain names the last.
+    write(
+        root,
+        "crates/filter/src/prepare.rs",
+        "//! Prepare.\nuse crate::{run::run, x};\n/// Prepared.\npub struct Prepared;\n",
+    );
     // A crate nobody placed in the layering, and a config comment with history.
     write(
         root,
@@ -188,6 +205,7 @@ fn each_broken_rule_is_reported_at_its_place() {
         (Rule::History, "crates/attitude/src/lib.rs:4".into()),
         (Rule::History, "crates/filter/src/lib.rs:3".into()),
         (Rule::History, "crates/filter/src/lib.rs:5".into()),
+        (Rule::Chain, "crates/filter/src/prepare.rs:2".into()),
     ];
     let mut expected = expected;
     expected.sort();
@@ -204,6 +222,7 @@ fn each_broken_rule_is_reported_at_its_place() {
         "`30 -> 13 us`",
         "`4 to 8 times the baseline's throughput`",
         "pdcal-extra has no place in the layering",
+        "prepare names run, which comes after it in prepare -> run",
     ] {
         assert!(
             text.iter().any(|t| t.contains(needle)),

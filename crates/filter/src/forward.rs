@@ -1,0 +1,1183 @@
+//! The forward pass, the run's second stage: the filter over the prepared telemetry
+//! ([`crate::prepare`]), one row per [`ForwardPass::step`], with the acquisition of each
+//! segment's attitude; what the smoother ([`crate::smoother`]) needs of each step it records
+//! there.
+
+use nalgebra::{Matrix3, Vector3};
+use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView};
+use pdcal_attitude::{GyroNoise, Quat, normal_from_az_el};
+use pdcal_dataset::{DatasetMeta, Telemetry};
+use pdcal_photodiode::{MeasurementModel, Photodiode};
+
+use crate::bias_fit::{BiasSource, FitInputs, FitPrior, InitialBias, fit_bias};
+use crate::calibration::Calibration;
+use crate::config::{Dynamics, E_AM0_W_M2, FilterConfig, Mode, SensorSigmas};
+use crate::error::check_len;
+use crate::filter::{
+    Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Sensor, StateView,
+};
+use crate::guard::RepairLog;
+use crate::init::{Start, StartInputs, find_start, initial_scales};
+use crate::layout::{ATTITUDE, BIAS, StateLayout};
+use crate::output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
+use crate::prepare::{Prepared, RunInputs};
+use crate::rate::{RateModel, StepEnvironment};
+use crate::references::albedo_into;
+use crate::screen::{Channel, Rejections};
+use crate::segments::{
+    Acquisition, GapRules, InnovationWindow, SegmentBreak, SegmentReport, attitude_sigma_rad,
+};
+use crate::smoother::SmootherStore;
+use crate::{BiasAcrossSets, FilterError, References};
+use pdcal_ephem::Reference;
+
+/// A [`ForwardPass`] at one row, to replay from.
+pub(crate) struct PassCheckpoint {
+    filter: FilterState,
+    pub(crate) at: Cursor,
+    closed_segments: usize,
+    current: SegmentReport,
+}
+
+/// A [`ForwardPass`] before a probe ([`ForwardPass::choose_about_sun_line`]): a
+/// checkpoint and the run's records, which a probe's steps must not keep.
+struct ProbePoint {
+    pass: PassCheckpoint,
+    photodiode_time_s: Vec<f64>,
+    temperatures_c: Vec<f64>,
+    rejections: Rejections,
+    repairs: RepairLog,
+}
+
+/// Where a [`ForwardPass`] stands between two steps, besides the filter and the segment
+/// records: what a replay from a checkpoint restores.
+#[derive(Clone)]
+pub(crate) struct Cursor {
+    /// The next row to process.
+    pub(crate) next: usize,
+    /// The attitude after the last propagation (before the updates).
+    prior_q: Quat,
+    propagated: bool,
+    /// The next step is the first of a segment (no propagation leads to it).
+    fresh: bool,
+    last_gyro: Option<Vector3<f64>>,
+    /// Time of `last_gyro`, s.
+    last_gyro_t_s: f64,
+    /// Time of the last processed row, s.
+    last_t_s: f64,
+    /// Position at the last processed row, GCRF, km (the dynamics' gravity gradient).
+    last_r_gcrf_km: Vector3<f64>,
+    /// Reference field at the last processed row, GCRF, nT (the dynamics' dipole torque).
+    last_b_gcrf_nt: Vector3<f64>,
+    /// With dynamics, whether the next acquisition carries the body rate from the last
+    /// processed row through the dynamics (after a gap) instead of restarting it (at the
+    /// first acquisition of a data set, and after a lost attitude, whose rate is suspect).
+    carry_rate: bool,
+    /// The next step must first acquire the attitude (a segment ended).
+    acquiring: bool,
+    window: InnovationWindow,
+    /// The attitude sigma the segment's acquisition gave, deg ([`ForwardPass::lost_reason`]).
+    acquired_sigma_deg: f64,
+    /// Steps taken (the guard's full factorisation every [`FULL_GUARD_ROWS`]).
+    steps: usize,
+    /// The segment of the last step's row.
+    step_segment: usize,
+    /// Whether the attitude was held after the last step (`segments.held_attitude_sigma_deg`).
+    held: bool,
+}
+
+/// Rows between two full factorisations of the covariance by the guard
+/// ([`Filter::guard_covariance`]; its diagonal is tested every row).
+pub const FULL_GUARD_ROWS: usize = 1024;
+
+/// The forward filter over a dataset, one telemetry row per [`ForwardPass::step`]: the
+/// initialisation (outlier screening, initial scales, the first attitude) in
+/// [`ForwardPass::new`], then per row the propagation from the previous row, the updates
+/// and the covariance guard. The rows fall into segments ([`crate::segments`]): at a gap, a
+/// silent gyro or a lost attitude the segment ends, and the next step first re-acquires
+/// the attitude in the rows that follow. The one implementation of the run's step, shared
+/// by [`calibrate_with_model`] and the streaming run.
+pub struct ForwardPass<'a> {
+    telemetry: &'a Telemetry,
+    references: References<'a>,
+    albedo: Option<&'a AlbedoModel>,
+    pub(crate) prior: Option<&'a Calibration>,
+    config: FilterConfig,
+    rules: GapRules,
+    use_mag: bool,
+    average_gyro: bool,
+    /// The telemetry has gyro samples.
+    has_gyro: bool,
+    min_sun_fraction: f64,
+    mode_used: ModeUsed,
+    start: usize,
+    initial: Calibration,
+    used: Vec<bool>,
+    sigmas: SensorSigmas,
+    filter: Filter,
+    at: Cursor,
+    /// Per photodiode, the time its accepted updates stand for, s: the step's length for
+    /// each row it updated the filter at.
+    photodiode_time_s: Vec<f64>,
+    /// Closed segments, and the open one.
+    segments: Vec<SegmentReport>,
+    current: SegmentReport,
+    row: Vec<Option<f64>>,
+    /// Each photodiode's temperature column (`Telemetry::photodiode_temperatures`).
+    temperature_columns: Vec<Option<usize>>,
+    /// Each photodiode's temperature held from its last sample up to the current row
+    /// (empty without temperature columns).
+    temperatures_c: Vec<f64>,
+    view: AlbedoView,
+    rejections: Rejections,
+    repairs: RepairLog,
+    /// [`RunInputs::set_first_rows`] not yet reached.
+    sets_ahead: Vec<usize>,
+}
+
+impl<'a> ForwardPass<'a> {
+    /// Initialises the filter on the prepared telemetry (`inputs.telemetry` must be
+    /// `prepared`'s, [`Prepared::inputs`]) and acquires the first attitude (skipping, and
+    /// reporting, segments where it cannot be acquired).
+    pub fn new(
+        inputs: &RunInputs<'a>,
+        prepared: &'a Prepared<'a>,
+        mode: &'a Mode,
+        model: MeasurementModel,
+        algebra: Algebra,
+    ) -> Result<Self, FilterError> {
+        let telemetry = prepared.telemetry();
+        if !std::ptr::eq(inputs.telemetry, telemetry) {
+            return Err(FilterError::Missing(
+                "the run's telemetry is not its prepared (screened) telemetry: build the run \
+                 inputs with Prepared::inputs"
+                    .to_owned(),
+            ));
+        }
+        let config = prepared.config();
+        let m = inputs.meta.photodiodes.len();
+        check_len("references", telemetry.len(), inputs.references.len())?;
+        check_len("model photodiodes", m, model.photodiodes().len())?;
+        let sigmas = prepared.sigmas();
+        let rejections = prepared.screened().clone();
+        let tel: &Telemetry = telemetry;
+        let has_mag = tel.mag_nt.is_some();
+        let (mode_used, use_mag) = match mode {
+            Mode::Full if has_mag => (ModeUsed::Full, true),
+            Mode::Full | Mode::PhotodiodeOnly => (ModeUsed::PhotodiodeOnly, false),
+            Mode::ScaleOnly { .. } => (
+                ModeUsed::ScaleOnly {
+                    with_magnetometer: has_mag,
+                },
+                has_mag,
+            ),
+        };
+        let prior = match mode {
+            Mode::ScaleOnly { prior } => {
+                check_len("prior photodiodes", m, prior.photodiodes.len())?;
+                Some(prior)
+            }
+            _ => None,
+        };
+        let initial = initial_scales(
+            tel,
+            &inputs.references,
+            config.min_lit_output_sigmas * sigmas.photodiode_v,
+        )?;
+        let used = initial.used.clone();
+        let max_scales = initial.scale_v.clone();
+        let (scale_v, scale_sigma_v, n_body): (Vec<f64>, Vec<f64>, Vec<Vector3<f64>>) = match prior
+        {
+            Some(prior) => (
+                prior.photodiodes.iter().map(|p| p.scale_v).collect(),
+                prior
+                    .photodiodes
+                    .iter()
+                    .map(|p| {
+                        p.scale_sigma_v
+                            .hypot(config.initial_scale_sigma_fraction * p.scale_v)
+                    })
+                    .collect(),
+                prior.photodiodes.iter().map(|p| p.n_body()).collect(),
+            ),
+            None => (
+                max_scales.clone(),
+                max_scales
+                    .iter()
+                    .zip(&initial.from_median)
+                    .map(|(c, &median)| {
+                        // A median-based value is an assumption (same sensor type): 2x wider.
+                        let widen = if median { 2.0 } else { 1.0 };
+                        widen * config.initial_scale_sigma_fraction * c
+                    })
+                    .collect(),
+                inputs
+                    .meta
+                    .photodiodes
+                    .iter()
+                    .map(|p| {
+                        normal_from_az_el(p.azimuth_deg.to_radians(), p.elevation_deg.to_radians())
+                    })
+                    .collect(),
+            ),
+        };
+        let layout = StateLayout::new(&model, prior.is_none());
+        let rules = prepared.rules();
+        let (extra_sigma, extra_walk): (Vec<f64>, Vec<f64>) = layout
+            .extras()
+            .iter()
+            .map(|e| {
+                let (s, w) = config.parameter_sigma(&e.name, &e.unit);
+                (s, w * w)
+            })
+            .unzip();
+        let noise = FilterNoise {
+            gyro: GyroNoise {
+                // The white-noise density from the gyro's own sample period: another
+                // sensor sampling faster must not shrink it.
+                sigma_v_rad_sqrt_s: sigmas.gyro_rad_s
+                    * rules.gyro_step_s.sqrt()
+                    * config.gyro_noise_inflation,
+                sigma_u_rad_s_sqrt_s: config.gyro_bias_walk_rad_s_sqrt_s,
+            },
+            rate_change_fraction: config.rate_change_fraction,
+            scale_walk_var_per_s: scale_v
+                .iter()
+                .map(|c| (config.scale_walk_fraction_per_sqrt_h * c).powi(2) / 3600.0)
+                .collect(),
+            normal_walk_var_per_s: config.normal_walk_deg_per_sqrt_h.to_radians().powi(2) / 3600.0,
+            extra_walk_var_per_s: extra_walk,
+            photodiode_sigma_v: sigmas.photodiode_v,
+            albedo_sigma_ratio: config.albedo_sigma_w_m2 / E_AM0_W_M2,
+            mag_sigma_nt: sigmas.mag_nt,
+            gate_sigmas: config.gate_sigmas,
+            cos_fov: config.fov_half_angle_deg.to_radians().cos(),
+            min_sun_fraction: config.min_sun_fraction,
+            second_order: config.second_order_noise,
+        };
+        let init = InitialState {
+            // Set by the first acquisition below.
+            q: Quat::IDENTITY,
+            attitude_cov: Matrix3::identity(),
+            bias_rad_s: Vector3::zeros(),
+            bias_sigma_rad_s: config.initial_bias_sigma_deg_s.to_radians(),
+            scale_v,
+            scale_sigma_v,
+            n_body,
+            normal_sigma_rad: config.initial_normal_sigma_deg.to_radians(),
+            extra_sigma,
+            used: used.clone(),
+        };
+        let mut filter = Filter::new(model, layout, init, noise, algebra)?;
+        filter.set_sun_only(!use_mag);
+        if let Some(rate_model) = dynamics_model(inputs.meta, tel, config, &rules)? {
+            // The rate is set at each acquisition; until then it is unknown.
+            filter.enable_dynamics(
+                rate_model,
+                (
+                    Vector3::zeros(),
+                    config.initial_rate_sigma_deg_s.to_radians(),
+                ),
+                config.dipole_sigma_a_m2,
+                sigmas.gyro_rad_s,
+            );
+        }
+        let initial = filter.calibration(prior);
+        let mut pass = ForwardPass {
+            references: inputs.references,
+            albedo: inputs.albedo,
+            prior,
+            config: config.clone(),
+            rules,
+            use_mag,
+            average_gyro: config.average_gyro,
+            has_gyro: tel.gyro_rad_s.iter().any(Option::is_some),
+            min_sun_fraction: config.min_sun_fraction,
+            mode_used,
+            start: 0,
+            initial,
+            used,
+            sigmas,
+            at: Cursor {
+                next: 0,
+                prior_q: filter.q(),
+                propagated: false,
+                fresh: true,
+                last_gyro: None,
+                last_gyro_t_s: f64::NEG_INFINITY,
+                last_t_s: tel.t_s[0],
+                last_r_gcrf_km: Vector3::zeros(),
+                last_b_gcrf_nt: Vector3::zeros(),
+                carry_rate: false,
+                acquiring: true,
+                window: InnovationWindow::new(&config.segments),
+                acquired_sigma_deg: 0.0,
+                steps: 0,
+                step_segment: 0,
+                held: false,
+            },
+            filter,
+            photodiode_time_s: vec![0.0; m],
+            segments: Vec::new(),
+            current: SegmentReport::open(0, tel.t_s[0]),
+            row: vec![None; m],
+            temperatures_c: telemetry.held_temperatures(inputs.meta).at(0).to_vec(),
+            temperature_columns: telemetry.photodiode_temperatures(inputs.meta),
+            view: AlbedoView::new(),
+            rejections,
+            repairs: RepairLog::default(),
+            sets_ahead: inputs.set_first_rows.iter().rev().copied().collect(),
+            telemetry,
+        };
+        if let Err(reason) = pass.acquire()? {
+            return Err(FilterError::NoInitialSample { reason });
+        }
+        pass.start = pass.at.next;
+        pass.temperatures_c = pass
+            .telemetry
+            .held_temperatures(inputs.meta)
+            .at(pass.start)
+            .to_vec();
+        pass.choose_about_sun_line()?;
+        Ok(pass)
+    }
+
+    /// Acquires the attitude in the open segment from row `next` on: the first usable row
+    /// ([`find_start`], with the current calibration) becomes the next row, the filter
+    /// re-acquired there ([`Filter::reacquire`], the calibration's random walk grown over
+    /// the time since the last processed row). A segment with no usable row is closed as
+    /// skipped and the search goes on in the next. `Err(reason)` of the last segment tried
+    /// when the data end first.
+    fn acquire(&mut self) -> Result<Result<(), String>, FilterError> {
+        // Why each segment tried was skipped, with how many times.
+        let mut reasons: Vec<(String, usize)> = Vec::new();
+        while self.at.next < self.telemetry.len() {
+            let first = self.at.next;
+            self.enter_set(first);
+            let end = self.segment_end(first);
+            let photodiodes = self.current_photodiodes();
+            let p = self.filter.covariance();
+            let bias_var = (0..3).map(|k| p[(BIAS + k, BIAS + k)]).fold(0.0, f64::max);
+            let found = find_start(
+                &StartInputs {
+                    telemetry: self.telemetry,
+                    references: self.references,
+                    photodiodes: &photodiodes,
+                    used: &self.used,
+                    use_mag: self.use_mag,
+                    mag_sigma_nt: self.sigmas.mag_nt,
+                    albedo: self.albedo,
+                    bias_rad_s: self.filter.bias_rad_s(),
+                    bias_sigma_rad_s: bias_var.sqrt(),
+                    rules: self.rules,
+                    rate_without_gyro: (self.filter.has_dynamics() && !self.has_gyro)
+                        .then(|| self.filter.rate_body_rad_s()),
+                },
+                first..end,
+                &self.config,
+            )?;
+            match found {
+                Ok(start) => {
+                    self.reacquire_at(&start)?;
+                    self.filter.correlate_attitude(&start.sensitivity);
+                    self.current.acquired_row = Some(start.index);
+                    self.current.acquisition = if self.use_mag {
+                        Acquisition::SunAndField
+                    } else {
+                        Acquisition::SunOnly
+                    };
+                    self.current.paired_field_row = start.paired_field_row;
+                    self.at.next = start.index;
+                    self.at.prior_q = start.q;
+                    self.at.fresh = true;
+                    self.at.last_gyro = Some(start.gyro_rad_s);
+                    self.at.last_gyro_t_s = start.gyro_t_s;
+                    if self.has_gyro {
+                        let bias_sigma = bias_var.sqrt();
+                        self.filter.set_rate(
+                            start.gyro_rad_s - self.filter.bias_rad_s(),
+                            bias_sigma.hypot(self.sigmas.gyro_rad_s),
+                        );
+                    }
+                    self.at.acquiring = false;
+                    self.at.window.clear();
+                    self.current.initial_bias = Some(self.initialise_bias(&start, end)?);
+                    self.at.acquired_sigma_deg = self.attitude_sigma_deg(start.index);
+                    return Ok(Ok(()));
+                }
+                Err(why) => {
+                    let last = end - 1;
+                    let ended_by = if end < self.telemetry.len() {
+                        SegmentBreak::Gap
+                    } else {
+                        SegmentBreak::End
+                    };
+                    self.current.skipped = Some(why.clone());
+                    self.close_segment(last, ended_by);
+                    match reasons.iter_mut().find(|(r, _)| *r == why) {
+                        Some((_, n)) => *n += 1,
+                        None => reasons.push((why, 1)),
+                    }
+                    self.at.next = end;
+                }
+            }
+        }
+        let text = match reasons.as_slice() {
+            [] => "no rows left".to_owned(),
+            [(why, 1)] => why.clone(),
+            _ => reasons
+                .iter()
+                .map(|(why, n)| format!("{n} segments: {why}"))
+                .collect::<Vec<_>>()
+                .join("; "),
+        };
+        Ok(Err(text))
+    }
+
+    /// Before acquiring from row `first`: when a later data set of a joint run begins at or
+    /// before it, the gyro bias restarts from its prior
+    /// ([`FilterConfig::gyro_bias_across_sets`]).
+    fn enter_set(&mut self, first: usize) {
+        let mut entered = false;
+        while self.sets_ahead.last().is_some_and(|&row| row <= first) {
+            self.sets_ahead.pop();
+            entered = true;
+        }
+        if entered {
+            self.at.carry_rate = false;
+        }
+        if entered && self.config.gyro_bias_across_sets == BiasAcrossSets::Restart {
+            self.filter
+                .restart_bias(self.config.initial_bias_sigma_deg_s.to_radians());
+        }
+    }
+
+    /// Re-acquires the filter at `start` ([`Filter::reacquire`]). With dynamics, after a gap
+    /// the attitude and rate are first carried through it by the dynamics (the rate's
+    /// covariance grown by its transition and torque noise); otherwise, without a gyro, the
+    /// rate restarts from its prior (zero, `initial_rate_sigma_deg_s`).
+    fn reacquire_at(&mut self, start: &Start) -> Result<(), FilterError> {
+        let t_s = self.telemetry.t_s[start.index];
+        let dt_s = t_s - self.at.last_t_s;
+        // Sun only, the acquisition's own covariance: the calibration's part follows
+        // (`Filter::correlate_attitude`).
+        let own_cov = start
+            .conditional_cov
+            .as_ref()
+            .unwrap_or(&start.attitude_cov);
+        if self.filter.has_dynamics() && self.at.carry_rate && dt_s > 0.0 {
+            let reference = self.references.at(start.index)?;
+            let env = StepEnvironment {
+                r_gcrf_km: [self.at.last_r_gcrf_km, reference.r_gcrf_km],
+                b_gcrf_nt: [self.at.last_b_gcrf_nt, reference.b_gcrf_nt],
+            };
+            self.filter.propagate_dynamics(&env, dt_s);
+            self.filter.reacquire(start.q, own_cov, 0.0);
+        } else {
+            self.filter.reacquire(start.q, own_cov, dt_s);
+            if !self.has_gyro {
+                self.filter.set_rate(
+                    Vector3::zeros(),
+                    self.config.initial_rate_sigma_deg_s.to_radians(),
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// At an acquisition: the bias fitted over the segment's first rows (before `end`) and
+    /// fused into the filter when `bias_from_data` is on and the fit is accepted
+    /// ([`crate::bias_fit`]); what the segment's bias is after it, and where it came from.
+    fn initialise_bias(&mut self, start: &Start, end: usize) -> Result<InitialBias, FilterError> {
+        let fit = if self.config.bias_from_data {
+            let photodiodes = self.current_photodiodes();
+            let prior = FitPrior {
+                q0: start.q,
+                attitude_cov: start.attitude_cov,
+                bias_rad_s: self.filter.bias_rad_s(),
+                bias_cov: self
+                    .filter
+                    .covariance()
+                    .fixed_view::<3, 3>(BIAS, BIAS)
+                    .into_owned(),
+            };
+            let inputs = FitInputs {
+                telemetry: self.telemetry,
+                references: self.references,
+                photodiodes: &photodiodes,
+                used: &self.used,
+                use_mag: self.use_mag,
+                sun_sigma_rad: self.config.initial_sun_sigma_deg.to_radians(),
+                mag_sigma_nt: self.sigmas.mag_nt,
+                min_sun_fraction: self.min_sun_fraction,
+                gyro_hold_s: self.rules.gyro_hold_s,
+                window_s: self.config.bias_fit_window_s,
+            };
+            fit_bias(&inputs, start.index..end, &prior)?
+        } else {
+            Err("bias_from_data is off".to_owned())
+        };
+        let fused = match fit {
+            Ok(fit) if self.filter.fuse_bias(&fit.rows)? => Ok(fit),
+            Ok(_) => Err("the fit contradicts the bias held beyond the gate".to_owned()),
+            Err(why) => Err(why),
+        };
+        let p = self.filter.covariance();
+        let bias = self.filter.bias_rad_s();
+        let sigma = |k: usize| p[(BIAS + k, BIAS + k)].sqrt().to_degrees();
+        let mut initial = InitialBias {
+            source: BiasSource::Prior,
+            bias_deg_s: [0, 1, 2].map(|k| bias[k].to_degrees()),
+            sigma_deg_s: [0, 1, 2].map(sigma),
+            directions: 0,
+            vectors: 0,
+            span_s: 0.0,
+            reason: None,
+        };
+        match fused {
+            Ok(fit) => {
+                initial.source = BiasSource::Fit;
+                initial.directions = fit.rows.len();
+                initial.vectors = fit.vectors;
+                initial.span_s = fit.span_s;
+            }
+            Err(why) => initial.reason = Some(why),
+        }
+        Ok(initial)
+    }
+
+    /// The first row after the gap that ends the data segment holding row `first` (the
+    /// number of rows when none does).
+    fn segment_end(&self, first: usize) -> usize {
+        let t = &self.telemetry.t_s;
+        (first + 1..t.len())
+            .find(|&k| t[k] - t[k - 1] > self.rules.gap_threshold_s)
+            .unwrap_or(t.len())
+    }
+
+    /// The filter's photodiodes with the sensor noise, for the Sun vector of an
+    /// acquisition.
+    fn current_photodiodes(&self) -> Vec<Photodiode> {
+        self.filter
+            .scales_v()
+            .iter()
+            .zip(self.filter.normals())
+            .map(|(&c, n)| Photodiode {
+                scale_v: c,
+                n_body: *n,
+                noise_v: self.sigmas.photodiode_v,
+                fov_half_angle_rad: None,
+            })
+            .collect()
+    }
+
+    /// Closes the open segment after `last_row` and opens the next one after it.
+    fn close_segment(&mut self, last_row: usize, ended_by: SegmentBreak) {
+        let t = &self.telemetry.t_s;
+        self.current.close(last_row, t[last_row], ended_by);
+        let next_row = last_row + 1;
+        let next_t = t.get(next_row).copied().unwrap_or(t[last_row]);
+        let closed = std::mem::replace(&mut self.current, SegmentReport::open(next_row, next_t));
+        self.segments.push(closed);
+    }
+
+    /// Rows left to process.
+    pub fn remaining(&self) -> usize {
+        self.telemetry.len() - self.at.next
+    }
+
+    /// The row the filter starts at (rows before it are skipped).
+    pub fn start_index(&self) -> usize {
+        self.start
+    }
+
+    /// The filter, after the last step.
+    pub fn filter(&self) -> &Filter {
+        &self.filter
+    }
+
+    /// The filter, to change between steps (a restart, a test's fault injection).
+    pub fn filter_mut(&mut self) -> &mut Filter {
+        &mut self.filter
+    }
+
+    /// Whether the next step starts a segment: the attitude is acquired first, and no
+    /// propagation leads to it (the smoother's segments end before it).
+    pub fn at_segment_start(&self) -> bool {
+        self.at.acquiring || self.at.fresh
+    }
+
+    /// The segments so far: the closed ones and, after the last step, the open one.
+    pub fn segments(&self) -> Vec<SegmentReport> {
+        let mut all = self.segments.clone();
+        if self.current.rows_used > 0 || self.current.skipped.is_some() {
+            let mut open = self.current.clone();
+            let last = self.at.next.saturating_sub(1).min(self.telemetry.len() - 1);
+            open.close(
+                last.max(open.first_row),
+                self.telemetry.t_s[last],
+                SegmentBreak::End,
+            );
+            all.push(open);
+        }
+        all
+    }
+
+    /// Processes the next row: at a segment start the attitude is acquired first (rows
+    /// before the acquisition are not used); then the propagation from the previous row
+    /// (the gyro samples at both ends averaged or held; a sample the screening rejected is
+    /// bridged by holding the last one), the updates, the gated samples recorded, the
+    /// covariance guard, and the test whether the attitude is lost or the next row starts
+    /// a segment. The row processed, `None` after the last.
+    pub fn step(&mut self) -> Result<Option<usize>, FilterError> {
+        if self.at.acquiring {
+            let from = self.at.next;
+            if self.acquire()?.is_err() {
+                return Ok(None);
+            }
+            for k in from..self.at.next {
+                self.hold_temperatures(k);
+            }
+            self.choose_about_sun_line()?;
+        }
+        let tel: &Telemetry = self.telemetry;
+        let k = self.at.next;
+        if k >= tel.len() {
+            return Ok(None);
+        }
+        let t_s = tel.t_s[k];
+        let reference = &self.references.at(k)?;
+        check_reference(k, t_s, reference)?;
+        let r_gcrf_km = reference.r_gcrf_km;
+        let gyro = tel.gyro_rad_s[k];
+        self.at.propagated = !self.at.fresh;
+        self.at.fresh = false;
+        if self.at.propagated && self.filter.has_dynamics() {
+            let env = StepEnvironment {
+                r_gcrf_km: [self.at.last_r_gcrf_km, reference.r_gcrf_km],
+                b_gcrf_nt: [self.at.last_b_gcrf_nt, reference.b_gcrf_nt],
+            };
+            self.filter.propagate_dynamics(&env, t_s - tel.t_s[k - 1]);
+            self.at.prior_q = self.filter.q();
+        } else if self.at.propagated {
+            let t0 = tel.t_s[k - 1];
+            let before = match tel.gyro_rad_s[k - 1] {
+                Some(g) => Some((t0, g)),
+                None => self.at.last_gyro.map(|g| (self.at.last_gyro_t_s, g)),
+            };
+            let after = match gyro {
+                Some(g) => Some((t_s, g)),
+                None => self.gyro_after(k),
+            };
+            let (rate, change) = step_rate(before, after, (t0, t_s), self.average_gyro);
+            self.filter.propagate(&rate, change, t_s - t0);
+            self.at.prior_q = self.filter.q();
+        }
+        if let Some(g) = gyro {
+            self.at.last_gyro = gyro;
+            self.at.last_gyro_t_s = t_s;
+            self.filter.update_gyro(&g)?;
+            self.at.prior_q = self.filter.q();
+        }
+        for (slot, column) in self.row.iter_mut().zip(&tel.pd_v) {
+            *slot = column.get(k);
+        }
+        self.hold_temperatures(k);
+        let tel: &Telemetry = self.telemetry;
+        let mag_nt = if self.use_mag {
+            tel.mag_nt.as_ref().and_then(|col| col[k])
+        } else {
+            None
+        };
+        if self.use_mag && mag_nt.is_none() {
+            self.filter.count_mag_not_sampled();
+        }
+        let provider: Option<&dyn AlbedoIrradiance> = match self.albedo {
+            Some(model)
+                if reference.sun_fraction >= self.min_sun_fraction
+                    && self.row.iter().any(Option::is_some) =>
+            {
+                albedo_into(reference, model, &mut self.view, k)?;
+                Some(&self.view)
+            }
+            _ => None,
+        };
+        self.filter.update(
+            t_s,
+            &Measurements {
+                mag_nt,
+                pd_v: &self.row,
+                temperature_c: &self.temperatures_c,
+            },
+            reference,
+            provider,
+        )?;
+        let step_s = if self.at.propagated {
+            t_s - tel.t_s[k - 1]
+        } else {
+            0.0
+        };
+        self.record_rejections(k, step_s);
+        let full = self.at.steps.is_multiple_of(FULL_GUARD_ROWS);
+        if let Some(repair) = self.filter.guard_covariance(k, t_s, full)? {
+            self.repairs.push(repair);
+        }
+        self.at.steps += 1;
+        self.at.step_segment = self.segments.len();
+        self.current.rows_used += 1;
+        self.at.next = k + 1;
+        self.at.last_t_s = t_s;
+        self.at.last_r_gcrf_km = r_gcrf_km;
+        self.at.last_b_gcrf_nt = reference.b_gcrf_nt;
+        self.at.held = self.attitude_sigma_deg(k) <= self.config.segments.held_attitude_sigma_deg;
+        self.end_segment_if_due(k);
+        Ok(Some(k))
+    }
+
+    /// Right after a Sun-only acquisition with albedo: follows the probe window twice, from the
+    /// acquired attitude and from its half turn about the Sun line, and goes on from the
+    /// start the data favour ([`crate::sun_line`]). Everything the probe steps changed is
+    /// put back, so the rows are then processed once, as in any run.
+    fn choose_about_sun_line(&mut self) -> Result<(), FilterError> {
+        if self.current.acquisition != Acquisition::SunOnly
+            || self.albedo.is_none()
+            || self.config.about_sun_probe_s <= 0.0
+        {
+            return Ok(());
+        }
+        let k = self.at.next;
+        let sun_gcrf = self.references.at(k)?.sun_gcrf_unit;
+        let Some(axis) = nalgebra::Unit::try_new(self.filter.q().to_body(&sun_gcrf), 1e-12) else {
+            return Ok(());
+        };
+        let half_turn = *nalgebra::Rotation3::from_axis_angle(&axis, std::f64::consts::PI).matrix();
+        let until_t_s = self.telemetry.t_s[k] + self.config.about_sun_probe_s;
+        let start = self.probe_point();
+        let kept = self.probe(until_t_s)?;
+        let kept_end = self.probe_end();
+        self.back_to(&start)?;
+        self.filter.turn_attitude(&half_turn);
+        let turned = self.probe(until_t_s)?;
+        let turned_end = self.probe_end();
+        self.back_to(&start)?;
+        let choice = crate::sun_line::compare(&kept, &turned, [&kept_end, &turned_end]);
+        if choice.turned {
+            self.filter.turn_attitude(&half_turn);
+            self.at.prior_q = self.filter.q();
+        }
+        self.current.about_sun_line = Some(choice);
+        Ok(())
+    }
+
+    /// Steps on until `until_t_s` or the segment's end: every scalar update's term of the
+    /// predictive likelihood.
+    fn probe(&mut self, until_t_s: f64) -> Result<Vec<crate::sun_line::ProbeTerm>, FilterError> {
+        let mut terms = Vec::new();
+        while !self.at.acquiring
+            && self
+                .telemetry
+                .t_s
+                .get(self.at.next)
+                .is_some_and(|&t| t <= until_t_s)
+        {
+            let Some(k) = self.step()? else { break };
+            terms.extend(
+                self.filter
+                    .records()
+                    .iter()
+                    .filter_map(|r| crate::sun_line::ProbeTerm::new(k, r)),
+            );
+        }
+        Ok(terms)
+    }
+
+    /// The attitude and its covariance where a probe ended.
+    fn probe_end(&self) -> crate::sun_line::ProbeEnd {
+        crate::sun_line::ProbeEnd {
+            q: self.filter.q(),
+            p_aa: self
+                .filter
+                .covariance()
+                .fixed_view::<3, 3>(ATTITUDE, ATTITUDE)
+                .into_owned(),
+        }
+    }
+
+    /// Everything a step changes, to come back to after a probe.
+    fn probe_point(&self) -> ProbePoint {
+        ProbePoint {
+            pass: self.checkpoint(),
+            photodiode_time_s: self.photodiode_time_s.clone(),
+            temperatures_c: self.temperatures_c.clone(),
+            rejections: self.rejections.clone(),
+            repairs: self.repairs.clone(),
+        }
+    }
+
+    fn back_to(&mut self, point: &ProbePoint) -> Result<(), FilterError> {
+        self.restore(&point.pass)?;
+        self.photodiode_time_s.clone_from(&point.photodiode_time_s);
+        self.temperatures_c.clone_from(&point.temperatures_c);
+        self.rejections.clone_from(&point.rejections);
+        self.repairs.clone_from(&point.repairs);
+        Ok(())
+    }
+
+    /// The gated samples of the last update, counted per sensor (one magnetometer
+    /// rejection per row) and in the innovation window.
+    fn record_rejections(&mut self, k: usize, step_s: f64) {
+        let mut mag_gated = false;
+        for r in self.filter.records() {
+            self.at.window.push(r.accepted);
+            if r.accepted {
+                if let Sensor::Photodiode(i) = r.sensor {
+                    self.photodiode_time_s[i] += step_s;
+                }
+                continue;
+            }
+            match r.sensor {
+                Sensor::Magnetometer(_) if mag_gated => {}
+                sensor => {
+                    mag_gated |= matches!(sensor, Sensor::Magnetometer(_));
+                    self.rejections.push_gated(Channel::from(sensor), k);
+                }
+            }
+        }
+    }
+
+    /// Ends the segment after row `k` when the attitude is lost or the next row is beyond
+    /// a gap or a silent gyro.
+    fn end_segment_if_due(&mut self, k: usize) {
+        let ended_by = if let Some(why) = self.lost_reason() {
+            self.current.lost = Some(why);
+            Some(SegmentBreak::Lost)
+        } else {
+            let t = &self.telemetry.t_s;
+            t.get(k + 1).and_then(|&t_next| {
+                // The dynamics carry the attitude through a silent gyro.
+                let t_gyro = if self.filter.has_dynamics() {
+                    t_next
+                } else {
+                    self.at.last_gyro_t_s
+                };
+                self.rules.breaks(t[k], t_next, t_gyro)
+            })
+        };
+        if let Some(ended_by) = ended_by {
+            self.at.carry_rate = ended_by != SegmentBreak::Lost;
+            self.close_segment(k, ended_by);
+            self.at.acquiring = true;
+        }
+    }
+
+    /// The filter's largest attitude sigma at row `k`, deg (across the Sun line without
+    /// the magnetometer).
+    fn attitude_sigma_deg(&self, k: usize) -> f64 {
+        let p = self.filter.covariance();
+        let p_aa = p.fixed_view::<3, 3>(ATTITUDE, ATTITUDE).into_owned();
+        self.observed_sigma_deg(&p_aa, k)
+    }
+
+    /// The largest sigma of the attitude covariance `p_aa` at row `k`, deg: across the Sun
+    /// line without the magnetometer, of every axis with it.
+    fn observed_sigma_deg(&self, p_aa: &nalgebra::Matrix3<f64>, k: usize) -> f64 {
+        let sun_body = if self.use_mag {
+            None
+        } else {
+            let sun = self.references.at(k).ok().map(|r| r.sun_gcrf_unit);
+            sun.map(|s| self.filter.q().to_body(&s))
+        };
+        attitude_sigma_rad(p_aa, sun_body.as_ref()).to_degrees()
+    }
+
+    /// As [`Self::attitude_sigma_deg`], of the attitude given the photodiodes' calibration
+    /// ([`Filter::attitude_cov_given_calibration`]) without the magnetometer: with the Sun
+    /// alone the photodiodes' own mounting uncertainty is part of the attitude's, and an
+    /// attitude known relative to the photodiodes is held whatever that frame's uncertainty.
+    /// With the magnetometer, the attitude's own sigma.
+    fn relative_sigma_deg(&self, k: usize) -> f64 {
+        let given = (!self.use_mag)
+            .then(|| self.filter.attitude_cov_given_calibration())
+            .flatten();
+        match given {
+            Some(p_aa) => self.observed_sigma_deg(&p_aa, k),
+            None => self.attitude_sigma_deg(k),
+        }
+    }
+
+    /// Why the attitude is lost after the last step, if it is: its sigma beyond the bound
+    /// and beyond what the acquisition gave (a q-method with Sun and field 20 degrees apart
+    /// starts near 30 degrees about one axis, and is not lost for that), or most of a full
+    /// window of innovations gated.
+    fn lost_reason(&self) -> Option<String> {
+        let sigma_deg = self.attitude_sigma_deg(self.at.next - 1);
+        let bound_deg = self
+            .config
+            .segments
+            .lost_attitude_sigma_deg
+            .max(self.at.acquired_sigma_deg);
+        if sigma_deg > bound_deg && self.relative_sigma_deg(self.at.next - 1) > bound_deg {
+            return Some(format!(
+                "attitude sigma {sigma_deg:.1} deg above {bound_deg} deg"
+            ));
+        }
+        self.at.window.lost().map(|fraction| {
+            format!(
+                "{:.0} % of the latest {} updates gated",
+                100.0 * fraction,
+                self.config.segments.lost_window_updates
+            )
+        })
+    }
+
+    /// The first gyro sample after row `k` within the gyro hold of the last one.
+    fn gyro_after(&self, k: usize) -> Option<GyroSample> {
+        let tel: &Telemetry = self.telemetry;
+        let limit = self.at.last_gyro_t_s + self.rules.gyro_hold_s;
+        (k + 1..tel.len())
+            .take_while(|&j| tel.t_s[j] <= limit)
+            .find_map(|j| tel.gyro_rad_s[j].map(|g| (tel.t_s[j], g)))
+    }
+
+    /// Holds each photodiode's temperature sample of row `k`, if it has one.
+    fn hold_temperatures(&mut self, k: usize) {
+        let tel: &Telemetry = self.telemetry;
+        for (held, column) in self
+            .temperatures_c
+            .iter_mut()
+            .zip(&self.temperature_columns)
+        {
+            if let Some(v) = column.and_then(|c| tel.temperature_c[c].values[k]) {
+                *held = v;
+            }
+        }
+    }
+
+    /// The row [`ForwardPass::step`] processed last and its time.
+    fn last_row(&self) -> (usize, f64) {
+        let k = self.at.next.saturating_sub(1);
+        (k, self.telemetry.t_s.get(k).copied().unwrap_or(f64::NAN))
+    }
+
+    /// The scalar updates of the last step as residual records.
+    pub fn residual_records(&self) -> impl Iterator<Item = ResidualRecord> + '_ {
+        let (index, t_s) = self.last_row();
+        self.filter.records().iter().map(move |r| ResidualRecord {
+            index,
+            t_s,
+            sensor: r.sensor,
+            measured: r.measured,
+            residual: r.residual,
+            bound_3sigma: r.bound_3sigma,
+            accepted: r.accepted,
+            attitude_held: self.at.held,
+        })
+    }
+
+    /// The estimate after the last step.
+    pub fn estimate(&self) -> StepEstimate {
+        let (index, t_s) = self.last_row();
+        filter_estimate(&self.filter, (index, t_s, self.at.step_segment), self.prior)
+    }
+
+    /// Records the last step (its propagation and posterior) for the smoother.
+    pub(crate) fn record_for_smoother(&self, store: &mut SmootherStore) {
+        let (index, t_s) = self.last_row();
+        if self.at.propagated
+            && let Some(prop) = self.filter.last_propagation()
+        {
+            store.push_transition(prop, self.at.prior_q, self.filter.calibration_noise());
+        }
+        store.push_posterior(index, t_s, self.at.step_segment, &self.filter);
+    }
+
+    /// The samples rejected so far (screened, and gated up to the last step).
+    pub fn rejections(&self) -> &Rejections {
+        &self.rejections
+    }
+
+    /// The covariance repairs so far.
+    pub fn repairs(&self) -> &RepairLog {
+        &self.repairs
+    }
+
+    /// The pass's position and filter state, to replay from.
+    pub(crate) fn checkpoint(&self) -> PassCheckpoint {
+        PassCheckpoint {
+            filter: self.filter.state(),
+            at: self.at.clone(),
+            closed_segments: self.segments.len(),
+            current: self.current.clone(),
+        }
+    }
+
+    /// Back to a checkpoint of this pass (the rejection and repair records keep what they
+    /// have: a replay is not a new run).
+    pub(crate) fn restore(&mut self, checkpoint: &PassCheckpoint) -> Result<(), FilterError> {
+        self.filter.restore(&checkpoint.filter)?;
+        self.at.clone_from(&checkpoint.at);
+        self.segments.truncate(checkpoint.closed_segments);
+        self.current.clone_from(&checkpoint.current);
+        Ok(())
+    }
+
+    /// The run's result with the given per-row outputs.
+    pub(crate) fn result(
+        &self,
+        forward: Vec<StepEstimate>,
+        smoothed: Option<Vec<StepEstimate>>,
+        residuals: Vec<ResidualRecord>,
+    ) -> CalibrationRun {
+        CalibrationRun {
+            mode: self.mode_used,
+            start_index: self.start,
+            initial: self.initial.clone(),
+            used_photodiodes: self.used.clone(),
+            sensor_sigmas: self.sigmas,
+            forward,
+            smoothed,
+            residuals,
+            calibration: self.filter.calibration(self.prior),
+            counts: *self.filter.counts(),
+            layout: self.filter.layout().clone(),
+            final_covariance: self.filter.covariance().clone(),
+            rejections: self.rejections.clone(),
+            covariance_repairs: self.repairs.clone(),
+            segments: self.segments(),
+            segment_rules: self.rules,
+            photodiode_time_used_s: self.photodiode_time_s.clone(),
+        }
+    }
+}
+
+/// The rigid-body model of the dynamics-aided propagation ([`crate::rate`]) when the
+/// config and the dataset call for it ([`Dynamics`]), else `None`; `dynamics: On` without
+/// the inertia is an error saying so.
+fn dynamics_model(
+    meta: &DatasetMeta,
+    tel: &Telemetry,
+    config: &FilterConfig,
+    rules: &GapRules,
+) -> Result<Option<RateModel>, FilterError> {
+    let has_gyro = tel.gyro_rad_s.iter().any(Option::is_some);
+    let wanted = match config.dynamics {
+        Dynamics::Off => false,
+        Dynamics::On => true,
+        Dynamics::Auto => {
+            meta.inertia_kg_m2.is_some()
+                && (!has_gyro || rules.gyro_step_s > config.dynamics_gyro_step_s)
+        }
+    };
+    let carried = wanted && meta.inertia_kg_m2.is_some();
+    if !has_gyro && !carried {
+        let why = if meta.inertia_kg_m2.is_none() {
+            "and dataset.ron has no inertia_kg_m2 (the filter needs a gyro or, with the \
+             inertia, the rigid-body dynamics to carry the attitude between samples)"
+        } else {
+            "and the filter config turns the dynamics off (dynamics: Off)"
+        };
+        return Err(FilterError::Missing(format!(
+            "telemetry.csv has no gyro sample {why}"
+        )));
+    }
+    if !wanted {
+        return Ok(None);
+    }
+    let Some(inertia) = &meta.inertia_kg_m2 else {
+        return Err(FilterError::Missing(
+            "filter config: dynamics = On needs the spacecraft's inertia: add inertia_kg_m2 \
+             to dataset.ron (docs/dataset-format.md)"
+                .to_owned(),
+        ));
+    };
+    let body = inertia
+        .rigid_body()
+        .map_err(|reason| FilterError::Missing(format!("dataset.ron: inertia_kg_m2: {reason}")))?;
+    Ok(Some(RateModel {
+        body,
+        torque_psd: config.torque_noise_n_m_sqrt_s.powi(2),
+        bias_walk_var_per_s: config.gyro_bias_walk_rad_s_sqrt_s.powi(2),
+        dipole_walk_var_per_s: config.dipole_walk_a_m2_sqrt_s.powi(2),
+        inertia_sigma_fraction: config.inertia_sigma_fraction,
+    }))
+}
+
+/// A gyro sample: its time, s, and rate, rad/s.
+type GyroSample = (f64, Vector3<f64>);
+
+/// The rate over the step from `t0` to `t1` (s) from the gyro samples around it: `before`,
+/// the latest at or before `t0`, and `after`, the first after `t0` (at `t1`, or, the run
+/// being offline, a later one within the gyro hold when the gyro samples slower than the
+/// rows). Averaging, the rate between them interpolated linearly at the step's midpoint
+/// (their mean when they are the step's ends: second-order accurate for a rate that
+/// changes during the step); otherwise `before` held. With it, the change of the rate over
+/// the step (the extra attitude noise's measure).
+fn step_rate(
+    before: Option<GyroSample>,
+    after: Option<GyroSample>,
+    (t0, t1): (f64, f64),
+    average: bool,
+) -> (Vector3<f64>, f64) {
+    match (before, after) {
+        (Some((ta, a)), Some((tb, b))) => {
+            let span = tb - ta;
+            if ta == t0 && tb == t1 {
+                let rate = if average { 0.5 * (a + b) } else { a };
+                return (rate, (b - a).norm());
+            }
+            if span <= 0.0 {
+                return (a, 0.0);
+            }
+            let change = (b - a).norm() * ((t1 - t0) / span).min(1.0);
+            if !average {
+                return (a, change);
+            }
+            let f = ((0.5 * (t0 + t1) - ta) / span).clamp(0.0, 1.0);
+            (a + (b - a) * f, change)
+        }
+        (Some((_, a)), None) => (a, 0.0),
+        (None, Some((_, b))) => (b, 0.0),
+        (None, None) => (Vector3::zeros(), 0.0),
+    }
+}
+
+fn check_reference(index: usize, t_s: f64, r: &Reference) -> Result<(), FilterError> {
+    let finite = |v: &Vector3<f64>| v.iter().all(|x| x.is_finite());
+    let checks = [
+        (
+            "Sun direction",
+            finite(&r.sun_gcrf_unit) && r.sun_gcrf_unit.norm() > 0.5,
+        ),
+        ("magnetic field", finite(&r.b_gcrf_nt)),
+        ("Sun fraction", r.sun_fraction.is_finite()),
+        ("position", finite(&r.r_gcrf_km)),
+        ("Sun position", finite(&r.sun_gcrf_km)),
+    ];
+    match checks.iter().find(|(_, ok)| !ok) {
+        Some((what, _)) => Err(FilterError::NonFinite { index, t_s, what }),
+        None => Ok(()),
+    }
+}
+
+fn filter_estimate(
+    filter: &Filter,
+    (index, t_s, segment): (usize, f64, usize),
+    fixed: Option<&Calibration>,
+) -> StepEstimate {
+    let view = StateView {
+        bias: filter.bias_rad_s(),
+        scale: filter.scales_v(),
+        normal: filter.normals(),
+        extras: filter.extra_values(),
+        p: filter.covariance(),
+    };
+    crate::output::step_estimate(
+        index,
+        t_s,
+        segment,
+        filter.q(),
+        &view,
+        filter.layout(),
+        fixed,
+    )
+}
