@@ -29,7 +29,7 @@ use nalgebra::{Matrix3, Matrix6, SymmetricEigen, Vector3, Vector6};
 use pdcal_attitude::mekf::{apply_error, error_vector, propagate, state_transition};
 use pdcal_attitude::{Quat, skew};
 use pdcal_dataset::Telemetry;
-use pdcal_photodiode::{Photodiode, SunVectorOptions};
+use pdcal_photodiode::{Photodiode, SunVectorOptions, estimate_sun_vector};
 use serde::Serialize;
 
 use crate::{FilterError, References};
@@ -524,5 +524,5 @@ fn sun_vector(
         sun_distance_factor,
         ..SunVectorOptions::default()
     };
-    crate::init::sun_direction(&pds, &outputs, &vec![0.0; pds.len()], &options)
+    Ok(estimate_sun_vector(&pds, &outputs, None, &options)?.direction_body())
 }

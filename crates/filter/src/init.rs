@@ -9,7 +9,7 @@ use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView};
 use pdcal_attitude::{Quat, VectorPair, q_method};
 use pdcal_dataset::Telemetry;
 use pdcal_ephem::Reference;
-use pdcal_photodiode::{Photodiode, SunEstimate, SunVectorOptions, estimate_sun_vector};
+use pdcal_photodiode::{Photodiode, SunVectorOptions, estimate_sun_vector};
 
 use crate::references::albedo_into;
 use crate::segments::GapRules;
@@ -265,7 +265,9 @@ pub fn find_start(
             sun_distance_factor: reference.sun_distance_factor(),
             ..SunVectorOptions::default()
         };
-        let Some(mut sun_body) = sun_direction(&pds, &outputs, &known, &options)? else {
+        let Some(mut sun_body) =
+            estimate_sun_vector(&pds, &outputs, Some(&known), &options)?.direction_body()
+        else {
             reached(5);
             continue;
         };
@@ -292,7 +294,9 @@ pub fn find_start(
                 }
                 // Without the albedo the outputs no longer give a direction: the one solved
                 // with it leaned on albedo, and the row is no start.
-                let Some(s) = sun_direction(&pds, &outputs, &known, &options)? else {
+                let Some(s) =
+                    estimate_sun_vector(&pds, &outputs, Some(&known), &options)?.direction_body()
+                else {
                     refined = false;
                     break;
                 };
@@ -594,22 +598,6 @@ fn nearest_row(
         }),
         (b, a) => b.or(a),
     }
-}
-
-/// The least-squares Sun direction of the photodiodes' outputs less `known`, when
-/// observable.
-pub(crate) fn sun_direction(
-    photodiodes: &[Photodiode],
-    outputs: &[f64],
-    known: &[f64],
-    options: &SunVectorOptions,
-) -> Result<Option<Vector3<f64>>, FilterError> {
-    Ok(
-        match estimate_sun_vector(photodiodes, outputs, Some(known), options)? {
-            SunEstimate::Observable(s) => Some(s.direction_body),
-            SunEstimate::NotObservable { .. } => None,
-        },
-    )
 }
 
 fn attitude(

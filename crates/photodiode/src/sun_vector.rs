@@ -114,6 +114,16 @@ pub enum SunEstimate {
     },
 }
 
+impl SunEstimate {
+    /// The unit Sun direction, body frame, when observable.
+    pub fn direction_body(&self) -> Option<Vector3<f64>> {
+        match self {
+            SunEstimate::Observable(s) => Some(s.direction_body),
+            SunEstimate::NotObservable { .. } => None,
+        }
+    }
+}
+
 /// Least-squares Sun vector from photodiode outputs `outputs_v` (one per photodiode), after
 /// subtracting `known_v` (albedo, offsets; one per photodiode) when given.
 pub fn estimate_sun_vector(

@@ -126,6 +126,11 @@ def test_equals_xtask_sim_calibrate(client, tmp_path):
                 row["repeat_tests"],
                 row["repeat_rms_z"],
             ],
+            "about_sun_probes": [
+                row["about_sun_probes"],
+                row["about_sun_turned"],
+                row["about_sun_undecided"],
+            ],
         }
         want = {k: v for k, v in want.items() if k not in ("seed", "runtime_s")}
         assert got == want, row["run_id"]

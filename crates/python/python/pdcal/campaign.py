@@ -102,6 +102,9 @@ FIGURES = [
     "repeat_tests_beyond_3",
     "repeat_tests",
     "repeat_rms_z",
+    "about_sun_probes",
+    "about_sun_turned",
+    "about_sun_undecided",
 ]
 
 _DEG = math.pi / 180.0
@@ -465,6 +468,11 @@ def _flatten(result: dict) -> dict:
         "repeat_tests_beyond_3": int(result["repeat_tests_beyond_3"][0]),
         "repeat_tests": int(result["repeat_tests_beyond_3"][1]),
         "repeat_rms_z": float(result["repeat_tests_beyond_3"][2]),
+        # Sun-only acquisitions probed for the half turn about the Sun line, those that
+        # kept it, and those the data did not decide.
+        "about_sun_probes": int(result["about_sun_probes"][0]),
+        "about_sun_turned": int(result["about_sun_probes"][1]),
+        "about_sun_undecided": int(result["about_sun_probes"][2]),
     }
     for pd in result["photodiodes"]:
         p = f"pd{pd['index']:02d}"
