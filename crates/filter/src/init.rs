@@ -378,15 +378,21 @@ impl AlbedoProbe {
     /// which no such rotation changes, plus the albedo at that attitude) fit the measured
     /// ones best in the least-squares sense of the photodiodes' noise.
     fn best_angle(&self, q: &Quat, sun_body: &Vector3<f64>, view: &AlbedoView) -> f64 {
+        // The outputs less the direct Sun, which no rotation about the Sun line changes.
+        let beyond_direct: Vec<f64> = self
+            .pds
+            .iter()
+            .zip(&self.outputs)
+            .map(|(pd, &y)| y - pd.scale_v * self.factor * pd.n_body.dot(sun_body).max(0.0))
+            .collect();
         let cost = |angle: f64| {
             let a = about_sun_line(q, sun_body, angle).attitude_matrix();
             self.pds
                 .iter()
-                .zip(&self.outputs)
-                .map(|(pd, &y)| {
-                    let direct = self.factor * pd.n_body.dot(sun_body).max(0.0);
+                .zip(&beyond_direct)
+                .map(|(pd, &rest)| {
                     let albedo = view.ratio(&(a.transpose() * pd.n_body), 0.0);
-                    ((y - pd.scale_v * (direct + albedo)) / pd.noise_v).powi(2)
+                    ((rest - pd.scale_v * albedo) / pd.noise_v).powi(2)
                 })
                 .sum::<f64>()
         };
