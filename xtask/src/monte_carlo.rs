@@ -295,6 +295,23 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
             r.len()
         );
     }
+    let with_dynamics = r.iter().filter(|x| x.dynamics.0).count();
+    let tested: Vec<f64> = r.iter().filter_map(|x| x.dynamics.1).collect();
+    let chi = if tested.is_empty() {
+        "not tested".to_owned()
+    } else {
+        let (lo, hi) = tested
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &c| {
+                (lo.min(c), hi.max(c))
+            });
+        format!("the gyro's rate test, chi-square per dof {lo:.2}..{hi:.2}")
+    };
+    let _ = writeln!(
+        s,
+        "| runs propagated by the rigid-body dynamics ({chi}) | {with_dynamics} / {} | - | - |",
+        r.len()
+    );
     let (probes, turned, undecided) = r.iter().fold((0, 0, 0), |acc, x| {
         let p = x.about_sun_probes;
         (acc.0 + p.0, acc.1 + p.1, acc.2 + p.2)

@@ -174,9 +174,6 @@ pub struct FilterConfig {
     /// (docs/validation.md has both). The uncertain inertia is estimated, not added here
     /// ([`FilterConfig::inertia_sigma_fraction`]).
     pub torque_noise_n_m_sqrt_s: f64,
-    /// With `dynamics: Auto`, the dynamics run when the gyro's median spacing exceeds this,
-    /// s (or there is no gyro). Default 2 s: a gyro at 1 Hz keeps the gyro-driven MEKF.
-    pub dynamics_gyro_step_s: f64,
     /// With dynamics and no gyro, the initial body-rate sigma per axis, deg/s (the rate
     /// starts at zero and the vector measurements find it). Default 10 deg/s.
     pub initial_rate_sigma_deg_s: f64,
@@ -209,8 +206,8 @@ pub enum BiasAcrossSets {
 /// Whether the filter integrates the rigid-body dynamics ([`crate::rate`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum Dynamics {
-    /// On when the dataset gives the inertia and the gyro samples slower than
-    /// [`FilterConfig::dynamics_gyro_step_s`] (or not at all).
+    /// On when the dataset gives the inertia and there is no gyro, or its rate changes
+    /// between its samples by more than its noise explains ([`crate::propagation`]).
     #[default]
     Auto,
     /// The gyro-driven MEKF whatever the dataset gives.
@@ -270,7 +267,6 @@ impl Default for FilterConfig {
             segments: SegmentConfig::default(),
             dynamics: Dynamics::Auto,
             torque_noise_n_m_sqrt_s: 1e-4,
-            dynamics_gyro_step_s: 2.0,
             initial_rate_sigma_deg_s: 10.0,
             dipole_sigma_a_m2: 1.0,
             dipole_walk_a_m2_sqrt_s: 1e-4,
@@ -345,7 +341,6 @@ impl FilterConfig {
                 self.max_angular_acceleration_rad_s2,
             ),
             ("torque_noise_n_m_sqrt_s", self.torque_noise_n_m_sqrt_s),
-            ("dynamics_gyro_step_s", self.dynamics_gyro_step_s),
             ("initial_rate_sigma_deg_s", self.initial_rate_sigma_deg_s),
             ("dipole_sigma_a_m2", self.dipole_sigma_a_m2),
         ];

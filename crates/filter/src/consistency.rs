@@ -386,7 +386,7 @@ pub fn nis_band(n: usize) -> [f64; 2] {
 }
 
 /// The chi-square(`k`) quantile at standard normal quantile `z` (Wilson-Hilferty).
-fn chi_square_quantile_wh(k: f64, z: f64) -> f64 {
+pub(crate) fn chi_square_quantile_wh(k: f64, z: f64) -> f64 {
     let a = 2.0 / (9.0 * k);
     k * (1.0 - a + z * a.sqrt()).powi(3)
 }

@@ -11,7 +11,8 @@ use pdcal_photodiode::{MeasurementModel, Photodiode};
 
 use crate::bias_fit::{BiasSource, FitInputs, FitPrior, InitialBias, fit_bias};
 use crate::calibration::Calibration;
-use crate::config::{Dynamics, E_AM0_W_M2, FilterConfig, Mode, SensorSigmas};
+use crate::config::{E_AM0_W_M2, FilterConfig, Mode, SensorSigmas};
+use crate::propagation::{self, PropagationChoice};
 use crate::error::check_len;
 use crate::filter::{
     Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Sensor, StateView,
@@ -133,6 +134,8 @@ pub struct ForwardPass<'a> {
     repairs: RepairLog,
     /// [`RunInputs::set_first_rows`] not yet reached.
     sets_ahead: Vec<usize>,
+    /// The propagation between samples and why.
+    propagation: PropagationChoice,
 }
 
 impl<'a> ForwardPass<'a> {
@@ -270,7 +273,14 @@ impl<'a> ForwardPass<'a> {
         };
         let mut filter = Filter::new(model, layout, init, noise, algebra)?;
         filter.set_sun_only(!use_mag);
-        if let Some(rate_model) = dynamics_model(inputs.meta, tel, config, &rules)? {
+        let propagation = propagation::choose(
+            inputs.meta,
+            tel,
+            config,
+            sigmas.gyro_rad_s,
+            rules.gyro_hold_s,
+        );
+        if let Some(rate_model) = dynamics_model(inputs.meta, tel, config, &propagation)? {
             // The rate is set at each acquisition; until then it is unknown.
             filter.enable_dynamics(
                 rate_model,
@@ -327,6 +337,7 @@ impl<'a> ForwardPass<'a> {
             rejections,
             repairs: RepairLog::default(),
             sets_ahead: inputs.set_first_rows.iter().rev().copied().collect(),
+            propagation,
             telemetry,
         };
         if let Err(reason) = pass.acquire()? {
@@ -1046,30 +1057,22 @@ impl<'a> ForwardPass<'a> {
             segments: self.segments(),
             segment_rules: self.rules,
             photodiode_time_used_s: self.photodiode_time_s.clone(),
+            propagation: self.propagation,
         }
     }
 }
 
-/// The rigid-body model of the dynamics-aided propagation ([`crate::rate`]) when the
-/// config and the dataset call for it ([`Dynamics`]), else `None`; `dynamics: On` without
-/// the inertia is an error saying so.
+/// The rigid-body model of the dynamics-aided propagation ([`crate::rate`]) when `choice`
+/// runs it, else `None`; no gyro and no dynamics, or the dynamics without the inertia, is
+/// an error saying what is missing.
 fn dynamics_model(
     meta: &DatasetMeta,
     tel: &Telemetry,
     config: &FilterConfig,
-    rules: &GapRules,
+    choice: &PropagationChoice,
 ) -> Result<Option<RateModel>, FilterError> {
     let has_gyro = tel.gyro_rad_s.iter().any(Option::is_some);
-    let wanted = match config.dynamics {
-        Dynamics::Off => false,
-        Dynamics::On => true,
-        Dynamics::Auto => {
-            meta.inertia_kg_m2.is_some()
-                && (!has_gyro || rules.gyro_step_s > config.dynamics_gyro_step_s)
-        }
-    };
-    let carried = wanted && meta.inertia_kg_m2.is_some();
-    if !has_gyro && !carried {
+    if !has_gyro && !(choice.dynamics() && meta.inertia_kg_m2.is_some()) {
         let why = if meta.inertia_kg_m2.is_none() {
             "and dataset.ron has no inertia_kg_m2 (the filter needs a gyro or, with the \
              inertia, the rigid-body dynamics to carry the attitude between samples)"
@@ -1080,7 +1083,7 @@ fn dynamics_model(
             "telemetry.csv has no gyro sample {why}"
         )));
     }
-    if !wanted {
+    if !choice.dynamics() {
         return Ok(None);
     }
     let Some(inertia) = &meta.inertia_kg_m2 else {

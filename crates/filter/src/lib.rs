@@ -105,6 +105,7 @@ pub mod layout;
 pub mod mounting;
 pub mod output;
 pub mod prepare;
+pub mod propagation;
 pub mod rate;
 pub mod references;
 pub mod run;
@@ -131,6 +132,7 @@ pub use output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
 /// The per-row reference model [`reference_model`] returns.
 pub use pdcal_ephem::ReferenceModel;
 pub use prepare::{Prepared, RunInputs};
+pub use propagation::{PropagationChoice, PropagationKind, PropagationReason};
 pub use references::{References, orbit_source, reference_model, step_references};
 pub use run::{
     CANCEL_POLL_ROWS, RunSink, SMOOTHER_BLOCK_ROWS, calibrate, calibrate_streaming,

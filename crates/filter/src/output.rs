@@ -11,6 +11,7 @@ use crate::calibration::Calibration;
 use crate::config::SensorSigmas;
 use crate::filter::{Sensor, StateView, UpdateCounts};
 use crate::guard::RepairLog;
+use crate::propagation::PropagationChoice;
 use crate::layout::{ATTITUDE, StateLayout};
 use crate::screen::Rejections;
 use crate::segments::{GapRules, SegmentReport};
@@ -115,6 +116,9 @@ pub struct CalibrationRun {
     /// Per photodiode, the time its accepted updates cover, s (each update counts the
     /// length of the step to its row): the sunlit time the calibration used.
     pub photodiode_time_used_s: Vec<f64>,
+    /// The propagation between samples (the gyro-driven MEKF or the rigid-body dynamics)
+    /// and why ([`crate::propagation`]).
+    pub propagation: PropagationChoice,
 }
 
 /// The estimate at one row from a state and its covariance (the forward filter's or the

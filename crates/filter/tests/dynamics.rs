@@ -1,11 +1,15 @@
 //! The dynamics-aided propagation's switches: what is missing is said before the filter
-//! runs, and `dynamics: Auto` with a 1 Hz gyro is the gyro-driven filter bit for bit.
+//! runs, `dynamics: Auto` with a gyro whose samples carry the rate is the gyro-driven filter
+//! bit for bit, and with one whose rate curves between samples it runs the dynamics.
 
 mod common;
 
 use common::Case;
 use pdcal_dataset::Inertia;
-use pdcal_filter::{Dynamics, FilterConfig, FilterError, Mode, RunInputs, calibrate};
+use pdcal_filter::{
+    Dynamics, FilterConfig, FilterError, Mode, PropagationKind, PropagationReason, RunInputs,
+    calibrate,
+};
 
 fn config(dynamics: Dynamics) -> FilterConfig {
     FilterConfig {
@@ -83,4 +87,53 @@ fn auto_with_a_1_hz_gyro_is_the_gyro_driven_filter() {
             .iter()
             .all(|p| p.scale_v.is_finite())
     );
+}
+
+/// The propagation `dynamics: Auto` picks for `case` with the inertia given.
+fn auto_choice(case: &Case) -> pdcal_filter::PropagationChoice {
+    let (mut meta, tel, refs, _) = case.build();
+    meta.inertia_kg_m2 = Some(RAX2_INERTIA);
+    let inputs = RunInputs {
+        meta: &meta,
+        telemetry: &tel,
+        references: (&refs).into(),
+        albedo: None,
+        set_first_rows: &[],
+    };
+    calibrate(&inputs, &config(Dynamics::Auto), &Mode::Full)
+        .expect("runs")
+        .propagation
+}
+
+#[test]
+fn auto_runs_the_dynamics_when_the_rate_curves_between_gyro_samples() {
+    // The rate (3.6 deg/s across z) turns at 1.5 deg/s about z. At 1 Hz its change is
+    // nearly linear over a sample and the interpolated gyro carries it; every 10 s the
+    // curvature is 100 times larger, 5 times the gyro noise.
+    let fast = auto_choice(&Case::rax2(5, 600));
+    assert_eq!(fast.propagation, PropagationKind::Gyro, "{fast:?}");
+    assert_eq!(fast.reason, PropagationReason::RateCarried);
+    let test = fast.gyro_rate_test.expect("tested");
+    assert_eq!(test.residuals, 200);
+    let slow = auto_choice(&Case {
+        dt_s: 10.0,
+        ..Case::rax2(5, 120)
+    });
+    assert_eq!(slow.propagation, PropagationKind::Dynamics, "{slow:?}");
+    assert_eq!(slow.reason, PropagationReason::RateChanges);
+    assert!(slow.gyro_rate_test.expect("tested").chi_square_per_dof > 5.0);
+}
+
+#[test]
+fn auto_keeps_the_gyro_on_a_slow_tumble_sampled_slowly() {
+    // 0.5 deg/s turning at 0.1 deg/s, a gyro every 5 s: the rate's curvature between
+    // samples is far below the noise, as on the pyramid head of docs/validation.md.
+    let choice = auto_choice(&Case {
+        dt_s: 5.0,
+        rate_rad_s: nalgebra::Vector3::new(0.3, -0.3, 0.25).map(f64::to_radians),
+        precession_rad_s: 0.1f64.to_radians(),
+        ..Case::rax2(5, 240)
+    });
+    assert_eq!(choice.propagation, PropagationKind::Gyro, "{choice:?}");
+    assert_eq!(choice.reason, PropagationReason::RateCarried);
 }

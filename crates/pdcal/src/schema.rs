@@ -69,6 +69,11 @@ pub struct Summary {
     /// The rules that split the telemetry into segments (gap threshold, gyro hold, the
     /// gyro's own sample period, magnetometer pairing tolerance; s).
     pub segment_rules: GapRules,
+    /// How the attitude was carried between samples (`gyro` or `dynamics`), why
+    /// (`config-off`, `config-on`, `no-inertia`, `no-gyro`, `gyro-untested`,
+    /// `rate-changes`, `rate-carried`) and, with `dynamics: Auto`, the test of the gyro's
+    /// samples against its noise ([`pdcal_filter::propagation`]).
+    pub propagation: pdcal_filter::PropagationChoice,
     /// The segments: rows between gaps, silent gyros and lost attitudes, how each one's
     /// attitude was acquired, or why it was skipped.
     pub segments: Vec<SegmentReport>,
@@ -452,6 +457,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
             .chain(about_sun_line_undecided(&run.segments))
             .collect(),
         segment_rules: run.segment_rules,
+        propagation: run.propagation,
         segments: run.segments.clone(),
         datasets: outcome.datasets.clone(),
         repeatability: outcome.repeatability.clone(),

@@ -64,6 +64,10 @@ pub struct SeedResult {
     /// (`segments[].about_sun_line`): how many, how many kept the half turn, and how many
     /// were not decided.
     pub about_sun_probes: (usize, usize, usize),
+    /// Whether the rigid-body dynamics carried the attitude between samples, and the
+    /// chi-square per dof of the gyro's rate test when `dynamics: Auto` ran it
+    /// (`summary.json` `propagation`).
+    pub dynamics: (bool, Option<f64>),
 }
 
 /// What a downlink keeps and what the filter is told, comma-separated parts:
@@ -488,6 +492,12 @@ pub fn run_seed(
                     undecided + usize::from(!a.decided),
                 )
             }),
+        dynamics: (
+            s.propagation.dynamics(),
+            s.propagation
+                .gyro_rate_test
+                .map(|t| t.chi_square_per_dof),
+        ),
     };
     Ok(SeedRun {
         result,

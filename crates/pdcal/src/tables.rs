@@ -131,7 +131,7 @@ pub fn consistency_table(c: &Consistency) -> Table {
 }
 
 /// The segments of the run: rows, time span, rows used, how the attitude was acquired and
-/// why the segment ended.
+/// why the segment ended; the title says how the attitude was carried between samples.
 pub fn segment_table(summary: &Summary) -> Table {
     let header = [
         "segment",
@@ -178,7 +178,11 @@ pub fn segment_table(summary: &Summary) -> Table {
             ]
         })
         .collect();
-    Table::new("Segments (rows between gaps)", &header, rows)
+    let title = format!(
+        "Segments (rows between gaps; propagation: {})",
+        summary.propagation.describe()
+    );
+    Table::new(&title, &header, rows)
 }
 
 /// `table` as aligned plain text, under its title.
