@@ -167,12 +167,10 @@ pub struct FilterConfig {
     pub dynamics: Dynamics,
     /// The unknown torque (everything the dynamics do not model: drag, solar pressure, a
     /// dipole that changes faster than its walk), white noise per body axis, N m /
-    /// sqrt(s). Default 1e-4: drag and solar pressure on a CubeSat are 1e-8..1e-7 N m, but
-    /// with a slow gyro of a large unknown bias and the Sun alone (the pyramid head of
-    /// docs/validation.md) a torque noise near theirs holds the rate too tightly, while
-    /// rows every 10 s with a magnetometer and the dipole estimated lose nothing at 1e-4
-    /// (docs/validation.md has both). The uncertain inertia is estimated, not added here
-    /// ([`FilterConfig::inertia_sigma_fraction`]).
+    /// sqrt(s). Default 1e-6: drag and solar pressure on a CubeSat are 1e-8..1e-7 N m. A
+    /// larger torque the model misses shows in the residuals' consistency verdict
+    /// (docs/validation.md, "Rigid-body dynamics in the filter"). The uncertain inertia is
+    /// estimated, not added here ([`FilterConfig::inertia_sigma_fraction`]).
     pub torque_noise_n_m_sqrt_s: f64,
     /// With dynamics and no gyro, the initial body-rate sigma per axis, deg/s (the rate
     /// starts at zero and the vector measurements find it). Default 10 deg/s.
@@ -266,7 +264,7 @@ impl Default for FilterConfig {
             parameter_sigmas: default_parameter_sigmas(),
             segments: SegmentConfig::default(),
             dynamics: Dynamics::Auto,
-            torque_noise_n_m_sqrt_s: 1e-4,
+            torque_noise_n_m_sqrt_s: 1e-6,
             initial_rate_sigma_deg_s: 10.0,
             dipole_sigma_a_m2: 1.0,
             dipole_walk_a_m2_sqrt_s: 1e-4,
