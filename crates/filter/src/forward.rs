@@ -12,7 +12,6 @@ use pdcal_photodiode::{MeasurementModel, Photodiode};
 use crate::bias_fit::{BiasSource, FitInputs, FitPrior, InitialBias, fit_bias};
 use crate::calibration::Calibration;
 use crate::config::{E_AM0_W_M2, FilterConfig, Mode, SensorSigmas};
-use crate::propagation::{self, PropagationChoice};
 use crate::error::check_len;
 use crate::filter::{
     Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Sensor, StateView,
@@ -22,6 +21,7 @@ use crate::init::{Start, StartInputs, find_start, initial_scales};
 use crate::layout::{ATTITUDE, BIAS, StateLayout};
 use crate::output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
 use crate::prepare::{Prepared, RunInputs};
+use crate::propagation::{self, PropagationChoice};
 use crate::rate::{RateModel, StepEnvironment};
 use crate::references::albedo_into;
 use crate::screen::{Channel, Rejections};

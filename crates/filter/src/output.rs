@@ -11,8 +11,8 @@ use crate::calibration::Calibration;
 use crate::config::SensorSigmas;
 use crate::filter::{Sensor, StateView, UpdateCounts};
 use crate::guard::RepairLog;
-use crate::propagation::PropagationChoice;
 use crate::layout::{ATTITUDE, StateLayout};
+use crate::propagation::PropagationChoice;
 use crate::screen::Rejections;
 use crate::segments::{GapRules, SegmentReport};
 

@@ -176,7 +176,9 @@ pub fn choose(
     };
     match config.dynamics {
         Dynamics::Off => return choice(PropagationKind::Gyro, PropagationReason::ConfigOff, None),
-        Dynamics::On => return choice(PropagationKind::Dynamics, PropagationReason::ConfigOn, None),
+        Dynamics::On => {
+            return choice(PropagationKind::Dynamics, PropagationReason::ConfigOn, None);
+        }
         Dynamics::Auto => {}
     }
     if meta.inertia_kg_m2.is_none() {

@@ -494,9 +494,7 @@ pub fn run_seed(
             }),
         dynamics: (
             s.propagation.dynamics(),
-            s.propagation
-                .gyro_rate_test
-                .map(|t| t.chi_square_per_dof),
+            s.propagation.gyro_rate_test.map(|t| t.chi_square_per_dof),
         ),
     };
     Ok(SeedRun {
