@@ -358,11 +358,13 @@ mod tests {
 
     #[test]
     fn a_rate_that_curves_between_samples_is_found() {
-        // The same motion sampled every 10 s: the curvature is 100 times larger.
+        // The same motion sampled every 10 s: the middle sample's residual is the
+        // curvature, 0.05 x 0.05^2 x 10^2 / 2 = 6.25e-3 rad/s across z, against a noise
+        // variance of 1.5e-6 per axis: chi-square per dof (3.9e-5 / 1.5e-6 + 3) / 3 = 9.7.
         let s = sampled(10.0, 720, 1e-3, coning(0.05, 0.05));
         let linear = rate_test(&s, GyroRateModel::Linear, noise(1e-3), 50.0).unwrap();
         assert!(linear.rate_changes(), "{linear:?}");
-        assert!(linear.chi_square_per_dof > 10.0, "{linear:?}");
+        assert!((linear.chi_square_per_dof - 9.7).abs() < 1.0, "{linear:?}");
     }
 
     #[test]
@@ -370,10 +372,14 @@ mod tests {
         let mut s = sampled(1.0, 4, 1e-3, |_| [0.0; 3]);
         s[2].0 = 100.0;
         s[3].0 = 101.0;
-        s[2].1[0] = 1.0;
-        // (0, 1) then (2, 3); (1, 2) spans 99 s.
+        // The rate after the gap is another.
+        s[2].1[0] += 1.0;
+        s[3].1[0] += 1.0;
+        // Held: (0, 1) and (2, 3), not the jump between them; linear: no three samples
+        // within 5 s of each other.
         let held = rate_test(&s, GyroRateModel::Held, noise(1e-3), 5.0).unwrap();
-        assert_eq!(held.residuals, 1);
+        assert_eq!(held.residuals, 2);
+        assert!(!held.rate_changes(), "{held:?}");
         assert!(rate_test(&s, GyroRateModel::Linear, noise(1e-3), 5.0).is_none());
     }
 
