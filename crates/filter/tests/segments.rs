@@ -376,13 +376,14 @@ fn sparse_flight_frames_calibrate_honestly() {
     let run = pdcal_filter::calibrate(&inputs, &FilterConfig::default(), &Mode::Full).unwrap();
     // The frames' rhythm is not a gap; the passes are.
     assert!(run.segment_rules.gap_threshold_s >= 400.0);
-    assert!(
-        run.segments
-            .iter()
-            .filter(|s| s.acquired_row.is_some())
-            .count()
-            > 10
-    );
+    // Six passes in 12 h, two of them in eclipse throughout: the other four acquired
+    // (again after a lost attitude, if one is lost).
+    let acquired = run
+        .segments
+        .iter()
+        .filter(|s| s.acquired_row.is_some())
+        .count();
+    assert!(acquired >= 4, "{:#?}", run.segments);
     assert!(
         run.segments
             .iter()
