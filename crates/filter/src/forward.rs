@@ -1072,7 +1072,8 @@ fn dynamics_model(
     choice: &PropagationChoice,
 ) -> Result<Option<RateModel>, FilterError> {
     let has_gyro = tel.gyro_rad_s.iter().any(Option::is_some);
-    if !has_gyro && !(choice.dynamics() && meta.inertia_kg_m2.is_some()) {
+    let carried = choice.dynamics() && meta.inertia_kg_m2.is_some();
+    if !has_gyro && !carried {
         let why = if meta.inertia_kg_m2.is_none() {
             "and dataset.ron has no inertia_kg_m2 (the filter needs a gyro or, with the \
              inertia, the rigid-body dynamics to carry the attitude between samples)"

@@ -252,7 +252,7 @@ fn rate_test(
     let mut i = 0;
     while i + span <= samples.len() {
         let run = &samples[i..i + span];
-        if run.windows(2).any(|w| !(w[1].0 - w[0].0 <= max_spacing_s)) {
+        if run.windows(2).any(|w| w[1].0 - w[0].0 > max_spacing_s) {
             i += 1;
             continue;
         }
