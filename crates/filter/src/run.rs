@@ -183,7 +183,9 @@ pub fn calibrate_streaming(
     sink: &mut dyn RunSink,
 ) -> Result<CalibrationRun, FilterError> {
     let every = kept_every(prepared.telemetry().len(), block_rows);
-    calibrate_streaming_kept(inputs, prepared, mode, model, algebra, block_rows, every, sink)
+    calibrate_streaming_kept(
+        inputs, prepared, mode, model, algebra, block_rows, every, sink,
+    )
 }
 
 /// A forward state kept for the smoother's replay, and whether a segment starts there.

@@ -63,8 +63,8 @@ pub fn read_kept(
     dirs.iter()
         .map(|dir| {
             let meta = pdcal_dataset::read_meta(dir)?;
-            let bytes = std::fs::metadata(dir.join(pdcal_dataset::TELEMETRY_CSV))
-                .map_or(0, |m| m.len());
+            let bytes =
+                std::fs::metadata(dir.join(pdcal_dataset::TELEMETRY_CSV)).map_or(0, |m| m.len());
             let storage = match files {
                 Some((spill, min_bytes)) if bytes >= min_bytes => {
                     TelemetryStorage::Files(spill.to_path_buf())
