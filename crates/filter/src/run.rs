@@ -210,21 +210,21 @@ pub fn calibrate_streaming_kept(
     let mut pass = ForwardPass::new(inputs, prepared, mode, model, algebra)?;
     let mut kept: Vec<Kept> = Vec::new();
     let mut residuals = Vec::new();
-    let mut in_block = 0;
+    let mut starts = BlockStarts::new(block_rows);
     let mut block_starts = 0_usize;
     let mut poll = CancelPoll::default();
     loop {
-        let segment_start = pass.at_segment_start();
-        if config.smoother && (segment_start || in_block == block_rows) {
+        if config.smoother
+            && let Some(segment_start) = starts.at(&pass)
+        {
             if block_starts.is_multiple_of(every) {
                 kept.push((pass.checkpoint(), segment_start));
             }
             block_starts += 1;
-            in_block = 0;
         }
         let Some(k) = pass.step()? else { break };
         poll.step(sink, k)?;
-        in_block += 1;
+        starts.in_block += 1;
         residuals.clear();
         residuals.extend(pass.residual_records());
         sink.forward(&pass.estimate(), &residuals);
@@ -264,22 +264,45 @@ fn regenerate_group(
 ) -> Result<Vec<Kept>, FilterError> {
     pass.restore(&first.0)?;
     let mut group: Vec<Kept> = Vec::with_capacity(every);
-    let mut in_block = 0;
+    // `first` is a block start: counted as one whatever the count before it.
+    let mut starts = BlockStarts::new(block_rows);
+    starts.in_block = block_rows;
     let mut poll = CancelPoll::default();
     loop {
-        let segment_start = pass.at_segment_start();
-        if group.is_empty() || segment_start || in_block == block_rows {
+        if let Some(segment_start) = starts.at(pass) {
             if group.len() == every {
                 break;
             }
             group.push((pass.checkpoint(), segment_start));
-            in_block = 0;
         }
         let Some(k) = pass.step()? else { break };
         poll.step(sink, k)?;
-        in_block += 1;
+        starts.in_block += 1;
     }
     Ok(group)
+}
+
+/// Where the smoother's blocks start: at every segment start and after `rows` rows.
+struct BlockStarts {
+    rows: usize,
+    /// Rows stepped since the last block start.
+    in_block: usize,
+}
+
+impl BlockStarts {
+    fn new(rows: usize) -> Self {
+        BlockStarts { rows, in_block: 0 }
+    }
+
+    /// At a block start, whether it starts a segment (the row count restarts); `None`
+    /// elsewhere.
+    fn at(&mut self, pass: &ForwardPass<'_>) -> Option<bool> {
+        let segment_start = pass.at_segment_start();
+        (segment_start || self.in_block == self.rows).then(|| {
+            self.in_block = 0;
+            segment_start
+        })
+    }
 }
 
 /// The smoother's backward pass over the kept states, last first.
