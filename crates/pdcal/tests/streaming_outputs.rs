@@ -37,7 +37,10 @@ fn streamed_equals_in_memory(smoother: bool, kept_in_files: bool) {
     let mut config = pdcal::calibrate::RunConfig::default();
     config.filter.smoother = smoother;
     let file_bytes = if kept_in_files { 0 } else { u64::MAX };
-    let read = pdcal::joint::read_kept(&[dataset.clone()], Some((tmp.path(), file_bytes)));
+    let read = pdcal::joint::read_kept(
+        std::slice::from_ref(&dataset),
+        Some((tmp.path(), file_bytes)),
+    );
     let read = read.unwrap();
     assert!(
         read[0]
@@ -47,8 +50,14 @@ fn streamed_equals_in_memory(smoother: bool, kept_in_files: bool) {
             .all(|pd| pd.is_in_file() == kept_in_files)
     );
     drop(read);
-    pdcal::calibrate::run_dirs_kept(&[dataset.clone()], &streamed, &config, false, file_bytes)
-        .unwrap();
+    pdcal::calibrate::run_dirs_kept(
+        std::slice::from_ref(&dataset),
+        &streamed,
+        &config,
+        false,
+        file_bytes,
+    )
+    .unwrap();
 
     let meta = pdcal_dataset::read_meta(&dataset).unwrap();
     let telemetry = pdcal_dataset::read_telemetry(&dataset, &meta).unwrap();
