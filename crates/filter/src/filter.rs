@@ -47,8 +47,12 @@ pub struct FilterNoise {
     pub extra_walk_var_per_s: Vec<f64>,
     /// Photodiode noise sigma, V.
     pub photodiode_sigma_v: f64,
-    /// Albedo-model uncertainty as a fraction of `E_AM0` (R adds `(C this)^2`).
+    /// Albedo-model uncertainty of one row as a fraction of `E_AM0`: R adds `(C this)^2`,
+    /// less the part the albedo gain state carries ([`FilterNoise::albedo_gain`]).
     pub albedo_sigma_ratio: f64,
+    /// The albedo's error correlated in time, as a gain state; `None`: the albedo error
+    /// is white only (`albedo_sigma_ratio`).
+    pub albedo_gain: Option<AlbedoGainNoise>,
     /// Magnetometer sigma per axis, nT.
     pub mag_sigma_nt: f64,
     /// Gate in sigmas: each photodiode row `nu^2 <= g^2 s`; the magnetometer's 3-vector by
@@ -61,6 +65,28 @@ pub struct FilterNoise {
     pub min_sun_fraction: f64,
     /// Add the second-order (curvature) variance of the measurement functions to R.
     pub second_order: bool,
+}
+
+/// The albedo gain `g` (the albedo seen is `(1 + g)` times the modelled one, Eq. 15's
+/// second term) as a first-order Gauss-Markov process: `g(t + dt) = e^(-dt/tau) g(t) + w`
+/// with stationary variance `sigma^2` (`var w = sigma^2 (1 - e^(-2 dt/tau))`). A
+/// reflectivity map is a mean; the Earth under the satellite has today's clouds, and the
+/// difference persists while the footprint crosses one region, so it is a state, not
+/// white noise: as white noise, averaged over hundreds of rows, it would shrink the
+/// calibration's sigmas below its errors.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AlbedoGainNoise {
+    /// Stationary sigma of `g` (dimensionless).
+    pub sigma: f64,
+    /// Correlation time `tau`, s.
+    pub time_s: f64,
+}
+
+impl AlbedoGainNoise {
+    /// The transition `e^(-dt/tau)` over `dt_s` (negative steps count as none).
+    pub fn decay(&self, dt_s: f64) -> f64 {
+        (-dt_s.max(0.0) / self.time_s).exp()
+    }
 }
 
 /// The state the filter starts from.
@@ -162,6 +188,8 @@ pub struct Propagation {
     pub qd: Matrix6<f64>,
     /// Step, s.
     pub dt_s: f64,
+    /// The albedo gain's transition `e^(-dt/tau)` over the step (1 without the state).
+    pub albedo_gain_decay: f64,
     /// With dynamics ([`crate::rate`]): `Phi` and `Qd` of `[a, beta, w, m, c]` (`phi` and `qd`
     /// above are then unused) and the body rate the step ended with.
     pub rate: Option<Box<RatePropagation>>,
@@ -206,6 +234,8 @@ pub struct Filter {
     basis: Vec<(Vector3<f64>, Vector3<f64>)>,
     used: Vec<bool>,
     rate_est: Vector3<f64>,
+    /// The albedo gain estimate `g` (0 without the state).
+    albedo_gain: f64,
     p: DMatrix<f64>,
     /// The diagonal of the initial covariance (what a state the guard resets returns to).
     initial_variance: Vec<f64>,
@@ -232,6 +262,7 @@ pub struct FilterState {
     normal: Vec<Vector3<f64>>,
     basis: Vec<(Vector3<f64>, Vector3<f64>)>,
     rate_est: Vector3<f64>,
+    albedo_gain: f64,
     p: DMatrix<f64>,
     parameters: Vec<f64>,
     counts: UpdateCounts,
@@ -295,6 +326,9 @@ impl Filter {
         algebra: Algebra,
     ) -> Result<Self, FilterError> {
         let m = model.photodiodes().len();
+        if noise.albedo_gain.is_some() {
+            layout.add_albedo_gain();
+        }
         let n = layout.len();
         for (what, len) in [
             ("initial scales", init.scale_v.len()),
@@ -331,6 +365,9 @@ impl Filter {
         }
         for (e, s) in layout.extras().iter().zip(&init.extra_sigma) {
             p[(e.state, e.state)] = s * s;
+        }
+        if let (Some(g), Some(gain)) = (layout.albedo_gain(), noise.albedo_gain) {
+            p[(g, g)] = gain.sigma * gain.sigma;
         }
         let normal: Vec<Vector3<f64>> = init.n_body.iter().map(|n| n.normalize()).collect();
         layout.set_reference_normals(&normal);
@@ -380,6 +417,7 @@ impl Filter {
             normal,
             used: init.used,
             rate_est: Vector3::zeros(),
+            albedo_gain: 0.0,
             initial_variance: p.diagonal().iter().copied().collect(),
             p,
             records: Vec::with_capacity(3 + m),
@@ -487,6 +525,7 @@ impl Filter {
         r.motion.w_body_rad_s = step.w_body_rad_s;
         self.rate_est = step.w_body_rad_s;
         let idx = r.idx;
+        let albedo_gain_decay = self.decay_albedo_gain(dt_s);
         self.fill_calibration_noise(dt_s);
         crate::rate::propagate_covariance(
             &mut self.p,
@@ -499,6 +538,7 @@ impl Filter {
             phi: Matrix6::identity(),
             qd: Matrix6::zeros(),
             dt_s,
+            albedo_gain_decay,
             rate: Some(Box::new(RatePropagation {
                 phi: step.phi,
                 qd: step.qd,
@@ -543,6 +583,7 @@ impl Filter {
         for k in 0..3 {
             qd[(k, k)] += extra;
         }
+        let albedo_gain_decay = self.decay_albedo_gain(dt_s);
         self.fill_calibration_noise(dt_s);
         match self.algebra {
             Algebra::Structured => self.propagate_structured(&phi, &qd),
@@ -552,6 +593,7 @@ impl Filter {
             phi,
             qd,
             dt_s,
+            albedo_gain_decay,
             rate: None,
         });
     }
@@ -565,6 +607,7 @@ impl Filter {
     pub fn reacquire(&mut self, q: Quat, attitude_cov: &Matrix3<f64>, dt_s: f64) {
         let n = self.p.nrows();
         let dt_s = dt_s.max(0.0);
+        self.decay_albedo_gain(dt_s);
         self.fill_calibration_noise(dt_s);
         for k in CORE..n {
             self.p[(k, k)] += self.scratch.cal_noise[k];
@@ -711,8 +754,29 @@ impl Filter {
         Ok(true)
     }
 
+    /// The albedo gain's Gauss-Markov transition over `dt_s`: its estimate and its row and
+    /// column of `P` times `e^(-dt/tau)`, before the step's own transition (they act on
+    /// different states, so the order does not matter) and before its noise
+    /// ([`Filter::fill_calibration_noise`]). The factor; 1 without the state.
+    fn decay_albedo_gain(&mut self, dt_s: f64) -> f64 {
+        let (Some(g), Some(gain)) = (self.layout.albedo_gain(), self.noise.albedo_gain) else {
+            return 1.0;
+        };
+        let decay = gain.decay(dt_s);
+        self.albedo_gain *= decay;
+        let n = self.p.nrows();
+        for k in 0..n {
+            self.p[(g, k)] *= decay;
+        }
+        for k in 0..n {
+            self.p[(k, g)] *= decay;
+        }
+        decay
+    }
+
     /// Diagonal calibration-state process noise over `dt_s` into `scratch.cal_noise`
-    /// (entries 0..6 stay zero).
+    /// (entries 0..6 stay zero); for the albedo gain, the Gauss-Markov process noise
+    /// `sigma^2 (1 - e^(-2 dt/tau))`.
     fn fill_calibration_noise(&mut self, dt_s: f64) {
         let q = &mut self.scratch.cal_noise;
         for i in 0..self.layout.photodiodes() {
@@ -729,6 +793,9 @@ impl Filter {
             .zip(&self.noise.extra_walk_var_per_s)
         {
             q[e.state] = v * dt_s;
+        }
+        if let (Some(g), Some(gain)) = (self.layout.albedo_gain(), self.noise.albedo_gain) {
+            q[g] = gain.sigma * gain.sigma * (1.0 - gain.decay(dt_s).powi(2));
         }
     }
 
@@ -961,16 +1028,55 @@ impl Filter {
             };
             self.model
                 .partials_into(i, &scene, &mut self.scratch.partials)?;
-            let albedo_sigma = self.scale[i] * self.noise.albedo_sigma_ratio;
-            let r = self.noise.photodiode_sigma_v.powi(2)
-                + albedo_sigma * albedo_sigma
-                + self.photodiode_second_order_var(i, cos_incidence);
             let predicted = self.scratch.partials.value_v;
+            let d_gain = match (albedo_used, self.noise.albedo_gain) {
+                (Some(_), Some(_)) => self.albedo_gain_partial(i, &scene, predicted)?,
+                _ => 0.0,
+            };
+            let r = self.noise.photodiode_sigma_v.powi(2)
+                + self.white_albedo_var(i, d_gain)
+                + self.photodiode_second_order_var(i, cos_incidence);
             self.scratch.rows.begin(y - predicted, r);
-            self.fill_photodiode_row(i);
+            self.fill_photodiode_row(i, d_gain);
             self.scratch.sources.push((Sensor::Photodiode(i), y));
         }
         Ok(())
+    }
+
+    /// `dh/dg`, the output's partial with respect to the albedo gain: the modelled albedo
+    /// part of photodiode `i`'s prediction (Eq. 15's second term through the model's gains),
+    /// `(h - h_0) / (1 + g)` with `h` the prediction `predicted_v` (albedo times `1 + g`)
+    /// and `h_0` the prediction without albedo. Every term is linear in the albedo
+    /// irradiance, so this is exact below an output stage's knee.
+    fn albedo_gain_partial(
+        &self,
+        i: usize,
+        scene: &Scene,
+        predicted_v: f64,
+    ) -> Result<f64, FilterError> {
+        let factor = 1.0 + self.albedo_gain;
+        if factor.abs() < 1e-9 {
+            return Ok(0.0);
+        }
+        let without = Scene {
+            albedo: None,
+            ..*scene
+        };
+        Ok((predicted_v - self.model.evaluate(i, &without)?) / factor)
+    }
+
+    /// The white part of photodiode `i`'s albedo variance, V^2: the declared one-row
+    /// albedo variance `(C albedo_sigma_ratio)^2` less what the gain state carries,
+    /// `(sigma_g dh/dg)^2`, so that one error is not counted twice (the declared sigma is
+    /// the whole albedo error of one row; where the albedo is strong the gain's share is
+    /// all of it).
+    fn white_albedo_var(&self, i: usize, d_gain: f64) -> f64 {
+        let declared = (self.scale[i] * self.noise.albedo_sigma_ratio).powi(2);
+        let correlated = self
+            .noise
+            .albedo_gain
+            .map_or(0.0, |g| (g.sigma * d_gain).powi(2));
+        (declared - correlated).max(0.0)
     }
 
     /// The photodiodes this step updates, into `scratch.selected`: sampled, lit (full Sun),
@@ -1076,6 +1182,8 @@ impl Filter {
     /// together), each kept as the [`LinearAlbedo`] at its prior normal, which returns the
     /// evaluation itself there.
     fn prior_albedo(&mut self, attitude: &Matrix3<f64>, albedo: &dyn AlbedoIrradiance) {
+        // The albedo seen: the modelled one times the gain's `1 + g` (1 without the state).
+        let gain = 1.0 + self.albedo_gain;
         let a = &mut self.scratch.albedo;
         a.normals_gcrf.clear();
         a.cos_fov.clear();
@@ -1094,8 +1202,8 @@ impl Filter {
                 .zip(&a.results)
                 .map(|(n0, &(ratio0, vector))| LinearAlbedo {
                     n0_gcrf: *n0,
-                    ratio0,
-                    vector_gcrf: vector,
+                    ratio0: gain * ratio0,
+                    vector_gcrf: gain * vector,
                 }),
         );
     }
@@ -1104,7 +1212,7 @@ impl Filter {
     /// begun last: Eq. (20) for `a`, Eq. (22) for `C`, the normal gradient projected on the
     /// tangent basis for `(d1, d2)` (the singularity-free replacement of Eqs. 23-24), and the
     /// estimated parameters.
-    fn fill_photodiode_row(&mut self, i: usize) {
+    fn fill_photodiode_row(&mut self, i: usize, d_gain: f64) {
         let s = &mut self.scratch;
         let pa = &s.partials;
         for k in 0..3 {
@@ -1119,6 +1227,9 @@ impl Filter {
         for &k in self.layout.extras_of(i) {
             let e = &self.layout.extras()[k];
             s.rows.entry(e.state, pa.d_parameters[e.parameter]);
+        }
+        if let Some(g) = self.layout.albedo_gain() {
+            s.rows.entry(g, d_gain);
         }
     }
 
@@ -1144,6 +1255,9 @@ impl Filter {
         }
         self.reset_photodiodes();
         let dx = &self.scratch.dx;
+        if let Some(g) = self.layout.albedo_gain() {
+            self.albedo_gain += dx[g];
+        }
         for e in self.layout.extras() {
             let p = self.model.parameter_mut(e.parameter)?;
             p.value += dx[e.state];
@@ -1233,6 +1347,11 @@ impl Filter {
         &self.normal
     }
 
+    /// The albedo gain estimate `g` ([`AlbedoGainNoise`]), when it is a state.
+    pub fn albedo_gain(&self) -> Option<f64> {
+        self.layout.albedo_gain().map(|_| self.albedo_gain)
+    }
+
     /// Values of the extra states, in layout order.
     pub fn extra_values(&self) -> Vec<f64> {
         let params: Vec<f64> = self.model.parameters().map(|(_, p)| p.value).collect();
@@ -1257,6 +1376,7 @@ impl Filter {
             normal: self.normal.clone(),
             basis: self.basis.clone(),
             rate_est: self.rate_est,
+            albedo_gain: self.albedo_gain,
             p: self.p.clone(),
             parameters: self.model.parameters().map(|(_, p)| p.value).collect(),
             counts: self.counts,
@@ -1276,6 +1396,7 @@ impl Filter {
         self.normal.copy_from_slice(&state.normal);
         self.basis.copy_from_slice(&state.basis);
         self.rate_est = state.rate_est;
+        self.albedo_gain = state.albedo_gain;
         self.p.copy_from(&state.p);
         for (k, value) in state.parameters.iter().enumerate() {
             self.model.parameter_mut(k)?.value = *value;

@@ -14,7 +14,8 @@ use crate::calibration::Calibration;
 use crate::config::{Dynamics, E_AM0_W_M2, FilterConfig, Mode, SensorSigmas};
 use crate::error::check_len;
 use crate::filter::{
-    Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Sensor, StateView,
+    AlbedoGainNoise, Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Sensor,
+    StateView,
 };
 use crate::guard::RepairLog;
 use crate::init::{Start, StartInputs, find_start, initial_scales};
@@ -249,6 +250,12 @@ impl<'a> ForwardPass<'a> {
             extra_walk_var_per_s: extra_walk,
             photodiode_sigma_v: sigmas.photodiode_v,
             albedo_sigma_ratio: config.albedo_sigma_w_m2 / E_AM0_W_M2,
+            albedo_gain: (inputs.albedo.is_some() && config.albedo_gain_sigma > 0.0).then_some(
+                AlbedoGainNoise {
+                    sigma: config.albedo_gain_sigma,
+                    time_s: config.albedo_gain_time_s,
+                },
+            ),
             mag_sigma_nt: sigmas.mag_nt,
             gate_sigmas: config.gate_sigmas,
             cos_fov: config.fov_half_angle_deg.to_radians().cos(),

@@ -121,8 +121,8 @@ pub use config::{BiasAcrossSets, Dynamics, FilterConfig, Mode, ParameterSigma, S
 pub use consistency::{Consistency, ConsistencyAccumulator, Verdict};
 pub use error::FilterError;
 pub use filter::{
-    Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Propagation, Sensor,
-    SensorCounts, UpdateCounts, UpdateRecord,
+    AlbedoGainNoise, Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements,
+    Propagation, Sensor, SensorCounts, UpdateCounts, UpdateRecord,
 };
 pub use forward::ForwardPass;
 pub use guard::{CovarianceRepair, RepairKind, RepairLog};
