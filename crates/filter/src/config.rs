@@ -53,14 +53,15 @@ pub struct FilterConfig {
     pub albedo_sigma_w_m2: f64,
     /// Stationary sigma of the albedo gain `g` (the albedo seen is `(1 + g)` times the
     /// modelled one), a state correlated over `albedo_gain_time_s`; 0 leaves the albedo's
-    /// error white. Default 0.3: a monthly-mean reflectivity map against the Earth of one
-    /// day differs by the day's clouds, and the footprint-weighted reflectivity of the
-    /// shipped maps (TOMS mean, CERES 2018) differs along an orbit by about that much
-    /// (docs/validation.md, "Another simulator's albedo").
+    /// error white. Default 0.2: the footprint-weighted reflectivity of the two shipped
+    /// families of maps (TOMS mean, CERES 2018 annual) differs along a low orbit by 0.21
+    /// in log ratio (docs/validation.md, "Another simulator's albedo"), and a map of any
+    /// kind differs from the Earth of one day by that day's clouds.
     pub albedo_gain_sigma: f64,
-    /// Correlation time of the albedo gain, s. Default 900: the time the ground track
-    /// (about 7 km/s in low orbit) takes to cross a region of one reflectivity (a cloud
-    /// system, an ocean, an ice sheet: about an Earth radius, 6400 km).
+    /// Correlation time of the albedo gain, s. Default 360: the time the footprint takes
+    /// to cross a region of one reflectivity (a cloud system, an ocean, an ice sheet, a
+    /// few thousand km at a ground speed of about 7 km/s); the map-to-map ratio above
+    /// falls to 1/e in 360 s.
     pub albedo_gain_time_s: f64,
     /// Magnetometer noise 1-sigma per axis, nT; `None`: the dataset hint, else 320 nT.
     pub mag_sigma_nt: Option<f64>,
@@ -251,8 +252,8 @@ impl Default for FilterConfig {
         FilterConfig {
             photodiode_sigma_v: None,
             albedo_sigma_w_m2: 50.0,
-            albedo_gain_sigma: 0.3,
-            albedo_gain_time_s: 900.0,
+            albedo_gain_sigma: 0.2,
+            albedo_gain_time_s: 360.0,
             mag_sigma_nt: None,
             gyro_sigma_rad_s: None,
             gyro_noise_inflation: 1.5,

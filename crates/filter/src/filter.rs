@@ -1542,3 +1542,153 @@ impl StateView<'_> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Matrix3, Vector3};
+    use pdcal_albedo::LinearAlbedo;
+    use pdcal_attitude::{GyroNoise, Quat};
+    use pdcal_photodiode::{MeasurementModel, Photodiode, ScaleDrift, Scene};
+
+    use super::*;
+
+    /// A filter over four photodiodes, the paper's model with a scale drift (a gain the
+    /// albedo part must go through), and the albedo gain a state.
+    fn filter() -> Filter {
+        let pds: Vec<Photodiode> = [(0.0, 10.0), (90.0, -20.0), (200.0, 40.0), (300.0, 0.0)]
+            .iter()
+            .map(|&(az, el)| Photodiode::from_az_el_deg(3.7, az, el, 0.015))
+            .collect();
+        let m = pds.len();
+        let mut model = MeasurementModel::paper(pds);
+        model.add_gain(ScaleDrift::shared(0.02)).unwrap();
+        let layout = StateLayout::new(&model, true);
+        let init = InitialState {
+            q: Quat::IDENTITY,
+            attitude_cov: Matrix3::identity() * 1e-4,
+            bias_rad_s: Vector3::zeros(),
+            bias_sigma_rad_s: 1e-3,
+            scale_v: vec![3.7; m],
+            scale_sigma_v: vec![0.3; m],
+            n_body: model.photodiodes().iter().map(|p| p.n_body).collect(),
+            normal_sigma_rad: 0.1,
+            extra_sigma: Vec::new(),
+            used: vec![true; m],
+        };
+        let noise = FilterNoise {
+            gyro: GyroNoise {
+                sigma_v_rad_sqrt_s: 1e-3,
+                sigma_u_rad_s_sqrt_s: 2e-6,
+            },
+            rate_change_fraction: 0.3,
+            scale_walk_var_per_s: vec![1e-9; m],
+            normal_walk_var_per_s: 1e-12,
+            extra_walk_var_per_s: Vec::new(),
+            photodiode_sigma_v: 0.015,
+            albedo_sigma_ratio: 50.0 / 1367.0,
+            albedo_gain: Some(AlbedoGainNoise {
+                sigma: 0.2,
+                time_s: 360.0,
+            }),
+            mag_sigma_nt: 320.0,
+            gate_sigmas: 5.0,
+            cos_fov: 60f64.to_radians().cos(),
+            min_sun_fraction: 0.999,
+            second_order: true,
+        };
+        Filter::new(model, layout, init, noise, Algebra::Structured).unwrap()
+    }
+
+    /// The albedo `factor` times a fixed linearised one.
+    fn albedo(factor: f64) -> LinearAlbedo {
+        LinearAlbedo {
+            n0_gcrf: Vector3::new(0.3, -0.2, 0.93).normalize(),
+            ratio0: 0.21 * factor,
+            vector_gcrf: Vector3::new(0.05, 0.12, 0.3) * factor,
+        }
+    }
+
+    #[test]
+    fn albedo_gain_partial_matches_finite_differences() {
+        let mut f = filter();
+        let attitude = *nalgebra::Rotation3::from_euler_angles(0.3, -0.4, 1.1).matrix();
+        let sun_body = attitude * Vector3::new(0.2, 0.5, 0.84).normalize();
+        for g in [-0.4, 0.0, 0.35] {
+            f.albedo_gain = g;
+            let seen = albedo(1.0 + g);
+            fn scene<'a>(
+                attitude: Matrix3<f64>,
+                sun_body: Vector3<f64>,
+                a: &'a LinearAlbedo,
+            ) -> Scene<'a> {
+                Scene {
+                    attitude,
+                    sun_body,
+                    sun_fraction: 1.0,
+                    sun_distance_factor: 1.0,
+                    rate_body_rad_s: Vector3::zeros(),
+                    t_s: 5400.0,
+                    albedo: Some(a as &dyn AlbedoIrradiance),
+                    temperature_c: &[],
+                }
+            }
+            for i in 0..4 {
+                let predicted = f
+                    .model
+                    .evaluate(i, &scene(attitude, sun_body, &seen))
+                    .unwrap();
+                let d = f
+                    .albedo_gain_partial(i, &scene(attitude, sun_body, &seen), predicted)
+                    .unwrap();
+                let h = 1e-6;
+                let up = f
+                    .model
+                    .evaluate(i, &scene(attitude, sun_body, &albedo(1.0 + g + h)))
+                    .unwrap();
+                let down = f
+                    .model
+                    .evaluate(i, &scene(attitude, sun_body, &albedo(1.0 + g - h)))
+                    .unwrap();
+                let fd = (up - down) / (2.0 * h);
+                assert!(d.abs() > 1e-3, "photodiode {i}: no albedo seen ({d})");
+                assert!(
+                    (d - fd).abs() <= 1e-7 * fd.abs().max(1.0),
+                    "photodiode {i}, g {g}: partial {d} against finite differences {fd}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn albedo_gain_is_a_stationary_gauss_markov_process() {
+        // Unobserved, the gain's variance stays its prior over any steps (the decay and
+        // the noise balance), its estimate decays by e^(-dt/tau) and its correlation with
+        // another state with it.
+        let mut f = filter();
+        let g = f.layout().albedo_gain().unwrap();
+        let c = f.layout().scale(0);
+        f.albedo_gain = 0.1;
+        f.p[(g, c)] = 0.01;
+        f.p[(c, g)] = 0.01;
+        let mut decay = 1.0;
+        for dt in [1.0, 10.0, 100.0, 1000.0] {
+            f.propagate(&Vector3::new(0.01, -0.02, 0.005), 0.0, dt);
+            decay *= (-dt / 360.0f64).exp();
+            assert!(
+                (f.p[(g, g)] - 0.04).abs() < 1e-15,
+                "variance {}",
+                f.p[(g, g)]
+            );
+            assert!((f.albedo_gain - 0.1 * decay).abs() < 1e-15);
+            assert!((f.p[(g, c)] - 0.01 * decay).abs() < 1e-15);
+            assert_eq!(f.p[(g, c)], f.p[(c, g)]);
+            assert_eq!(
+                f.last_propagation().unwrap().albedo_gain_decay,
+                (-dt / 360.0f64).exp()
+            );
+        }
+        f.reacquire(Quat::IDENTITY, &(Matrix3::identity() * 1e-4), 1e5);
+        assert!((f.p[(g, g)] - 0.04).abs() < 1e-15);
+        assert!(f.albedo_gain.abs() < 1e-100);
+    }
+}
