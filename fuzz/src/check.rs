@@ -4,7 +4,7 @@ use std::collections::HashMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-use pdcal_dataset::{DatasetError, ErrorKind};
+use pdcal_dataset::{DatasetError, ErrorKind, FileFaultKind};
 use pdcal_filter::FilterError;
 use pdcal_import::{ErrorKind as ImportKind, ImportError};
 use pdcal_sim::ScenarioError;
@@ -107,7 +107,7 @@ pub(crate) fn dataset(result: Result<(), DatasetError>, files: &[(PathBuf, &[u8]
     }
     if let Some(line) = e.line() {
         // RON columns count characters; CSV columns count cells, bounded only below.
-        let column_bound = is_ron || matches!(e.kind(), ErrorKind::NotUtf8);
+        let column_bound = is_ron || matches!(e.kind(), ErrorKind::File(FileFaultKind::NotUtf8));
         if let Some(p) = outside(bytes, line, e.column(), column_bound) {
             problems.push(p);
         }
@@ -118,8 +118,10 @@ pub(crate) fn dataset(result: Result<(), DatasetError>, files: &[(PathBuf, &[u8]
 
 fn dataset_place(kind: &ErrorKind, is_ron: bool) -> Place {
     match kind {
-        ErrorKind::Io { .. } | ErrorKind::Empty | ErrorKind::TruthIncomplete { .. } => Place::File,
-        ErrorKind::NotUtf8 => Place::LineAndColumn,
+        ErrorKind::Io { .. }
+        | ErrorKind::File(FileFaultKind::Empty)
+        | ErrorKind::TruthIncomplete { .. } => Place::File,
+        ErrorKind::File(FileFaultKind::NotUtf8) => Place::LineAndColumn,
         ErrorKind::Ron(_) if is_ron => Place::LineAndColumn,
         _ if is_ron => Place::LineOrField,
         ErrorKind::MissingHeader { .. }
@@ -164,7 +166,7 @@ pub(crate) fn import(result: anyhow::Result<()>, files: &[(PathBuf, &[u8])]) -> 
     }
     if let Some(line) = e.line() {
         // Map columns count characters; export columns count cells, bounded only below.
-        let column_bound = is_map || matches!(e.kind(), ImportKind::NotUtf8);
+        let column_bound = is_map || matches!(e.kind(), ImportKind::File(FileFaultKind::NotUtf8));
         if let Some(p) = outside(bytes, line, e.column(), column_bound) {
             problems.push(p);
         }
@@ -175,12 +177,12 @@ pub(crate) fn import(result: anyhow::Result<()>, files: &[(PathBuf, &[u8])]) -> 
 
 fn import_place(kind: &ImportKind, is_map: bool) -> Place {
     match kind {
-        ImportKind::Empty | ImportKind::NoRows { .. } => Place::File,
-        ImportKind::NotUtf8 => Place::LineAndColumn,
+        ImportKind::File(FileFaultKind::Empty) | ImportKind::NoRows { .. } => Place::File,
+        ImportKind::File(FileFaultKind::NotUtf8) => Place::LineAndColumn,
         ImportKind::Ron(_) => Place::LineAndColumn,
         _ if is_map => Place::LineOrField,
-        ImportKind::WrongCellCount { .. }
-        | ImportKind::Csv { .. }
+        ImportKind::File(FileFaultKind::WrongCellCount { .. })
+        | ImportKind::File(FileFaultKind::Csv { .. })
         | ImportKind::AmbiguousDelimiter { .. } => Place::Line,
         _ => Place::LineAndColumn,
     }

@@ -34,12 +34,10 @@ pub enum ErrorKind {
         /// The cause.
         source: std::io::Error,
     },
-    /// The bytes are not UTF-8 text.
-    #[error("not UTF-8 text")]
-    NotUtf8,
-    /// The file has no content (only whitespace at most).
-    #[error("file is empty")]
-    Empty,
+    /// A fault any reader of a user's file finds alike (not text, empty, an unknown
+    /// `format_version`, a bad epoch, a CSV row's length, the CSV reader's own failure).
+    #[error(transparent)]
+    File(FileFaultKind),
     /// A CSV file has a header row but no data rows.
     #[error("no data rows after the header")]
     NoRows,
@@ -56,25 +54,6 @@ pub enum ErrorKind {
     /// absent.
     #[error(transparent)]
     Ron(crate::RonFaultKind),
-    /// `format_version` is not one this reader knows.
-    #[error("format_version {found} is not supported (this reader knows {known})")]
-    UnsupportedVersion {
-        /// The version in the file.
-        found: u32,
-        /// The version this crate reads and writes.
-        known: u32,
-    },
-    /// `epoch_utc` is not ISO 8601 UTC.
-    #[error(
-        "{} is not an ISO 8601 UTC time like \"2011-11-04T18:29:45Z\": {reason}",
-        quote(value)
-    )]
-    BadEpoch {
-        /// The text found.
-        value: String,
-        /// Why it was refused.
-        reason: String,
-    },
     /// A TLE line whose checksum (column 69) does not match its digits.
     #[error(
         "TLE line {line_number} checksum fails: column 69 holds {stated:?}, the digits give {computed}"
@@ -132,14 +111,6 @@ pub enum ErrorKind {
         /// What was counted, phrased to precede the count (`the header's pdNN_V columns number`).
         what: String,
         /// How many of those.
-        found: usize,
-    },
-    /// A row with a different number of cells than the header.
-    #[error("row has {found} cells, the header has {expected}")]
-    WrongCellCount {
-        /// Cells in the header.
-        expected: usize,
-        /// Cells in this row.
         found: usize,
     },
     /// Text that does not parse as a number.
@@ -208,12 +179,6 @@ pub enum ErrorKind {
         /// What is wrong with it.
         message: String,
     },
-    /// A CSV reader failure that is none of the above.
-    #[error("{message}")]
-    Csv {
-        /// The csv crate's description.
-        message: String,
-    },
     /// A `temp_<panel>_C` column whose panel no photodiode in dataset.ron is on.
     #[error(
         "no photodiode in dataset.ron has panel: {panel:?}, so this temperature column would \
@@ -241,6 +206,59 @@ pub enum ErrorKind {
         /// The effect id.
         id: String,
     },
+}
+
+/// What is wrong with a user's file that every reader of one finds alike: the one list of
+/// these kinds and their messages, which the dataset's and the import's error kinds both
+/// carry (`ErrorKind::File`), as they carry [`crate::RonFaultKind`].
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum FileFaultKind {
+    /// The bytes are not UTF-8 text.
+    #[error("not UTF-8 text")]
+    NotUtf8,
+    /// The file has no content (only whitespace at most).
+    #[error("file is empty")]
+    Empty,
+    /// `format_version` is not one this reader knows.
+    #[error("format_version {found} is not supported (this reader knows {known})")]
+    UnsupportedVersion {
+        /// The version in the file.
+        found: u32,
+        /// The version this reader knows.
+        known: u32,
+    },
+    /// An epoch that is not ISO 8601 UTC.
+    #[error(
+        "{} is not an ISO 8601 UTC time like \"2011-11-04T18:29:45Z\": {reason}",
+        quote(value)
+    )]
+    BadEpoch {
+        /// The text found.
+        value: String,
+        /// Why it was refused.
+        reason: String,
+    },
+    /// A CSV row with a different number of cells than the header.
+    #[error("row has {found} cells, the header has {expected}")]
+    WrongCellCount {
+        /// Cells in the header.
+        expected: usize,
+        /// Cells in this row.
+        found: usize,
+    },
+    /// A CSV reader failure that is none of the above.
+    #[error("{message}")]
+    Csv {
+        /// The csv crate's description.
+        message: String,
+    },
+}
+
+impl From<FileFaultKind> for ErrorKind {
+    fn from(kind: FileFaultKind) -> Self {
+        ErrorKind::File(kind)
+    }
 }
 
 impl DatasetError {
@@ -349,6 +367,24 @@ pub enum TextFault {
     Empty,
 }
 
+impl TextFault {
+    /// The 1-based line and character column of the fault, `None` for the whole file.
+    pub fn place(&self) -> Option<(usize, usize)> {
+        match *self {
+            TextFault::NotUtf8 { line, column } => Some((line, column)),
+            TextFault::Empty => None,
+        }
+    }
+
+    /// The fault's kind, as every reader reports it.
+    pub fn kind(&self) -> FileFaultKind {
+        match self {
+            TextFault::NotUtf8 { .. } => FileFaultKind::NotUtf8,
+            TextFault::Empty => FileFaultKind::Empty,
+        }
+    }
+}
+
 /// Checks the bytes are UTF-8 and not blank; strips a leading byte-order mark.
 pub fn decode_text(bytes: Vec<u8>) -> Result<String, TextFault> {
     let text = String::from_utf8(bytes).map_err(|e| {
@@ -369,10 +405,11 @@ pub fn decode_text(bytes: Vec<u8>) -> Result<String, TextFault> {
 
 /// [`decode_text`] with the fault as this crate's error.
 pub(crate) fn text_of(file: &Path, bytes: Vec<u8>) -> Result<String, DatasetError> {
-    decode_text(bytes).map_err(|fault| match fault {
-        TextFault::NotUtf8 { line, column } => {
-            DatasetError::at(file, line, Some(column), ErrorKind::NotUtf8)
+    decode_text(bytes).map_err(|fault| {
+        let kind = fault.kind().into();
+        match fault.place() {
+            Some((line, column)) => DatasetError::at(file, line, Some(column), kind),
+            None => DatasetError::whole_file(file, kind),
         }
-        TextFault::Empty => DatasetError::whole_file(file, ErrorKind::Empty),
     })
 }

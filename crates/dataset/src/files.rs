@@ -5,7 +5,7 @@ use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
 use crate::bounded::{MAX_RON_BYTES, open_regular, read_bounded};
-use crate::error::{DatasetError, ErrorKind, text_of};
+use crate::error::{DatasetError, ErrorKind, FileFaultKind, text_of};
 use crate::manifest::Manifest;
 use crate::meta::{DatasetMeta, parse_meta, render_meta};
 use crate::publish::{Publication, PublishError, PublishErrorKind};
@@ -101,7 +101,7 @@ fn check_text_file(file: &Path) -> Result<bool, DatasetError> {
                     file,
                     line,
                     Some(column),
-                    ErrorKind::NotUtf8,
+                    FileFaultKind::NotUtf8.into(),
                 ));
             }
             break;
@@ -141,7 +141,7 @@ fn check_text_file(file: &Path) -> Result<bool, DatasetError> {
                     file,
                     line,
                     Some(column),
-                    ErrorKind::NotUtf8,
+                    FileFaultKind::NotUtf8.into(),
                 ));
             }
             Some((up_to, None)) => {
@@ -151,7 +151,7 @@ fn check_text_file(file: &Path) -> Result<bool, DatasetError> {
         };
     }
     if blank {
-        return Err(DatasetError::whole_file(file, ErrorKind::Empty));
+        return Err(DatasetError::whole_file(file, FileFaultKind::Empty.into()));
     }
     Ok(bom)
 }

@@ -71,7 +71,7 @@ mod temperature;
 mod truth;
 
 pub use current::{CURRENT_RANGE_A, CurrentColumn, current_column, is_current_name};
-pub use error::{DatasetError, ErrorKind, TextFault, decode_text};
+pub use error::{DatasetError, ErrorKind, FileFaultKind, TextFault, decode_text};
 pub use files::{
     Dataset, DatasetWriter, LIBRARY_WRITE_COMMAND, begin_dataset, begin_dataset_as, read_dataset,
     read_meta, read_telemetry, read_truth, render_dataset, write_dataset,

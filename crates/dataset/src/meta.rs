@@ -7,7 +7,7 @@ use nalgebra::Matrix3;
 use pdcal_attitude::dynamics::RigidBody;
 use serde::{Deserialize, Serialize};
 
-use crate::error::{DatasetError, ErrorKind, text_of};
+use crate::error::{DatasetError, ErrorKind, FileFaultKind, text_of};
 use crate::ron_text::{from_ron, locate_key, locate_str, to_ron};
 
 /// The only `format_version` this crate reads and writes.
@@ -180,10 +180,10 @@ impl EpochUtc {
     /// seconds) once the forms dataset.ron allows are brought to its `...THH:MM:SSZ`.
     pub fn parse(text: &str) -> Result<Self, ErrorKind> {
         let epoch = pdcal_ephem::time::parse_utc(&canonical_iso(text)).map_err(|e| {
-            ErrorKind::BadEpoch {
+            ErrorKind::from(FileFaultKind::BadEpoch {
                 value: text.to_owned(),
                 reason: time_reason(e),
-            }
+            })
         })?;
         Ok(Self {
             text: text.to_owned(),
@@ -302,10 +302,11 @@ pub(crate) fn parse_meta(file: &Path, text: &str) -> Result<DatasetMeta, Dataset
     if raw.format_version != FORMAT_VERSION {
         return Err(at_key(
             "format_version",
-            ErrorKind::UnsupportedVersion {
+            FileFaultKind::UnsupportedVersion {
                 found: raw.format_version,
                 known: FORMAT_VERSION,
-            },
+            }
+            .into(),
         ));
     }
     let epoch_utc = EpochUtc::parse(&raw.epoch_utc).map_err(|kind| at_key("epoch_utc", kind))?;
@@ -557,7 +558,10 @@ mod tests {
         let before = EpochUtc::parse("2016-12-31T23:59:59Z").unwrap().epoch();
         assert!(((next_day - before).to_seconds() - 2.0).abs() < 1e-9);
         let e = EpochUtc::parse("2015-12-31T23:59:60Z").unwrap_err();
-        assert!(matches!(e, ErrorKind::BadEpoch { .. }), "{e}");
+        assert!(
+            matches!(e, ErrorKind::File(FileFaultKind::BadEpoch { .. })),
+            "{e}"
+        );
     }
 
     #[test]

@@ -7,7 +7,7 @@ use std::path::Path;
 use csv::{ReaderBuilder, StringRecord, Trim};
 use nalgebra::Vector3;
 
-use crate::error::{DatasetError, ErrorKind};
+use crate::error::{DatasetError, ErrorKind, FileFaultKind};
 
 /// A CSV text being read row by row, from memory or streamed from a file (`R`). Cells are
 /// trimmed of surrounding blanks, so `t_s, gyro_x_rad_s` is read like `t_s,gyro_x_rad_s`;
@@ -26,7 +26,7 @@ impl<'a> CsvRows<'a> {
     /// Reads the header row; refuses blank text and a first row that starts with a number.
     pub fn open(file: &'a Path, text: &'a str) -> Result<Self, DatasetError> {
         if text.trim().is_empty() {
-            return Err(DatasetError::whole_file(file, ErrorKind::Empty));
+            return Err(DatasetError::whole_file(file, FileFaultKind::Empty.into()));
         }
         CsvRows::from_reader(file, text.as_bytes())
     }
@@ -50,7 +50,7 @@ impl<'a, R: Read> CsvRows<'a, R> {
             header_line: 1,
         };
         let Some(line) = rows.read_record()? else {
-            return Err(DatasetError::whole_file(file, ErrorKind::Empty));
+            return Err(DatasetError::whole_file(file, FileFaultKind::Empty.into()));
         };
         rows.header_line = line;
         rows.header = rows.record.iter().map(str::to_owned).collect();
@@ -76,10 +76,10 @@ impl<'a, R: Read> CsvRows<'a, R> {
                 let line = e
                     .position()
                     .map_or(1, |p| usize::try_from(p.line()).unwrap_or(usize::MAX));
-                let kind = ErrorKind::Csv {
+                let kind = FileFaultKind::Csv {
                     message: e.to_string(),
                 };
-                Err(DatasetError::at(self.file, line, None, kind))
+                Err(DatasetError::at(self.file, line, None, kind.into()))
             }
         }
     }
@@ -90,11 +90,11 @@ impl<'a, R: Read> CsvRows<'a, R> {
             return Ok(None);
         };
         if self.record.len() != self.header.len() {
-            let kind = ErrorKind::WrongCellCount {
+            let kind = FileFaultKind::WrongCellCount {
                 expected: self.header.len(),
                 found: self.record.len(),
             };
-            return Err(DatasetError::at(self.file, line, None, kind));
+            return Err(DatasetError::at(self.file, line, None, kind.into()));
         }
         Ok(Some(line))
     }

@@ -6,7 +6,7 @@ mod common;
 use std::fs;
 
 use common::{TLE1, TLE2};
-use pdcal_dataset::{DatasetError, ErrorKind, RonFaultKind, read_dataset};
+use pdcal_dataset::{DatasetError, ErrorKind, FileFaultKind, RonFaultKind, read_dataset};
 
 /// dataset.ron of the base dataset; line numbers matter to the tests below.
 fn dataset_ron() -> String {
@@ -523,7 +523,10 @@ fn other_classes() {
         place(&e),
         ("dataset.ron".into(), Some(4), Some(5), Some("epoch_utc"))
     );
-    assert!(matches!(e.kind(), ErrorKind::BadEpoch { .. }), "{e}");
+    assert!(
+        matches!(e.kind(), ErrorKind::File(FileFaultKind::BadEpoch { .. })),
+        "{e}"
+    );
     let text = dataset_ron().replace("format_version: 1", "format_version: 2");
     let e = fail("dataset.ron", &text);
     assert_eq!(
@@ -554,7 +557,7 @@ fn other_classes() {
     fs::write(dir.path().join("telemetry.csv"), b"t_s,gyro\n0,\xff\n").unwrap();
     let e = read_dataset(dir.path()).unwrap_err();
     assert_eq!((e.line(), e.column()), (Some(2), Some(3)));
-    assert!(matches!(e.kind(), ErrorKind::NotUtf8));
+    assert!(matches!(e.kind(), ErrorKind::File(FileFaultKind::NotUtf8)));
     // A missing directory or file.
     let e = read_dataset(&dir.path().join("nowhere")).unwrap_err();
     assert_eq!(e.file_name(), "dataset.ron");

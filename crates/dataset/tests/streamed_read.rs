@@ -9,7 +9,8 @@ use std::path::Path;
 
 use common::{TLE1, TLE2};
 use pdcal_dataset::{
-    DatasetError, DatasetMeta, ErrorKind, meta_from_str, read_telemetry, telemetry_from_str,
+    DatasetError, DatasetMeta, ErrorKind, FileFaultKind, meta_from_str, read_telemetry,
+    telemetry_from_str,
 };
 
 fn meta() -> DatasetMeta {
@@ -96,7 +97,7 @@ fn bytes_that_are_not_utf8_are_placed_in_any_buffer() {
             (Some(line), Some(column)),
             "byte {at}"
         );
-        assert!(matches!(e.kind(), ErrorKind::NotUtf8));
+        assert!(matches!(e.kind(), ErrorKind::File(FileFaultKind::NotUtf8)));
     }
     // A character cut off by the end of the file.
     let mut bytes = text.as_bytes().to_vec();
@@ -104,14 +105,17 @@ fn bytes_that_are_not_utf8_are_placed_in_any_buffer() {
     let e = read(&bytes).unwrap_err();
     let (line, column) = line_col(&text, text.len());
     assert_eq!((e.line(), e.column()), (Some(line), Some(column)));
-    assert!(matches!(e.kind(), ErrorKind::NotUtf8));
+    assert!(matches!(e.kind(), ErrorKind::File(FileFaultKind::NotUtf8)));
 }
 
 #[test]
 fn a_blank_file_is_empty() {
     for bytes in ["", " \n\t\n", "\u{feff}", "\u{feff}  \n"] {
         let e = read(bytes.as_bytes()).unwrap_err();
-        assert!(matches!(e.kind(), ErrorKind::Empty), "{bytes:?}: {e}");
+        assert!(
+            matches!(e.kind(), ErrorKind::File(FileFaultKind::Empty)),
+            "{bytes:?}: {e}"
+        );
         assert_eq!(e.line(), None);
     }
     let missing = read_telemetry(Path::new("/nonexistent-pdcal-dir"), &meta()).unwrap_err();

@@ -2,6 +2,8 @@
 //! kinematics and Eq. 19), sequential scalar updates (Eqs. 4-7 with Eqs. 15, 20-24 and the
 //! magnetometer) and the multiplicative reset.
 
+use std::borrow::Cow;
+
 use nalgebra::{DMatrix, DVector, Dyn, Matrix2, Matrix3, Matrix6, OMatrix, U6, Vector3};
 use pdcal_albedo::LinearAlbedo;
 use pdcal_attitude::mekf::{apply_small_error, process_noise, state_transition};
@@ -229,8 +231,9 @@ pub struct Filter {
     algebra: Algebra,
     q: Quat,
     bias: Vector3<f64>,
-    scale: Vec<f64>,
-    normal: Vec<Vector3<f64>>,
+    /// Per photodiode, the tangent basis of its normal estimate. The scale and normal
+    /// estimates themselves live in `model`'s photodiodes, their one owner, which the
+    /// reset writes ([`Filter::reset_photodiodes`]).
     basis: Vec<(Vector3<f64>, Vector3<f64>)>,
     used: Vec<bool>,
     rate_est: Vector3<f64>,
@@ -371,14 +374,7 @@ impl Filter {
         }
         let normal: Vec<Vector3<f64>> = init.n_body.iter().map(|n| n.normalize()).collect();
         layout.set_reference_normals(&normal);
-        for (pd, (c, nb)) in model
-            .photodiodes_mut()
-            .iter_mut()
-            .zip(init.scale_v.iter().zip(&normal))
-        {
-            pd.scale_v = *c;
-            pd.n_body = *nb;
-        }
+        set_estimates(&mut model, &init.scale_v, &normal);
         let partials = Partials {
             d_parameters: vec![0.0; model.parameter_count()],
             ..Partials::default()
@@ -413,8 +409,6 @@ impl Filter {
             algebra,
             q: init.q,
             bias: init.bias_rad_s,
-            scale: init.scale_v,
-            normal,
             used: init.used,
             rate_est: Vector3::zeros(),
             albedo_gain: 0.0,
@@ -453,7 +447,7 @@ impl Filter {
                 self.p[(k + 6, k + 6)] = model.moment_sigma().powi(2);
             }
             self.initial_variance = self.p.diagonal().iter().copied().collect();
-            let m = self.scale.len();
+            let m = self.used.len();
             self.scratch.dx = DVector::zeros(n);
             self.scratch.cal_noise = DVector::zeros(n);
             self.scratch.pending = Pending::new(n, 6 + m);
@@ -851,7 +845,7 @@ impl Filter {
         reference: &Reference,
         albedo: Option<&dyn AlbedoIrradiance>,
     ) -> Result<(), FilterError> {
-        check_len("photodiode samples", self.scale.len(), meas.pd_v.len())?;
+        check_len("photodiode samples", self.used.len(), meas.pd_v.len())?;
         self.records.clear();
         self.scratch.rows.clear();
         self.scratch.sources.clear();
@@ -894,12 +888,13 @@ impl Filter {
         full: bool,
     ) -> Result<Option<CovarianceRepair>, FilterError> {
         let finite = |v: &Vector3<f64>| v.iter().all(|x| x.is_finite());
+        let photodiodes = self.model.photodiodes();
         let state_finite = [self.q.x, self.q.y, self.q.z, self.q.w]
             .iter()
-            .chain(&self.scale)
+            .chain(photodiodes.iter().map(|pd| &pd.scale_v))
             .all(|x| x.is_finite())
             && finite(&self.bias)
-            && self.normal.iter().all(finite);
+            && photodiodes.iter().all(|pd| finite(&pd.n_body));
         if !state_finite {
             return Err(FilterError::StateNotFinite { index, t_s });
         }
@@ -980,7 +975,7 @@ impl Filter {
             angle_var += self.p_diag(d) + self.p_diag(d + 1);
         }
         let sc = self.layout.scale(i);
-        let c = self.scale[i] * cos_incidence;
+        let c = self.model.photodiodes()[i].scale_v * cos_incidence;
         0.25 * c * c * angle_var * angle_var + 0.5 * self.p_diag(sc) * angle_var
     }
 
@@ -1071,7 +1066,8 @@ impl Filter {
     /// the whole albedo error of one row; where the albedo is strong the gain's share is
     /// all of it).
     fn white_albedo_var(&self, i: usize, d_gain: f64) -> f64 {
-        let declared = (self.scale[i] * self.noise.albedo_sigma_ratio).powi(2);
+        let declared =
+            (self.model.photodiodes()[i].scale_v * self.noise.albedo_sigma_ratio).powi(2);
         let correlated = self
             .noise
             .albedo_gain
@@ -1102,14 +1098,15 @@ impl Filter {
                 counts.shadowed += 1;
                 continue;
             }
-            if !self.used[i] || self.scale[i] <= 0.0 {
+            let pd = &self.model.photodiodes()[i];
+            if !self.used[i] || pd.scale_v <= 0.0 {
                 counts.unused_sensor += 1;
                 continue;
             }
-            let cos_incidence = self.normal[i].dot(sun_body);
+            let cos_incidence = pd.n_body.dot(sun_body);
             // The narrower of the filter's gate and the photodiode's own field of view, if it
             // has one (without one the gate alone decides, even beyond 90 deg).
-            let cos_fov = self.model.photodiodes()[i]
+            let cos_fov = pd
                 .fov_half_angle_rad
                 .map_or(self.noise.cos_fov, |fov| self.noise.cos_fov.max(fov.cos()));
             if cos_incidence < cos_fov {
@@ -1187,9 +1184,11 @@ impl Filter {
         let a = &mut self.scratch.albedo;
         a.normals_gcrf.clear();
         a.cos_fov.clear();
-        for pd in &self.scratch.selected {
-            a.normals_gcrf.push(attitude.tr_mul(&self.normal[pd.index]));
-            a.cos_fov.push(self.model.photodiodes()[pd.index].cos_fov());
+        let photodiodes = self.model.photodiodes();
+        for selected in &self.scratch.selected {
+            let pd = &photodiodes[selected.index];
+            a.normals_gcrf.push(attitude.tr_mul(&pd.n_body));
+            a.cos_fov.push(pd.cos_fov());
         }
         a.results.clear();
         a.results
@@ -1291,31 +1290,28 @@ impl Filter {
         self.p.fixed_columns_mut::<3>(ATTITUDE).copy_from(&rows);
     }
 
-    /// The reset of the scales and normals, in three passes over the photodiodes: scales and
-    /// normals, then the tangent bases of the normals that moved, then the model's copies.
-    /// Each pass's iterations are independent, so the processor overlaps them, which one
-    /// loop doing all three prevents (docs/performance.md).
+    /// The reset of the scales and normals, written into the model's photodiodes (their
+    /// one owner), in two passes over the photodiodes: scales and normals, then the
+    /// tangent bases of the normals that moved. Each pass's iterations are independent, so
+    /// the processor overlaps them, which one loop doing both prevents
+    /// (docs/performance.md).
     fn reset_photodiodes(&mut self) {
         let Scratch { dx, moved, .. } = &mut self.scratch;
         moved.clear();
-        for i in 0..self.scale.len() {
-            self.scale[i] += dx[self.layout.scale(i)];
+        let photodiodes = self.model.photodiodes_mut();
+        for (i, pd) in photodiodes.iter_mut().enumerate() {
+            pd.scale_v += dx[self.layout.scale(i)];
             if let Some(d) = self.layout.normal(i)
                 && (dx[d] != 0.0 || dx[d + 1] != 0.0)
             {
-                // The cached basis is the layout's basis at normal[i]: rotate in it.
+                // The cached basis is the layout's basis at the normal: rotate in it.
                 let (e1, e2) = &self.basis[i];
-                self.normal[i] = rotate_normal_in(&self.normal[i], (e1, e2), dx[d], dx[d + 1]);
+                pd.n_body = rotate_normal_in(&pd.n_body, (e1, e2), dx[d], dx[d + 1]);
                 moved.push(i);
             }
         }
         for &i in moved.iter() {
-            self.basis[i] = self.layout.tangent_basis(i, &self.normal[i]);
-        }
-        let estimates = self.scale.iter().zip(&self.normal);
-        for (pd, (scale_v, n_body)) in self.model.photodiodes_mut().iter_mut().zip(estimates) {
-            pd.scale_v = *scale_v;
-            pd.n_body = *n_body;
+            self.basis[i] = self.layout.tangent_basis(i, &photodiodes[i].n_body);
         }
     }
 
@@ -1337,14 +1333,22 @@ impl Filter {
         self.bias
     }
 
-    /// Scale factor estimates, V.
-    pub fn scales_v(&self) -> &[f64] {
-        &self.scale
+    /// Scale factor estimates, V (read from the model's photodiodes, their owner).
+    pub fn scales_v(&self) -> Vec<f64> {
+        self.model
+            .photodiodes()
+            .iter()
+            .map(|pd| pd.scale_v)
+            .collect()
     }
 
-    /// Normal estimates, body frame.
-    pub fn normals(&self) -> &[Vector3<f64>] {
-        &self.normal
+    /// Normal estimates, body frame (read from the model's photodiodes, their owner).
+    pub fn normals(&self) -> Vec<Vector3<f64>> {
+        self.model
+            .photodiodes()
+            .iter()
+            .map(|pd| pd.n_body)
+            .collect()
     }
 
     /// The albedo gain estimate `g` ([`AlbedoGainNoise`]), when it is a state.
@@ -1372,8 +1376,8 @@ impl Filter {
         FilterState {
             q: self.q,
             bias: self.bias,
-            scale: self.scale.clone(),
-            normal: self.normal.clone(),
+            scale: self.scales_v(),
+            normal: self.normals(),
             basis: self.basis.clone(),
             rate_est: self.rate_est,
             albedo_gain: self.albedo_gain,
@@ -1389,22 +1393,16 @@ impl Filter {
     /// repeat bit for bit.
     pub fn restore(&mut self, state: &FilterState) -> Result<(), FilterError> {
         check_len("restored covariance", self.p.nrows(), state.p.nrows())?;
-        check_len("restored scales", self.scale.len(), state.scale.len())?;
+        check_len("restored scales", self.used.len(), state.scale.len())?;
         self.q = state.q;
         self.bias = state.bias;
-        self.scale.copy_from_slice(&state.scale);
-        self.normal.copy_from_slice(&state.normal);
+        set_estimates(&mut self.model, &state.scale, &state.normal);
         self.basis.copy_from_slice(&state.basis);
         self.rate_est = state.rate_est;
         self.albedo_gain = state.albedo_gain;
         self.p.copy_from(&state.p);
         for (k, value) in state.parameters.iter().enumerate() {
             self.model.parameter_mut(k)?.value = *value;
-        }
-        let estimates = self.scale.iter().zip(&self.normal);
-        for (pd, (scale_v, n_body)) in self.model.photodiodes_mut().iter_mut().zip(estimates) {
-            pd.scale_v = *scale_v;
-            pd.n_body = *n_body;
         }
         self.counts = state.counts;
         self.last.clone_from(&state.last);
@@ -1460,8 +1458,8 @@ impl Filter {
     pub fn calibration(&self, fixed: Option<&Calibration>) -> Calibration {
         let state = StateView {
             bias: self.bias,
-            scale: &self.scale,
-            normal: &self.normal,
+            scale: self.scales_v().into(),
+            normal: self.normals().into(),
             extras: self.extra_values(),
             p: &self.p,
         };
@@ -1469,11 +1467,20 @@ impl Filter {
     }
 }
 
-/// A state and its covariance, borrowed from the filter or the smoother.
+/// Writes the scale and normal estimates into `model`'s photodiodes, their one owner.
+fn set_estimates(model: &mut MeasurementModel, scale_v: &[f64], n_body: &[Vector3<f64>]) {
+    let estimates = scale_v.iter().zip(n_body);
+    for (pd, (scale_v, n_body)) in model.photodiodes_mut().iter_mut().zip(estimates) {
+        pd.scale_v = *scale_v;
+        pd.n_body = *n_body;
+    }
+}
+
+/// A state and its covariance, from the filter or the smoother.
 pub(crate) struct StateView<'a> {
     pub bias: Vector3<f64>,
-    pub scale: &'a [f64],
-    pub normal: &'a [Vector3<f64>],
+    pub scale: Cow<'a, [f64]>,
+    pub normal: Cow<'a, [Vector3<f64>]>,
     pub extras: Vec<f64>,
     pub p: &'a DMatrix<f64>,
 }

@@ -18,7 +18,7 @@ use crate::filter::{
     StateView,
 };
 use crate::guard::RepairLog;
-use crate::init::{Start, StartInputs, find_start, initial_scales};
+use crate::init::{InitialScales, Start, StartInputs, find_start, initial_scales};
 use crate::layout::{ATTITUDE, BIAS, StateLayout};
 use crate::output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
 use crate::prepare::{Prepared, RunInputs};
@@ -147,148 +147,27 @@ impl<'a> ForwardPass<'a> {
         model: MeasurementModel,
         algebra: Algebra,
     ) -> Result<Self, FilterError> {
-        let telemetry = prepared.telemetry();
-        if !std::ptr::eq(inputs.telemetry, telemetry) {
-            return Err(FilterError::Missing(
-                "the run's telemetry is not its prepared (screened) telemetry: build the run \
-                 inputs with Prepared::inputs"
-                    .to_owned(),
-            ));
-        }
+        let telemetry = prepared_telemetry(inputs, prepared)?;
         let config = prepared.config();
         let m = inputs.meta.photodiodes.len();
         check_len("references", telemetry.len(), inputs.references.len())?;
         check_len("model photodiodes", m, model.photodiodes().len())?;
         let sigmas = prepared.sigmas();
-        let rejections = prepared.screened().clone();
-        let tel: &Telemetry = telemetry;
-        let has_mag = tel.mag_nt.is_some();
-        let (mode_used, use_mag) = match mode {
-            Mode::Full if has_mag => (ModeUsed::Full, true),
-            Mode::Full | Mode::PhotodiodeOnly => (ModeUsed::PhotodiodeOnly, false),
-            Mode::ScaleOnly { .. } => (
-                ModeUsed::ScaleOnly {
-                    with_magnetometer: has_mag,
-                },
-                has_mag,
-            ),
-        };
-        let prior = match mode {
-            Mode::ScaleOnly { prior } => {
-                check_len("prior photodiodes", m, prior.photodiodes.len())?;
-                Some(prior)
-            }
-            _ => None,
-        };
+        let (mode_used, use_mag) = mode_used(mode, telemetry.mag_nt.is_some());
+        let prior = scale_only_prior(mode, m)?;
         let initial = initial_scales(
-            tel,
+            telemetry,
             &inputs.references,
             config.min_lit_output_sigmas * sigmas.photodiode_v,
         )?;
         let used = initial.used.clone();
-        let max_scales = initial.scale_v.clone();
-        let (scale_v, scale_sigma_v, n_body): (Vec<f64>, Vec<f64>, Vec<Vector3<f64>>) = match prior
-        {
-            Some(prior) => (
-                prior.photodiodes.iter().map(|p| p.scale_v).collect(),
-                prior
-                    .photodiodes
-                    .iter()
-                    .map(|p| {
-                        p.scale_sigma_v
-                            .hypot(config.initial_scale_sigma_fraction * p.scale_v)
-                    })
-                    .collect(),
-                prior.photodiodes.iter().map(|p| p.n_body()).collect(),
-            ),
-            None => (
-                max_scales.clone(),
-                max_scales
-                    .iter()
-                    .zip(&initial.from_median)
-                    .map(|(c, &median)| {
-                        // A median-based value is an assumption (same sensor type): 2x wider.
-                        let widen = if median { 2.0 } else { 1.0 };
-                        widen * config.initial_scale_sigma_fraction * c
-                    })
-                    .collect(),
-                inputs
-                    .meta
-                    .photodiodes
-                    .iter()
-                    .map(|p| {
-                        normal_from_az_el(p.azimuth_deg.to_radians(), p.elevation_deg.to_radians())
-                    })
-                    .collect(),
-            ),
-        };
-        let layout = StateLayout::new(&model, prior.is_none());
         let rules = prepared.rules();
-        let (extra_sigma, extra_walk): (Vec<f64>, Vec<f64>) = layout
-            .extras()
-            .iter()
-            .map(|e| {
-                let (s, w) = config.parameter_sigma(&e.name, &e.unit);
-                (s, w * w)
-            })
-            .unzip();
-        let noise = FilterNoise {
-            gyro: GyroNoise {
-                // The white-noise density from the gyro's own sample period: another
-                // sensor sampling faster must not shrink it.
-                sigma_v_rad_sqrt_s: sigmas.gyro_rad_s
-                    * rules.gyro_step_s.sqrt()
-                    * config.gyro_noise_inflation,
-                sigma_u_rad_s_sqrt_s: config.gyro_bias_walk_rad_s_sqrt_s,
-            },
-            rate_change_fraction: config.rate_change_fraction,
-            scale_walk_var_per_s: scale_v
-                .iter()
-                .map(|c| (config.scale_walk_fraction_per_sqrt_h * c).powi(2) / 3600.0)
-                .collect(),
-            normal_walk_var_per_s: config.normal_walk_deg_per_sqrt_h.to_radians().powi(2) / 3600.0,
-            extra_walk_var_per_s: extra_walk,
-            photodiode_sigma_v: sigmas.photodiode_v,
-            albedo_sigma_ratio: config.albedo_sigma_w_m2 / E_AM0_W_M2,
-            albedo_gain: (inputs.albedo.is_some() && config.albedo_gain_sigma > 0.0).then_some(
-                AlbedoGainNoise {
-                    sigma: config.albedo_gain_sigma,
-                    time_s: config.albedo_gain_time_s,
-                },
-            ),
-            mag_sigma_nt: sigmas.mag_nt,
-            gate_sigmas: config.gate_sigmas,
-            cos_fov: config.fov_half_angle_deg.to_radians().cos(),
-            min_sun_fraction: config.min_sun_fraction,
-            second_order: config.second_order_noise,
-        };
-        let init = InitialState {
-            // Set by the first acquisition below.
-            q: Quat::IDENTITY,
-            attitude_cov: Matrix3::identity(),
-            bias_rad_s: Vector3::zeros(),
-            bias_sigma_rad_s: config.initial_bias_sigma_deg_s.to_radians(),
-            scale_v,
-            scale_sigma_v,
-            n_body,
-            normal_sigma_rad: config.initial_normal_sigma_deg.to_radians(),
-            extra_sigma,
-            used: used.clone(),
-        };
+        let layout = StateLayout::new(&model, prior.is_none());
+        let (init, noise) =
+            initial_state(inputs, &initial, prior, (config, sigmas, &rules), &layout);
         let mut filter = Filter::new(model, layout, init, noise, algebra)?;
         filter.set_sun_only(!use_mag);
-        if let Some(rate_model) = dynamics_model(inputs.meta, tel, config, &rules)? {
-            // The rate is set at each acquisition; until then it is unknown.
-            filter.enable_dynamics(
-                rate_model,
-                (
-                    Vector3::zeros(),
-                    config.initial_rate_sigma_deg_s.to_radians(),
-                ),
-                config.dipole_sigma_a_m2,
-                sigmas.gyro_rad_s,
-            );
-        }
+        enable_dynamics(&mut filter, inputs, telemetry, (config, sigmas, &rules))?;
         let initial = filter.calibration(prior);
         let mut pass = ForwardPass {
             references: inputs.references,
@@ -298,55 +177,45 @@ impl<'a> ForwardPass<'a> {
             rules,
             use_mag,
             average_gyro: config.average_gyro,
-            has_gyro: tel.gyro_rad_s.iter().any(Option::is_some),
+            has_gyro: telemetry.gyro_rad_s.iter().any(Option::is_some),
             min_sun_fraction: config.min_sun_fraction,
             mode_used,
             start: 0,
             initial,
             used,
             sigmas,
-            at: Cursor {
-                next: 0,
-                prior_q: filter.q(),
-                propagated: false,
-                fresh: true,
-                last_gyro: None,
-                last_gyro_t_s: f64::NEG_INFINITY,
-                last_t_s: tel.t_s[0],
-                last_r_gcrf_km: Vector3::zeros(),
-                last_b_gcrf_nt: Vector3::zeros(),
-                carry_rate: false,
-                acquiring: true,
-                window: InnovationWindow::new(&config.segments),
-                acquired_sigma_deg: 0.0,
-                steps: 0,
-                step_segment: 0,
-                held: false,
-            },
+            at: Cursor::first(filter.q(), telemetry.t_s[0], config),
             filter,
             photodiode_time_s: vec![0.0; m],
             segments: Vec::new(),
-            current: SegmentReport::open(0, tel.t_s[0]),
+            current: SegmentReport::open(0, telemetry.t_s[0]),
             row: vec![None; m],
             temperatures_c: telemetry.held_temperatures(inputs.meta).at(0).to_vec(),
             temperature_columns: telemetry.photodiode_temperatures(inputs.meta),
             view: AlbedoView::new(),
-            rejections,
+            rejections: prepared.screened().clone(),
             repairs: RepairLog::default(),
             sets_ahead: inputs.set_first_rows.iter().rev().copied().collect(),
             telemetry,
         };
-        if let Err(reason) = pass.acquire()? {
+        pass.acquire_first(inputs.meta)?;
+        Ok(pass)
+    }
+
+    /// The first acquisition of the run ([`ForwardPass::acquire`]): the rows before it
+    /// are skipped, the temperatures held to it, and a Sun-only start chooses its rotation
+    /// about the Sun line ([`ForwardPass::choose_about_sun_line`]).
+    fn acquire_first(&mut self, meta: &DatasetMeta) -> Result<(), FilterError> {
+        if let Err(reason) = self.acquire()? {
             return Err(FilterError::NoInitialSample { reason });
         }
-        pass.start = pass.at.next;
-        pass.temperatures_c = pass
+        self.start = self.at.next;
+        self.temperatures_c = self
             .telemetry
-            .held_temperatures(inputs.meta)
-            .at(pass.start)
+            .held_temperatures(meta)
+            .at(self.start)
             .to_vec();
-        pass.choose_about_sun_line()?;
-        Ok(pass)
+        self.choose_about_sun_line()
     }
 
     /// Acquires the attitude in the open segment from row `next` on: the first usable row
@@ -385,47 +254,15 @@ impl<'a> ForwardPass<'a> {
             )?;
             match found {
                 Ok(start) => {
-                    self.reacquire_at(&start)?;
-                    self.filter.correlate_attitude(&start.sensitivity);
-                    self.current.acquired_row = Some(start.index);
-                    self.current.acquisition = if self.use_mag {
-                        Acquisition::SunAndField
-                    } else {
-                        Acquisition::SunOnly
-                    };
-                    self.current.paired_field_row = start.paired_field_row;
-                    self.at.next = start.index;
-                    self.at.prior_q = start.q;
-                    self.at.fresh = true;
-                    self.at.last_gyro = Some(start.gyro_rad_s);
-                    self.at.last_gyro_t_s = start.gyro_t_s;
-                    if self.has_gyro {
-                        let bias_sigma = bias_var.sqrt();
-                        self.filter.set_rate(
-                            start.gyro_rad_s - self.filter.bias_rad_s(),
-                            bias_sigma.hypot(self.sigmas.gyro_rad_s),
-                        );
-                    }
-                    self.at.acquiring = false;
-                    self.at.window.clear();
-                    self.current.initial_bias = Some(self.initialise_bias(&start, end)?);
-                    self.at.acquired_sigma_deg = self.attitude_sigma_deg(start.index);
+                    self.acquired(&start, end, bias_var.sqrt())?;
                     return Ok(Ok(()));
                 }
                 Err(why) => {
-                    let last = end - 1;
-                    let ended_by = if end < self.telemetry.len() {
-                        SegmentBreak::Gap
-                    } else {
-                        SegmentBreak::End
-                    };
-                    self.current.skipped = Some(why.clone());
-                    self.close_segment(last, ended_by);
+                    self.skip_segment(end, why.clone());
                     match reasons.iter_mut().find(|(r, _)| *r == why) {
                         Some((_, n)) => *n += 1,
                         None => reasons.push((why, 1)),
                     }
-                    self.at.next = end;
                 }
             }
         }
@@ -439,6 +276,56 @@ impl<'a> ForwardPass<'a> {
                 .join("; "),
         };
         Ok(Err(text))
+    }
+
+    /// The open segment's attitude acquired at `start` (its data segment ending before
+    /// row `end`; `bias_sigma_rad_s` the largest gyro-bias sigma before it): the filter
+    /// re-acquired there, the segment's record, the cursor moved to the row, the rate set
+    /// from the gyro and the bias fitted ([`ForwardPass::initialise_bias`]).
+    fn acquired(
+        &mut self,
+        start: &Start,
+        end: usize,
+        bias_sigma_rad_s: f64,
+    ) -> Result<(), FilterError> {
+        self.reacquire_at(start)?;
+        self.filter.correlate_attitude(&start.sensitivity);
+        self.current.acquired_row = Some(start.index);
+        self.current.acquisition = if self.use_mag {
+            Acquisition::SunAndField
+        } else {
+            Acquisition::SunOnly
+        };
+        self.current.paired_field_row = start.paired_field_row;
+        self.at.next = start.index;
+        self.at.prior_q = start.q;
+        self.at.fresh = true;
+        self.at.last_gyro = Some(start.gyro_rad_s);
+        self.at.last_gyro_t_s = start.gyro_t_s;
+        if self.has_gyro {
+            self.filter.set_rate(
+                start.gyro_rad_s - self.filter.bias_rad_s(),
+                bias_sigma_rad_s.hypot(self.sigmas.gyro_rad_s),
+            );
+        }
+        self.at.acquiring = false;
+        self.at.window.clear();
+        self.current.initial_bias = Some(self.initialise_bias(start, end)?);
+        self.at.acquired_sigma_deg = self.attitude_sigma_deg(start.index);
+        Ok(())
+    }
+
+    /// The open segment closed as skipped (no attitude could be acquired in it, `why`),
+    /// ending before row `end`, where the search goes on.
+    fn skip_segment(&mut self, end: usize, why: String) {
+        let ended_by = if end < self.telemetry.len() {
+            SegmentBreak::Gap
+        } else {
+            SegmentBreak::End
+        };
+        self.current.skipped = Some(why);
+        self.close_segment(end - 1, ended_by);
+        self.at.next = end;
     }
 
     /// Before acquiring from row `first`: when a later data set of a joint run begins at or
@@ -566,14 +453,13 @@ impl<'a> ForwardPass<'a> {
     /// acquisition.
     fn current_photodiodes(&self) -> Vec<Photodiode> {
         self.filter
-            .scales_v()
+            .model()
+            .photodiodes()
             .iter()
-            .zip(self.filter.normals())
-            .map(|(&c, n)| Photodiode {
-                scale_v: c,
-                n_body: *n,
+            .map(|pd| Photodiode {
                 noise_v: self.sigmas.photodiode_v,
                 fov_half_angle_rad: None,
+                ..*pd
             })
             .collect()
     }
@@ -637,15 +523,8 @@ impl<'a> ForwardPass<'a> {
     /// covariance guard, and the test whether the attitude is lost or the next row starts
     /// a segment. The row processed, `None` after the last.
     pub fn step(&mut self) -> Result<Option<usize>, FilterError> {
-        if self.at.acquiring {
-            let from = self.at.next;
-            if self.acquire()?.is_err() {
-                return Ok(None);
-            }
-            for k in from..self.at.next {
-                self.hold_temperatures(k);
-            }
-            self.choose_about_sun_line()?;
+        if self.at.acquiring && !self.acquire_in_step()? {
+            return Ok(None);
         }
         let tel: &Telemetry = self.telemetry;
         let k = self.at.next;
@@ -655,7 +534,38 @@ impl<'a> ForwardPass<'a> {
         let t_s = tel.t_s[k];
         let reference = &self.references.at(k)?;
         check_reference(k, t_s, reference)?;
-        let r_gcrf_km = reference.r_gcrf_km;
+        self.propagate_to(k, reference)?;
+        for (slot, column) in self.row.iter_mut().zip(&tel.pd_v) {
+            *slot = column.get(k);
+        }
+        self.hold_temperatures(k);
+        self.update_at(k, reference)?;
+        self.finish_step(k, reference)?;
+        Ok(Some(k))
+    }
+
+    /// At a step that must first acquire the attitude: the acquisition
+    /// ([`ForwardPass::acquire`]), the temperatures held over the rows it skipped, and a
+    /// Sun-only start's choice about the Sun line. Whether a row is left to step to.
+    fn acquire_in_step(&mut self) -> Result<bool, FilterError> {
+        let from = self.at.next;
+        if self.acquire()?.is_err() {
+            return Ok(false);
+        }
+        for k in from..self.at.next {
+            self.hold_temperatures(k);
+        }
+        self.choose_about_sun_line()?;
+        Ok(true)
+    }
+
+    /// The propagation from the previous row to row `k` (none at a segment's first row):
+    /// by the dynamics, or by the gyro samples at both ends averaged or held (a sample the
+    /// screening rejected bridged by holding the last one); then row `k`'s gyro sample, a
+    /// measurement with the dynamics.
+    fn propagate_to(&mut self, k: usize, reference: &Reference) -> Result<(), FilterError> {
+        let tel: &Telemetry = self.telemetry;
+        let t_s = tel.t_s[k];
         let gyro = tel.gyro_rad_s[k];
         self.at.propagated = !self.at.fresh;
         self.at.fresh = false;
@@ -686,11 +596,14 @@ impl<'a> ForwardPass<'a> {
             self.filter.update_gyro(&g)?;
             self.at.prior_q = self.filter.q();
         }
-        for (slot, column) in self.row.iter_mut().zip(&tel.pd_v) {
-            *slot = column.get(k);
-        }
-        self.hold_temperatures(k);
+        Ok(())
+    }
+
+    /// The updates of row `k` (its photodiodes in `row`, the magnetometer when used),
+    /// with the albedo of the row's reference when the spacecraft is lit.
+    fn update_at(&mut self, k: usize, reference: &Reference) -> Result<(), FilterError> {
         let tel: &Telemetry = self.telemetry;
+        let t_s = tel.t_s[k];
         let mag_nt = if self.use_mag {
             tel.mag_nt.as_ref().and_then(|col| col[k])
         } else {
@@ -718,7 +631,15 @@ impl<'a> ForwardPass<'a> {
             },
             reference,
             provider,
-        )?;
+        )
+    }
+
+    /// After row `k`'s updates: the gated samples recorded, the covariance guard, the
+    /// cursor moved past the row, and the test whether the attitude is lost or the next
+    /// row starts a segment.
+    fn finish_step(&mut self, k: usize, reference: &Reference) -> Result<(), FilterError> {
+        let tel: &Telemetry = self.telemetry;
+        let t_s = tel.t_s[k];
         let step_s = if self.at.propagated {
             t_s - tel.t_s[k - 1]
         } else {
@@ -734,11 +655,11 @@ impl<'a> ForwardPass<'a> {
         self.current.rows_used += 1;
         self.at.next = k + 1;
         self.at.last_t_s = t_s;
-        self.at.last_r_gcrf_km = r_gcrf_km;
+        self.at.last_r_gcrf_km = reference.r_gcrf_km;
         self.at.last_b_gcrf_nt = reference.b_gcrf_nt;
         self.at.held = self.attitude_sigma_deg(k) <= self.config.segments.held_attitude_sigma_deg;
         self.end_segment_if_due(k);
-        Ok(Some(k))
+        Ok(())
     }
 
     /// Right after a Sun-only acquisition with albedo: follows the probe window twice, from the
@@ -1057,6 +978,226 @@ impl<'a> ForwardPass<'a> {
     }
 }
 
+/// The run's telemetry, which must be `prepared`'s ([`Prepared::inputs`]): the screened
+/// rows, never another copy.
+fn prepared_telemetry<'a>(
+    inputs: &RunInputs<'a>,
+    prepared: &'a Prepared<'a>,
+) -> Result<&'a Telemetry, FilterError> {
+    let telemetry = prepared.telemetry();
+    if !std::ptr::eq(inputs.telemetry, telemetry) {
+        return Err(FilterError::Missing(
+            "the run's telemetry is not its prepared (screened) telemetry: build the run \
+             inputs with Prepared::inputs"
+                .to_owned(),
+        ));
+    }
+    Ok(telemetry)
+}
+
+/// The mode the run reports and whether it uses the magnetometer, given whether the
+/// telemetry has one.
+fn mode_used(mode: &Mode, has_mag: bool) -> (ModeUsed, bool) {
+    match mode {
+        Mode::Full if has_mag => (ModeUsed::Full, true),
+        Mode::Full | Mode::PhotodiodeOnly => (ModeUsed::PhotodiodeOnly, false),
+        Mode::ScaleOnly { .. } => (
+            ModeUsed::ScaleOnly {
+                with_magnetometer: has_mag,
+            },
+            has_mag,
+        ),
+    }
+}
+
+/// The prior calibration of a scale-only run, checked to have the `m` photodiodes.
+fn scale_only_prior(mode: &Mode, m: usize) -> Result<Option<&Calibration>, FilterError> {
+    match mode {
+        Mode::ScaleOnly { prior } => {
+            check_len("prior photodiodes", m, prior.photodiodes.len())?;
+            Ok(Some(prior))
+        }
+        _ => Ok(None),
+    }
+}
+
+/// The filter's initial state and its noise: each photodiode's scale, its sigma and
+/// normal from the prior of a scale-only run, else from the data's maxima (`initial`)
+/// and the mounting in dataset.ron; the attitude is set by the first acquisition.
+fn initial_state(
+    inputs: &RunInputs<'_>,
+    initial: &InitialScales,
+    prior: Option<&Calibration>,
+    (config, sigmas, rules): (&FilterConfig, SensorSigmas, &GapRules),
+    layout: &StateLayout,
+) -> (InitialState, FilterNoise) {
+    let (scale_v, scale_sigma_v, n_body) = match prior {
+        Some(prior) => prior_photodiodes(prior, config),
+        None => data_photodiodes(inputs.meta, initial, config),
+    };
+    let (extra_sigma, extra_walk): (Vec<f64>, Vec<f64>) = layout
+        .extras()
+        .iter()
+        .map(|e| {
+            let (s, w) = config.parameter_sigma(&e.name, &e.unit);
+            (s, w * w)
+        })
+        .unzip();
+    let mut noise = filter_noise(config, sigmas, rules, &scale_v, extra_walk);
+    if inputs.albedo.is_none() {
+        // No albedo modelled: nothing for a gain to scale.
+        noise.albedo_gain = None;
+    }
+    let init = InitialState {
+        // Set by the first acquisition.
+        q: Quat::IDENTITY,
+        attitude_cov: Matrix3::identity(),
+        bias_rad_s: Vector3::zeros(),
+        bias_sigma_rad_s: config.initial_bias_sigma_deg_s.to_radians(),
+        scale_v,
+        scale_sigma_v,
+        n_body,
+        normal_sigma_rad: config.initial_normal_sigma_deg.to_radians(),
+        extra_sigma,
+        used: initial.used.clone(),
+    };
+    (init, noise)
+}
+
+/// Per photodiode, the initial scale (V), its sigma (V) and the normal (body frame).
+type PhotodiodeStart = (Vec<f64>, Vec<f64>, Vec<Vector3<f64>>);
+
+/// Scales, scale sigmas and normals of a scale-only run: the prior's, each sigma widened
+/// by `initial_scale_sigma_fraction` of its scale.
+fn prior_photodiodes(prior: &Calibration, config: &FilterConfig) -> PhotodiodeStart {
+    (
+        prior.photodiodes.iter().map(|p| p.scale_v).collect(),
+        prior
+            .photodiodes
+            .iter()
+            .map(|p| {
+                p.scale_sigma_v
+                    .hypot(config.initial_scale_sigma_fraction * p.scale_v)
+            })
+            .collect(),
+        prior.photodiodes.iter().map(|p| p.n_body()).collect(),
+    )
+}
+
+/// Scales, scale sigmas and normals from the data: each photodiode's maximum output
+/// (`initial`), with `initial_scale_sigma_fraction` of it as sigma, and the normal of
+/// its mounting in dataset.ron (Eq. 16).
+fn data_photodiodes(
+    meta: &DatasetMeta,
+    initial: &InitialScales,
+    config: &FilterConfig,
+) -> PhotodiodeStart {
+    (
+        initial.scale_v.clone(),
+        initial
+            .scale_v
+            .iter()
+            .zip(&initial.from_median)
+            .map(|(c, &median)| {
+                // A median-based value is an assumption (same sensor type): 2x wider.
+                let widen = if median { 2.0 } else { 1.0 };
+                widen * config.initial_scale_sigma_fraction * c
+            })
+            .collect(),
+        meta.photodiodes
+            .iter()
+            .map(|p| normal_from_az_el(p.azimuth_deg.to_radians(), p.elevation_deg.to_radians()))
+            .collect(),
+    )
+}
+
+/// The filter's noise from the configuration, the resolved sensor sigmas and the gyro's
+/// own sample period (`rules`); the scales' random walk relative to `scale_v`.
+fn filter_noise(
+    config: &FilterConfig,
+    sigmas: SensorSigmas,
+    rules: &GapRules,
+    scale_v: &[f64],
+    extra_walk_var_per_s: Vec<f64>,
+) -> FilterNoise {
+    FilterNoise {
+        gyro: GyroNoise {
+            // The white-noise density from the gyro's own sample period: another
+            // sensor sampling faster must not shrink it.
+            sigma_v_rad_sqrt_s: sigmas.gyro_rad_s
+                * rules.gyro_step_s.sqrt()
+                * config.gyro_noise_inflation,
+            sigma_u_rad_s_sqrt_s: config.gyro_bias_walk_rad_s_sqrt_s,
+        },
+        rate_change_fraction: config.rate_change_fraction,
+        scale_walk_var_per_s: scale_v
+            .iter()
+            .map(|c| (config.scale_walk_fraction_per_sqrt_h * c).powi(2) / 3600.0)
+            .collect(),
+        normal_walk_var_per_s: config.normal_walk_deg_per_sqrt_h.to_radians().powi(2) / 3600.0,
+        extra_walk_var_per_s,
+        photodiode_sigma_v: sigmas.photodiode_v,
+        albedo_sigma_ratio: config.albedo_sigma_w_m2 / E_AM0_W_M2,
+        albedo_gain: (config.albedo_gain_sigma > 0.0).then_some(AlbedoGainNoise {
+            sigma: config.albedo_gain_sigma,
+            time_s: config.albedo_gain_time_s,
+        }),
+        mag_sigma_nt: sigmas.mag_nt,
+        gate_sigmas: config.gate_sigmas,
+        cos_fov: config.fov_half_angle_deg.to_radians().cos(),
+        min_sun_fraction: config.min_sun_fraction,
+        second_order: config.second_order_noise,
+    }
+}
+
+/// Adds the rigid-body dynamics' states to `filter` when the configuration and the data
+/// call for them ([`dynamics_model`]); the rate is set at each acquisition, until then
+/// unknown.
+fn enable_dynamics(
+    filter: &mut Filter,
+    inputs: &RunInputs<'_>,
+    telemetry: &Telemetry,
+    (config, sigmas, rules): (&FilterConfig, SensorSigmas, &GapRules),
+) -> Result<(), FilterError> {
+    if let Some(rate_model) = dynamics_model(inputs.meta, telemetry, config, rules)? {
+        filter.enable_dynamics(
+            rate_model,
+            (
+                Vector3::zeros(),
+                config.initial_rate_sigma_deg_s.to_radians(),
+            ),
+            config.dipole_sigma_a_m2,
+            sigmas.gyro_rad_s,
+        );
+    }
+    Ok(())
+}
+
+impl Cursor {
+    /// Before the run's first row (time `t0_s`): the attitude `q` until the first
+    /// acquisition, which the first step makes.
+    fn first(q: Quat, t0_s: f64, config: &FilterConfig) -> Self {
+        Cursor {
+            next: 0,
+            prior_q: q,
+            propagated: false,
+            fresh: true,
+            last_gyro: None,
+            last_gyro_t_s: f64::NEG_INFINITY,
+            last_t_s: t0_s,
+            last_r_gcrf_km: Vector3::zeros(),
+            last_b_gcrf_nt: Vector3::zeros(),
+            carry_rate: false,
+            acquiring: true,
+            window: InnovationWindow::new(&config.segments),
+            acquired_sigma_deg: 0.0,
+            steps: 0,
+            step_segment: 0,
+            held: false,
+        }
+    }
+}
+
 /// The rigid-body model of the dynamics-aided propagation ([`crate::rate`]) when the
 /// config and the dataset call for it ([`Dynamics`]), else `None`; `dynamics: On` without
 /// the inertia is an error saying so.
@@ -1173,8 +1314,8 @@ fn filter_estimate(
 ) -> StepEstimate {
     let view = StateView {
         bias: filter.bias_rad_s(),
-        scale: filter.scales_v(),
-        normal: filter.normals(),
+        scale: filter.scales_v().into(),
+        normal: filter.normals().into(),
         extras: filter.extra_values(),
         p: filter.covariance(),
     };

@@ -115,8 +115,8 @@ impl SmootherStore {
             segment,
             q: filter.q(),
             bias: filter.bias_rad_s(),
-            scale: filter.scales_v().to_vec(),
-            normal: filter.normals().to_vec(),
+            scale: filter.scales_v(),
+            normal: filter.normals(),
             extras: filter.extra_values(),
             albedo_gain: filter.albedo_gain().unwrap_or(0.0),
             w: filter.motion(),
@@ -451,8 +451,8 @@ impl SmoothedState {
     ) -> StepEstimate {
         let view = StateView {
             bias: self.bias,
-            scale: &self.scale,
-            normal: &self.normal,
+            scale: self.scale.as_slice().into(),
+            normal: self.normal.as_slice().into(),
             extras: self.extras.clone(),
             p,
         };

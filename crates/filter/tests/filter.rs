@@ -150,7 +150,7 @@ fn structured_and_dense_algebra_agree() {
     let mut worst = (0.0f64, 0.0f64);
     let mut states = Vec::new();
     drive(&case, &mut structured, 300, |_, f| {
-        states.push((f.q(), f.covariance().clone(), f.normals().to_vec()))
+        states.push((f.q(), f.covariance().clone(), f.normals()))
     });
     let mut k = 0;
     drive(&case, &mut dense, 300, |_, f| {

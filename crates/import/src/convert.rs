@@ -8,7 +8,9 @@ use std::path::Path;
 use csv::StringRecord;
 use hifitime::Epoch;
 use nalgebra::Vector3;
-use pdcal_dataset::{Dataset, DatasetMeta, EpochUtc, Telemetry, TelemetryLayout, TelemetryRow};
+use pdcal_dataset::{
+    Dataset, DatasetMeta, EpochUtc, FileFaultKind, Telemetry, TelemetryLayout, TelemetryRow,
+};
 use pdcal_ephem::{frames, time};
 
 use crate::error::{ErrorKind, ImportError, clip, line_col, quote};
@@ -173,14 +175,22 @@ pub fn convert_stream<R: Read>(
     let mut header = StringRecord::new();
     let header_line = match records.next(&mut header)? {
         Some(line) => line,
-        None => return Err(ImportError::whole_file(csv_file, ErrorKind::Empty)),
+        None => {
+            return Err(ImportError::whole_file(
+                csv_file,
+                FileFaultKind::Empty.into(),
+            ));
+        }
     };
     if header.iter().all(str::is_empty) {
         // A header line of blanks: blank throughout is an empty file, else a missing header.
         let mut rest = StringRecord::new();
         while records.next(&mut rest)?.is_some() {}
         if records.blank_so_far() {
-            return Err(ImportError::whole_file(csv_file, ErrorKind::Empty));
+            return Err(ImportError::whole_file(
+                csv_file,
+                FileFaultKind::Empty.into(),
+            ));
         }
     }
     let mut index: HashMap<&str, (usize, Option<usize>)> = HashMap::new();
@@ -320,11 +330,11 @@ pub fn convert_stream<R: Read>(
     while let Some(line) = records.next(&mut record)? {
         report.rows_read += 1;
         if record.len() != header.len() {
-            let kind = ErrorKind::WrongCellCount {
+            let kind = FileFaultKind::WrongCellCount {
                 expected: header.len(),
                 found: record.len(),
             };
-            return Err(ImportError::at(csv_file, line, None, kind));
+            return Err(ImportError::at(csv_file, line, None, kind.into()));
         }
         let names = &header;
         let cell_error = |index: usize, kind: ErrorKind| {

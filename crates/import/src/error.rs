@@ -3,7 +3,7 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-use pdcal_dataset::DatasetError;
+use pdcal_dataset::{DatasetError, FileFaultKind};
 pub(crate) use pdcal_text::quote;
 
 /// An import that cannot be done, with the place of the fault.
@@ -29,24 +29,15 @@ struct Inner {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ErrorKind {
-    /// The bytes are not UTF-8 text.
-    #[error("not UTF-8 text")]
-    NotUtf8,
-    /// The file has no content (only whitespace at most).
-    #[error("file is empty")]
-    Empty,
+    /// A fault any reader of a user's file finds alike (not text, empty, an unknown
+    /// `format_version`, a bad epoch, a CSV row's length, the CSV reader's own failure):
+    /// the dataset reader's kinds.
+    #[error(transparent)]
+    File(FileFaultKind),
     /// A RON syntax or type error in the map, a map field the format does not define or a
     /// required one absent (the dataset reader's kinds).
     #[error(transparent)]
     Ron(pdcal_dataset::RonFaultKind),
-    /// `format_version` is not one this reader knows.
-    #[error("format_version {found} is not supported (this reader knows {known})")]
-    UnsupportedVersion {
-        /// The version in the map.
-        found: u32,
-        /// The version this crate reads.
-        known: u32,
-    },
     /// A column the map names that the export's header does not have.
     #[error(
         "column {} is not in {csv}'s header (line {header_line}), which has {}",
@@ -179,22 +170,6 @@ pub enum ErrorKind {
         /// The orbit crate's message, clipped.
         message: String,
     },
-    /// The epoch of a `Seconds` time form is not ISO 8601 UTC.
-    #[error("{} is not an ISO 8601 UTC time like \"2011-11-04T18:29:45Z\": {reason}", quote(.value))]
-    BadEpoch {
-        /// The text.
-        value: String,
-        /// Why.
-        reason: String,
-    },
-    /// A row with a different number of cells than the header.
-    #[error("row has {found} cells, the header has {expected}")]
-    WrongCellCount {
-        /// Cells in the header.
-        expected: usize,
-        /// Cells in this row.
-        found: usize,
-    },
     /// A cell that does not parse as a number.
     #[error("{} is not a number{}", quote(.value), .context)]
     NotANumber {
@@ -254,12 +229,6 @@ pub enum ErrorKind {
     NoRows {
         /// Rows dropped.
         dropped: usize,
-    },
-    /// A CSV reader failure that is none of the above.
-    #[error("{message}")]
-    Csv {
-        /// The csv crate's description.
-        message: String,
     },
     /// The dataset built from the export is refused by the dataset writer (or cannot be
     /// written); the message is the dataset crate's, naming its own file.
@@ -376,13 +345,14 @@ pub fn shown(name: &str) -> String {
 /// The dataset reader's text check ([`pdcal_dataset::decode_text`]) with the fault as this
 /// crate's error.
 pub(crate) fn text_of(file: &Path, bytes: Vec<u8>) -> Result<String, ImportError> {
-    use pdcal_dataset::TextFault;
-    pdcal_dataset::decode_text(bytes).map_err(|fault| match fault {
-        TextFault::NotUtf8 { line, column } => {
-            ImportError::at(file, line, Some(column), ErrorKind::NotUtf8)
-        }
-        TextFault::Empty => ImportError::whole_file(file, ErrorKind::Empty),
-    })
+    pdcal_dataset::decode_text(bytes)
+        .map_err(|fault| ImportError::maybe_at(file, fault.place(), fault.kind().into()))
+}
+
+impl From<FileFaultKind> for ErrorKind {
+    fn from(kind: FileFaultKind) -> Self {
+        ErrorKind::File(kind)
+    }
 }
 
 impl From<pdcal_dataset::RonFaultKind> for ErrorKind {

@@ -65,5 +65,6 @@ pub use map::{
     Column, Counts, Delimiter, DuplicateTimes, ImportMap, MAP_FORMAT_VERSION, MapSpec, OrbitMap,
     PhotodiodeColumn, PositionFrame, TimeColumn, VectorColumns, parse_map,
 };
+pub use pdcal_dataset::FileFaultKind;
 pub use timeform::{PLAUSIBLE_UTC, TimeForm};
 pub use units::Quantity;

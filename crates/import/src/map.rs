@@ -3,7 +3,9 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use pdcal_dataset::{DatasetMeta, EpochUtc, Inertia, NoiseHints, NominalMount, OrbitSpec};
+use pdcal_dataset::{
+    DatasetMeta, EpochUtc, FileFaultKind, Inertia, NoiseHints, NominalMount, OrbitSpec,
+};
 use serde::Deserialize;
 
 use crate::error::{ErrorKind, ImportError, clip, line_col, number, quote, text_of};
@@ -447,10 +449,11 @@ pub fn parse_map(file: &Path, bytes: &[u8]) -> Result<ImportMap, ImportError> {
             .key_error(
                 "format_version",
                 0,
-                ErrorKind::UnsupportedVersion {
+                FileFaultKind::UnsupportedVersion {
                     found: spec.format_version,
                     known: MAP_FORMAT_VERSION,
-                },
+                }
+                .into(),
             )
             .named("format_version"));
     }
@@ -459,8 +462,12 @@ pub fn parse_map(file: &Path, bytes: &[u8]) -> Result<ImportMap, ImportError> {
             TimeForm::Seconds { epoch_utc } => epoch_utc.clone(),
             _ => String::new(),
         };
-        map.key_error("epoch_utc", 0, ErrorKind::BadEpoch { value, reason })
-            .named("time.form.epoch_utc")
+        map.key_error(
+            "epoch_utc",
+            0,
+            FileFaultKind::BadEpoch { value, reason }.into(),
+        )
+        .named("time.form.epoch_utc")
     })?;
     if spec.time.column.trim().is_empty() {
         return Err(map

@@ -10,6 +10,8 @@ use std::rc::Rc;
 
 use csv::StringRecord;
 
+use pdcal_dataset::FileFaultKind;
+
 use crate::error::{ErrorKind, ImportError, clip};
 use crate::map::Delimiter;
 
@@ -138,12 +140,15 @@ impl<R: Read> Records<R> {
             },
         );
         let io_error = |e: io::Error| match seen.bad.get() {
-            Some((line, column)) => ImportError::at(file, line, Some(column), ErrorKind::NotUtf8),
+            Some((line, column)) => {
+                ImportError::at(file, line, Some(column), FileFaultKind::NotUtf8.into())
+            }
             None => ImportError::whole_file(
                 file,
-                ErrorKind::Csv {
+                FileFaultKind::Csv {
                     message: clip(&e.to_string()),
-                },
+                }
+                .into(),
             ),
         };
         if reader.fill_buf().map_err(io_error)?.starts_with(BOM) {
@@ -228,13 +233,16 @@ impl<R: Read> Records<R> {
             },
         };
         result.map_err(|(line, message)| match self.seen.bad.get() {
-            Some((line, column)) => {
-                ImportError::at(&self.file, line, Some(column), ErrorKind::NotUtf8)
-            }
+            Some((line, column)) => ImportError::at(
+                &self.file,
+                line,
+                Some(column),
+                FileFaultKind::NotUtf8.into(),
+            ),
             None => {
-                let kind = ErrorKind::Csv {
+                let kind = ErrorKind::from(FileFaultKind::Csv {
                     message: clip(&message),
-                };
+                });
                 match line {
                     Some(line) => ImportError::at(&self.file, line, None, kind),
                     None => ImportError::whole_file(&self.file, kind),

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use pdcal_import::{
-    Delimiter, DuplicateTimes, ErrorKind, ImportError, Imported, convert, parse_map,
+    Delimiter, DuplicateTimes, ErrorKind, FileFaultKind, ImportError, Imported, convert, parse_map,
 };
 
 const L1: &str = "1 37853U 11061D   11308.77065972  .00000000  00000-0  20000-4 0  9997";
@@ -313,7 +313,10 @@ fn streaming_and_in_memory_give_the_same_rows() {
         Err(parse_map(Path::new("other.ron"), b"").unwrap_err())
     })
     .unwrap_err();
-    assert!(matches!(e.kind(), ErrorKind::Empty), "{e}");
+    assert!(
+        matches!(e.kind(), ErrorKind::File(FileFaultKind::Empty)),
+        "{e}"
+    );
 }
 
 #[test]

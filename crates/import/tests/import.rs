@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use pdcal_ephem::{frames, time};
-use pdcal_import::{ErrorKind, ImportError, Imported, convert, parse_map};
+use pdcal_import::{ErrorKind, FileFaultKind, ImportError, Imported, convert, parse_map};
 
 const L1: &str = "1 37853U 11061D   11308.77065972  .00000000  00000-0  20000-4 0  9997";
 const L2: &str = "2 37853 101.7000  50.0000 0300509 130.0000 230.0000 14.86144463  1000";
@@ -329,7 +329,10 @@ fn map_syntax_and_shape_errors_are_placed() {
     let e = error("(format_version: 1", CSV);
     assert!(e.line().is_some(), "{e}");
     let e = error(&map_text(), "");
-    assert!(matches!(e.kind(), ErrorKind::Empty), "{e}");
+    assert!(
+        matches!(e.kind(), ErrorKind::File(FileFaultKind::Empty)),
+        "{e}"
+    );
     let e = error(&map_text(), &CSV.replace(",ok\n1600", ",ok,extra\n1600"));
     assert_eq!((e.line(), e.column()), (Some(5), None), "{e}");
     let e = error(&map_text(), "adc0,wz,unix,wx,wy,bx,by,bz,adc1,adc1\n");
