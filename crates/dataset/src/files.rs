@@ -10,7 +10,7 @@ use crate::manifest::Manifest;
 use crate::meta::{DatasetMeta, parse_meta, render_meta};
 use crate::publish::{Publication, PublishError, PublishErrorKind};
 use crate::table::CsvRows;
-use crate::telemetry::{Telemetry, render_telemetry, telemetry_from_rows};
+use crate::telemetry::{Telemetry, TelemetryStorage, render_telemetry, telemetry_from_rows_in};
 use crate::truth::{
     TruthConstants, TruthSeries, parse_truth_constants, parse_truth_series, render_truth_constants,
     render_truth_series,
@@ -64,6 +64,16 @@ pub fn read_meta(dir: &Path) -> Result<DatasetMeta, DatasetError> {
 /// pass checks that it is UTF-8 and not blank, as [`text_of`] does for the other files and
 /// with the same errors, then the CSV reader parses it a buffer at a time.
 pub fn read_telemetry(dir: &Path, meta: &DatasetMeta) -> Result<Telemetry, DatasetError> {
+    read_telemetry_into(dir, meta, &TelemetryStorage::Memory)
+}
+
+/// [`read_telemetry`] into the columns of `storage`: with [`TelemetryStorage::Files`], a
+/// set of any length in memory that does not grow with its rows.
+pub fn read_telemetry_into(
+    dir: &Path,
+    meta: &DatasetMeta,
+    storage: &TelemetryStorage,
+) -> Result<Telemetry, DatasetError> {
     let file = dir.join(TELEMETRY_CSV);
     let bom = check_text_file(&file)?;
     let mut source = open_regular(&file).map_err(|e| io_error(&file, "cannot read", e))?;
@@ -72,7 +82,7 @@ pub fn read_telemetry(dir: &Path, meta: &DatasetMeta) -> Result<Telemetry, Datas
             .seek(SeekFrom::Start(BOM.len() as u64))
             .map_err(|e| io_error(&file, "cannot read", e))?;
     }
-    telemetry_from_rows(CsvRows::from_reader(&file, source)?, meta)
+    telemetry_from_rows_in(CsvRows::from_reader(&file, source)?, meta, storage)
 }
 
 const BOM: &str = "\u{feff}";

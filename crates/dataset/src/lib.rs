@@ -64,6 +64,7 @@ pub mod publish;
 mod ron_text;
 pub mod rules;
 mod samples;
+mod spill;
 mod stream;
 mod table;
 mod telemetry;
@@ -74,7 +75,7 @@ pub use current::{CURRENT_RANGE_A, CurrentColumn, current_column, is_current_nam
 pub use error::{DatasetError, ErrorKind, FileFaultKind, TextFault, decode_text};
 pub use files::{
     Dataset, DatasetWriter, LIBRARY_WRITE_COMMAND, begin_dataset, begin_dataset_as, read_dataset,
-    read_meta, read_telemetry, read_truth, render_dataset, write_dataset,
+    read_meta, read_telemetry, read_telemetry_into, read_truth, render_dataset, write_dataset,
 };
 pub use meta::{
     DatasetMeta, EpochUtc, FORMAT_VERSION, Inertia, MetaFields, NoiseHints, NominalMount,
@@ -85,7 +86,8 @@ pub use ron_text::{RonFault, RonFaultKind, parse_ron};
 pub use samples::Samples;
 pub use stream::{TelemetryLayout, TelemetryStream};
 pub use telemetry::{
-    Telemetry, TelemetryRow, columns, photodiode_column, telemetry_from_columns, telemetry_from_str,
+    Telemetry, TelemetryRow, TelemetryStorage, columns, photodiode_column, telemetry_from_columns,
+    telemetry_from_str,
 };
 pub use temperature::{
     HeldTemperatures, TEMPERATURE_RANGE_C, TemperatureColumn, is_panel_name,

@@ -1,6 +1,9 @@
 //! One scalar telemetry column held compactly: 8 bytes a row instead of `Option<f64>`'s 16.
 
 use std::fmt;
+use std::path::Path;
+
+use crate::spill::SpillColumn;
 
 /// The bits that mark a blank (not sampled) cell: a quiet NaN with a payload no arithmetic
 /// produces, so that a NaN sample put in by a program (which the filter's screening
@@ -19,68 +22,171 @@ fn is_blank(x: f64) -> bool {
 /// sensor was not sampled). Reads and writes go through `Option<f64>`, as a
 /// `Vec<Option<f64>>` would give them; the storage is one `f64` per row with a reserved NaN
 /// for the blank, because the photodiode columns are most of a long data set's memory.
-#[derive(Clone, Default)]
-pub struct Samples(Vec<f64>);
+///
+/// The rows are in memory, or in a file ([`Samples::in_file`], [`crate::spill`]) read
+/// through a small cache of blocks: every read goes through [`Samples::get`] and
+/// [`Samples::iter`], which give the same values from either.
+pub struct Samples(Store);
+
+impl Default for Samples {
+    fn default() -> Self {
+        Samples::new()
+    }
+}
+
+enum Store {
+    Heap(Vec<f64>),
+    File(SpillColumn),
+}
 
 impl Samples {
     /// No samples.
     pub fn new() -> Self {
-        Samples(Vec::new())
+        Samples(Store::Heap(Vec::new()))
     }
 
     /// No samples, room for `rows`.
     pub fn with_capacity(rows: usize) -> Self {
-        Samples(Vec::with_capacity(rows))
+        Samples(Store::Heap(Vec::with_capacity(rows)))
+    }
+
+    /// No samples, kept in a new file in `dir` (unlinked at once: nothing is left there).
+    pub fn in_file(dir: &Path) -> std::io::Result<Self> {
+        SpillColumn::create(dir).map(|c| Samples(Store::File(c)))
+    }
+
+    /// True when the rows are kept in a file.
+    pub fn is_in_file(&self) -> bool {
+        matches!(self.0, Store::File(_))
+    }
+
+    /// The first error of reading or writing the file that keeps the rows, if any: a row
+    /// read after it is blank, so a caller must look here before trusting a result.
+    pub fn storage_error(&self) -> Option<String> {
+        match &self.0 {
+            Store::File(c) => c.error(),
+            _ => None,
+        }
     }
 
     /// Number of rows.
     pub fn len(&self) -> usize {
-        self.0.len()
+        match &self.0 {
+            Store::Heap(v) => v.len(),
+            Store::File(c) => c.len(),
+        }
     }
 
     /// True without rows.
     pub fn is_empty(&self) -> bool {
-        self.0.is_empty()
+        self.len() == 0
     }
 
     /// Row `k`: `None` when blank or past the last row.
     #[inline]
     pub fn get(&self, k: usize) -> Option<f64> {
-        self.0.get(k).copied().filter(|&x| !is_blank(x))
+        let x = match &self.0 {
+            Store::Heap(v) => v.get(k).copied(),
+            Store::File(c) => c.get(k),
+        };
+        x.filter(|&x| !is_blank(x))
     }
 
-    /// Row `k`'s value to change in place; `None` when blank or past the last row.
+    /// The rows in memory, moved there from a file first: for the in-place edits of
+    /// [`Samples::get_mut`] and [`Samples::values_mut`] (a test's or a tool's; a long
+    /// column kept in a file is edited with [`Samples::set`]).
+    fn heap(&mut self) -> &mut Vec<f64> {
+        if !matches!(self.0, Store::Heap(_)) {
+            let rows = (0..self.len()).map(|k| self.raw(k)).collect();
+            self.0 = Store::Heap(rows);
+        }
+        match &mut self.0 {
+            Store::Heap(v) => v,
+            _ => unreachable!("made a heap column above"),
+        }
+    }
+
+    fn raw(&self, k: usize) -> f64 {
+        match &self.0 {
+            Store::Heap(v) => v.get(k).copied().unwrap_or_else(blank),
+            Store::File(c) => c.get(k).unwrap_or_else(blank),
+        }
+    }
+
+    /// Row `k`'s value to change in place; `None` when blank or past the last row. A column
+    /// kept in a file is moved into memory first.
     pub fn get_mut(&mut self, k: usize) -> Option<&mut f64> {
-        self.0.get_mut(k).filter(|x| !is_blank(**x))
+        self.heap().get_mut(k).filter(|x| !is_blank(**x))
     }
 
     /// Sets row `k` (blank with `None`); ignored past the last row.
     pub fn set(&mut self, k: usize, value: Option<f64>) {
-        if let Some(cell) = self.0.get_mut(k) {
-            *cell = value.unwrap_or_else(blank);
+        let x = value.unwrap_or_else(blank);
+        match &mut self.0 {
+            Store::Heap(v) => {
+                if let Some(cell) = v.get_mut(k) {
+                    *cell = x;
+                }
+            }
+            Store::File(c) => c.set(k, x),
         }
     }
 
     /// Appends a row.
     pub fn push(&mut self, value: Option<f64>) {
-        self.0.push(value.unwrap_or_else(blank));
+        let x = value.unwrap_or_else(blank);
+        match &mut self.0 {
+            Store::Heap(v) => v.push(x),
+            Store::File(c) => c.push(x),
+        }
+    }
+
+    /// Appends a row; for a file, the error of writing it.
+    pub fn try_push(&mut self, value: Option<f64>) -> std::io::Result<()> {
+        match &mut self.0 {
+            Store::File(c) => c.try_push(value.unwrap_or_else(blank)),
+            _ => {
+                self.push(value);
+                Ok(())
+            }
+        }
     }
 
     /// Removes the last row.
     pub fn pop(&mut self) -> Option<Option<f64>> {
-        self.0.pop().map(|x| (!is_blank(x)).then_some(x))
+        let x = match &mut self.0 {
+            Store::Heap(v) => v.pop(),
+            Store::File(c) => c.pop(),
+        };
+        x.map(|x| (!is_blank(x)).then_some(x))
     }
 
     /// Every row in order.
     pub fn iter(
         &self,
     ) -> impl DoubleEndedIterator<Item = Option<f64>> + ExactSizeIterator + Clone + '_ {
-        self.0.iter().map(|&x| (!is_blank(x)).then_some(x))
+        (0..self.len()).map(|k| self.get(k))
     }
 
-    /// The sampled rows' values, to change in place (blanks skipped).
+    /// The sampled rows' values, to change in place (blanks skipped). A column kept in a
+    /// file is moved into memory first.
     pub fn values_mut(&mut self) -> impl Iterator<Item = &mut f64> + '_ {
-        self.0.iter_mut().filter(|x| !is_blank(**x))
+        self.heap().iter_mut().filter(|x| !is_blank(**x))
+    }
+}
+
+/// A column kept in a file is copied into a new file of the same directory (a copy of a
+/// long column does not take its size in memory), or into memory when that file cannot be
+/// made.
+impl Clone for Samples {
+    fn clone(&self) -> Self {
+        match &self.0 {
+            Store::Heap(v) => Samples(Store::Heap(v.clone())),
+            Store::File(c) => c.try_clone().map_or_else(
+                |_| Samples(Store::Heap((0..self.len()).map(|k| self.raw(k)).collect())),
+                |c| Samples(Store::File(c)),
+            ),
+        }
     }
 }
 
@@ -98,14 +204,17 @@ impl<const N: usize> From<[Option<f64>; N]> for Samples {
 
 impl FromIterator<Option<f64>> for Samples {
     fn from_iter<I: IntoIterator<Item = Option<f64>>>(iter: I) -> Self {
-        Samples(iter.into_iter().map(|v| v.unwrap_or_else(blank)).collect())
+        Samples(Store::Heap(
+            iter.into_iter().map(|v| v.unwrap_or_else(blank)).collect(),
+        ))
     }
 }
 
 impl Extend<Option<f64>> for Samples {
     fn extend<I: IntoIterator<Item = Option<f64>>>(&mut self, iter: I) {
-        self.0
-            .extend(iter.into_iter().map(|v| v.unwrap_or_else(blank)));
+        for v in iter {
+            self.push(v);
+        }
     }
 }
 

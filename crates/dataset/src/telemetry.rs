@@ -68,6 +68,13 @@ impl Telemetry {
         self.t_s.is_empty()
     }
 
+    /// The first failure to read or write a photodiode column kept in a file
+    /// ([`TelemetryStorage::Files`]), if any: the rows it concerns read as blank, so a
+    /// result computed from this telemetry stands only when this is `None`.
+    pub fn storage_error(&self) -> Option<String> {
+        self.pd_v.iter().find_map(Samples::storage_error)
+    }
+
     /// The rows `k` for which `keep(k)` holds, in order (a pass-by-pass downlink cut from
     /// a continuous set, in tests and validation runs).
     pub fn select_rows(&self, keep: impl Fn(usize) -> bool) -> Telemetry {
@@ -370,15 +377,79 @@ pub(crate) fn parse_telemetry(
     telemetry_from_rows(CsvRows::open(file, text)?, meta)
 }
 
+/// Where the telemetry's columns are kept while a program reads them.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub enum TelemetryStorage {
+    /// In memory (`Vec`s).
+    #[default]
+    Memory,
+    /// The photodiode columns (17 of 24 numbers a row in the rax2-like layout) in files of
+    /// this directory, read through a small cache of blocks ([`Samples::in_file`]); the
+    /// other columns in memory. The files are unlinked when made, so nothing is left in the
+    /// directory.
+    Files(std::path::PathBuf),
+}
+
+impl TelemetryStorage {
+    fn samples(&self) -> std::io::Result<Samples> {
+        match self {
+            TelemetryStorage::Memory => Ok(Samples::new()),
+            TelemetryStorage::Files(dir) => Samples::in_file(dir),
+        }
+    }
+
+    /// The file an error of this storage names: its directory.
+    fn path(&self) -> &Path {
+        match self {
+            TelemetryStorage::Memory => Path::new(""),
+            TelemetryStorage::Files(dir) => dir,
+        }
+    }
+}
+
 /// The telemetry of `rows` (from text in memory, or streamed from the file so that a large
 /// file is never held whole as text).
 pub(crate) fn telemetry_from_rows<R: Read>(
-    mut rows: CsvRows<'_, R>,
+    rows: CsvRows<'_, R>,
     meta: &DatasetMeta,
 ) -> Result<Telemetry, DatasetError> {
+    telemetry_from_rows_in(rows, meta, &TelemetryStorage::Memory)
+}
+
+/// [`telemetry_from_rows`] into the columns of `storage`.
+pub(crate) fn telemetry_from_rows_in<R: Read>(
+    mut rows: CsvRows<'_, R>,
+    meta: &DatasetMeta,
+    storage: &TelemetryStorage,
+) -> Result<Telemetry, DatasetError> {
     let lay = layout(&rows, meta)?;
-    let mut tm = Telemetry {
-        pd_v: vec![Samples::new(); lay.pd.len()],
+    let spill_error = |e| crate::files::io_error(storage.path(), "cannot keep telemetry in", e);
+    let mut tm = empty_telemetry(&rows, &lay, storage).map_err(spill_error)?;
+    let mut failed = None;
+    visit_rows(&mut rows, &lay, |row| {
+        if failed.is_none() {
+            failed = push_telemetry(&mut tm, row).err();
+        }
+    })?;
+    if let Some(e) = failed {
+        return Err(spill_error(e));
+    }
+    if tm.is_empty() {
+        return Err(rows.no_rows());
+    }
+    Ok(tm)
+}
+
+/// The columns of `lay`, empty, the photodiodes' in `storage`.
+fn empty_telemetry<R: Read>(
+    rows: &CsvRows<'_, R>,
+    lay: &Layout,
+    storage: &TelemetryStorage,
+) -> std::io::Result<Telemetry> {
+    Ok(Telemetry {
+        pd_v: (0..lay.pd.len())
+            .map(|_| storage.samples())
+            .collect::<Result<_, _>>()?,
         mag_nt: lay.mag.map(|_| Vec::new()),
         r_gcrf_km: lay.r.map(|_| Vec::new()),
         temperature_c: (lay.temperature.iter())
@@ -394,30 +465,29 @@ pub(crate) fn telemetry_from_rows<R: Read>(
             })
             .collect(),
         ..Telemetry::default()
-    };
-    visit_rows(&mut rows, &lay, |row| {
-        tm.t_s.push(row.t_s);
-        tm.gyro_rad_s.push(row.gyro_rad_s);
-        if let Some(mag) = tm.mag_nt.as_mut() {
-            mag.push(row.mag_nt);
-        }
-        for (value, pd) in row.pd_v.iter().zip(tm.pd_v.iter_mut()) {
-            pd.push(*value);
-        }
-        if let Some(r) = tm.r_gcrf_km.as_mut() {
-            r.push(row.r_gcrf_km);
-        }
-        for (value, temp) in row.temperature_c.iter().zip(tm.temperature_c.iter_mut()) {
-            temp.values.push(*value);
-        }
-        for (value, cur) in row.current_a.iter().zip(tm.current_a.iter_mut()) {
-            cur.values.push(*value);
-        }
-    })?;
-    if tm.is_empty() {
-        return Err(rows.no_rows());
+    })
+}
+
+/// Appends one row to every column of `tm`.
+fn push_telemetry(tm: &mut Telemetry, row: &TelemetryRow) -> std::io::Result<()> {
+    tm.t_s.push(row.t_s);
+    tm.gyro_rad_s.push(row.gyro_rad_s);
+    if let Some(mag) = tm.mag_nt.as_mut() {
+        mag.push(row.mag_nt);
     }
-    Ok(tm)
+    for (value, pd) in row.pd_v.iter().zip(tm.pd_v.iter_mut()) {
+        pd.try_push(*value)?;
+    }
+    if let Some(r) = tm.r_gcrf_km.as_mut() {
+        r.push(row.r_gcrf_km);
+    }
+    for (value, temp) in row.temperature_c.iter().zip(tm.temperature_c.iter_mut()) {
+        temp.values.push(*value);
+    }
+    for (value, cur) in row.current_a.iter().zip(tm.current_a.iter_mut()) {
+        cur.values.push(*value);
+    }
+    Ok(())
 }
 
 /// Checks every row of `rows` as [`telemetry_from_rows`] does, keeping none of them (a file

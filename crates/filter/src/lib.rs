@@ -134,8 +134,9 @@ pub use pdcal_ephem::ReferenceModel;
 pub use prepare::{Prepared, RunInputs};
 pub use references::{References, orbit_source, reference_model, step_references};
 pub use run::{
-    CANCEL_POLL_ROWS, RunSink, SMOOTHER_BLOCK_ROWS, calibrate, calibrate_streaming,
-    calibrate_with_model, nominal_photodiodes, nominal_step_s, paper_model,
+    CANCEL_POLL_ROWS, MAX_DENSE_KEPT, RunSink, SMOOTHER_BLOCK_ROWS, calibrate, calibrate_streaming,
+    calibrate_streaming_kept, calibrate_with_model, kept_every, nominal_photodiodes,
+    nominal_step_s, paper_model,
 };
 pub use screen::{Channel, ChannelRejections, Rejections, RowList};
 pub use segments::{

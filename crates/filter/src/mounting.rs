@@ -545,8 +545,8 @@ pub fn apply(findings: &[MountingFinding], meta: &mut DatasetMeta, telemetry: &m
             match f.action {
                 Action::Excluded => column.set(k, None),
                 _ if f.polarity_reversed => {
-                    if let Some(y) = column.get_mut(k) {
-                        *y = -*y;
+                    if let Some(y) = column.get(k) {
+                        column.set(k, Some(-y));
                     }
                 }
                 _ => {}

@@ -145,12 +145,33 @@ impl CancelPoll {
 /// state).
 pub const SMOOTHER_BLOCK_ROWS: usize = 1024;
 
+/// Kept states of the streaming smoother beyond which they are kept sparser
+/// ([`kept_every`]): 1024 states are 27 MB for 17 photodiodes, a million rows in blocks of
+/// [`SMOOTHER_BLOCK_ROWS`].
+pub const MAX_DENSE_KEPT: usize = 1024;
+
+/// How many of the smoother's block starts apart a state is kept over `rows` rows in
+/// blocks of `block_rows`: every one up to [`MAX_DENSE_KEPT`] blocks, else about the square
+/// root of the number of blocks, so that the kept states and the states of one group
+/// regenerated in the backward pass are both about that root (100 states, 2.7 MB for 17
+/// photodiodes, at 10 million rows) for one more forward replay of the data.
+pub fn kept_every(rows: usize, block_rows: usize) -> usize {
+    let blocks = rows.div_ceil(block_rows.max(1)) + 1;
+    if blocks <= MAX_DENSE_KEPT {
+        1
+    } else {
+        blocks.isqrt() + 1
+    }
+}
+
 /// [`calibrate_with_model`] with memory that does not grow with the data beyond the
 /// telemetry and references it reads: per-row results go to `sink` as they are produced;
 /// the smoother keeps the forward state every `block_rows` rows and at every segment
 /// start and, going backward, recomputes one block's posteriors from its kept state (the
 /// same step code, so the same numbers bit for bit) before smoothing it; a block that ends
-/// a segment starts the backward pass afresh. The returned run has empty `forward`,
+/// a segment starts the backward pass afresh. Beyond [`MAX_DENSE_KEPT`] blocks only every
+/// [`kept_every`]-th block start is kept and the others of a group are regenerated from it
+/// going backward ([`calibrate_streaming_kept`]). The returned run has empty `forward`,
 /// `residuals` and (with the smoother) `smoothed` vectors: those went to `sink`.
 pub fn calibrate_streaming(
     inputs: &RunInputs<'_>,
@@ -161,22 +182,49 @@ pub fn calibrate_streaming(
     block_rows: usize,
     sink: &mut dyn RunSink,
 ) -> Result<CalibrationRun, FilterError> {
+    let every = kept_every(prepared.telemetry().len(), block_rows);
+    calibrate_streaming_kept(
+        inputs, prepared, mode, model, algebra, block_rows, every, sink,
+    )
+}
+
+/// A forward state kept for the smoother's replay, and whether a segment starts there.
+type Kept = (PassCheckpoint, bool);
+
+/// [`calibrate_streaming`] keeping the forward state at every `every`-th block start
+/// (at least 1) instead of [`kept_every`]'s choice: the same numbers whatever `every`.
+#[allow(clippy::too_many_arguments)]
+pub fn calibrate_streaming_kept(
+    inputs: &RunInputs<'_>,
+    prepared: &Prepared<'_>,
+    mode: &Mode,
+    model: MeasurementModel,
+    algebra: Algebra,
+    block_rows: usize,
+    every: usize,
+    sink: &mut dyn RunSink,
+) -> Result<CalibrationRun, FilterError> {
     let block_rows = block_rows.max(1);
+    let every = every.max(1);
     let config = prepared.config();
     let mut pass = ForwardPass::new(inputs, prepared, mode, model, algebra)?;
-    let mut kept: Vec<(PassCheckpoint, bool)> = Vec::new();
+    let mut kept: Vec<Kept> = Vec::new();
     let mut residuals = Vec::new();
-    let mut in_block = 0;
+    let mut starts = BlockStarts::new(block_rows);
+    let mut block_starts = 0_usize;
     let mut poll = CancelPoll::default();
     loop {
-        let segment_start = pass.at_segment_start();
-        if config.smoother && (segment_start || in_block == block_rows) {
-            kept.push((pass.checkpoint(), segment_start));
-            in_block = 0;
+        if config.smoother
+            && let Some(segment_start) = starts.at(&pass)
+        {
+            if block_starts.is_multiple_of(every) {
+                kept.push((pass.checkpoint(), segment_start));
+            }
+            block_starts += 1;
         }
         let Some(k) = pass.step()? else { break };
         poll.step(sink, k)?;
-        in_block += 1;
+        starts.in_block += 1;
         residuals.clear();
         residuals.extend(pass.residual_records());
         sink.forward(&pass.estimate(), &residuals);
@@ -184,39 +232,132 @@ pub fn calibrate_streaming(
     // The forward results, before the replays below move the filter.
     let mut run = pass.result(Vec::new(), None, Vec::new());
     if config.smoother {
-        let layout = run.layout.clone();
-        let mut store = SmootherStore::new(layout.len(), block_rows + 1);
-        let mut boundary = None;
-        let mut block = Vec::with_capacity(block_rows + 1);
-        for (i, (checkpoint, _)) in kept.iter().enumerate().rev() {
-            pass.restore(checkpoint)?;
-            // Through the next block's first row, whose transition ends this block, unless
-            // the next block starts a segment: then this block ends its segment.
-            let next = kept.get(i + 1);
-            let through = next.and_then(|(c, starts)| (!starts).then_some(c.at.next));
-            if next.is_none_or(|(_, starts)| *starts) {
-                boundary = None;
+        let mut smoother = Backward {
+            layout: run.layout.clone(),
+            store: SmootherStore::new(run.layout.len(), block_rows + 1),
+            boundary: None,
+            block: Vec::with_capacity(block_rows + 1),
+            poll,
+        };
+        for j in (0..kept.len()).rev() {
+            let after = kept.get(j + 1);
+            if every == 1 {
+                smoother.smooth_group(&mut pass, &kept[j..=j], after, sink)?;
+            } else {
+                let group = regenerate_group(&mut pass, &kept[j], every, block_rows, sink)?;
+                smoother.smooth_group(&mut pass, &group, after, sink)?;
             }
-            store.clear();
-            loop {
-                if pass.at_segment_start() && !store.is_empty() {
-                    break;
-                }
-                let Some(k) = pass.step()? else { break };
-                poll.step(sink, k)?;
-                pass.record_for_smoother(&mut store);
-                if Some(k) == through {
-                    break;
-                }
-            }
-            block.clear();
-            boundary = store.smooth_into(&layout, pass.prior, boundary, &mut |e| block.push(e))?;
-            block.reverse();
-            sink.smoothed(&block);
         }
         run.smoothed = Some(Vec::new());
     }
     Ok(run)
+}
+
+/// The states at the `every` block starts from `first` on (fewer at the end of the data),
+/// regenerated by replaying the forward pass from `first` as the forward pass kept them.
+fn regenerate_group(
+    pass: &mut ForwardPass<'_>,
+    first: &Kept,
+    every: usize,
+    block_rows: usize,
+    sink: &mut dyn RunSink,
+) -> Result<Vec<Kept>, FilterError> {
+    pass.restore(&first.0)?;
+    let mut group: Vec<Kept> = Vec::with_capacity(every);
+    // `first` is a block start: counted as one whatever the count before it.
+    let mut starts = BlockStarts::new(block_rows);
+    starts.in_block = block_rows;
+    let mut poll = CancelPoll::default();
+    loop {
+        if let Some(segment_start) = starts.at(pass) {
+            if group.len() == every {
+                break;
+            }
+            group.push((pass.checkpoint(), segment_start));
+        }
+        let Some(k) = pass.step()? else { break };
+        poll.step(sink, k)?;
+        starts.in_block += 1;
+    }
+    Ok(group)
+}
+
+/// Where the smoother's blocks start: at every segment start and after `rows` rows.
+struct BlockStarts {
+    rows: usize,
+    /// Rows stepped since the last block start.
+    in_block: usize,
+}
+
+impl BlockStarts {
+    fn new(rows: usize) -> Self {
+        BlockStarts { rows, in_block: 0 }
+    }
+
+    /// At a block start, whether it starts a segment (the row count restarts); `None`
+    /// elsewhere.
+    fn at(&mut self, pass: &ForwardPass<'_>) -> Option<bool> {
+        let segment_start = pass.at_segment_start();
+        (segment_start || self.in_block == self.rows).then(|| {
+            self.in_block = 0;
+            segment_start
+        })
+    }
+}
+
+/// The smoother's backward pass over the kept states, last first.
+struct Backward {
+    layout: crate::layout::StateLayout,
+    store: SmootherStore,
+    boundary: Option<crate::smoother::Boundary>,
+    block: Vec<StepEstimate>,
+    poll: CancelPoll,
+}
+
+impl Backward {
+    /// Smooths the blocks that start at the states of `group` (consecutive, in row order),
+    /// last first; `after` is the kept state that follows the group's last block, if any.
+    fn smooth_group(
+        &mut self,
+        pass: &mut ForwardPass<'_>,
+        group: &[Kept],
+        after: Option<&Kept>,
+        sink: &mut dyn RunSink,
+    ) -> Result<(), FilterError> {
+        for (i, (checkpoint, _)) in group.iter().enumerate().rev() {
+            pass.restore(checkpoint)?;
+            // Through the next block's first row, whose transition ends this block, unless
+            // the next block starts a segment: then this block ends its segment.
+            let next = group.get(i + 1).or(after);
+            let through = next.and_then(|(c, starts)| (!starts).then_some(c.at.next));
+            if next.is_none_or(|(_, starts)| *starts) {
+                self.boundary = None;
+            }
+            self.store.clear();
+            loop {
+                if pass.at_segment_start() && !self.store.is_empty() {
+                    break;
+                }
+                let Some(k) = pass.step()? else { break };
+                self.poll.step(sink, k)?;
+                pass.record_for_smoother(&mut self.store);
+                if Some(k) == through {
+                    break;
+                }
+            }
+            self.block.clear();
+            let block = &mut self.block;
+            self.boundary = self.store.smooth_into(
+                &self.layout,
+                pass.prior,
+                self.boundary.take(),
+                &mut |e| block.push(e),
+            )?;
+            self.block.reverse();
+            sink.smoothed(&self.block);
+        }
+        Ok(())
+    }
 }
 
 /// Median spacing of consecutive rows, s, 1 with fewer than two rows (the diagnosis's

@@ -1,13 +1,13 @@
 //! The streaming run (per-row results through a sink, smoother by blocks recomputed from
-//! kept forward states) gives the in-memory run's numbers bit for bit, with and without
-//! gaps in the telemetry.
+//! kept forward states, every block start kept or only some and the others regenerated)
+//! gives the in-memory run's numbers bit for bit, with and without gaps in the telemetry.
 
 mod common;
 
 use common::Case;
 use pdcal_filter::{
     Algebra, FilterConfig, Mode, Prepared, ResidualRecord, RunInputs, RunSink, StepEstimate,
-    calibrate_streaming, calibrate_with_model, paper_model,
+    calibrate_streaming, calibrate_streaming_kept, calibrate_with_model, paper_model,
 };
 use pdcal_photodiode::Photodiode;
 
@@ -95,20 +95,29 @@ fn compare(
     .unwrap();
     let smoothed = memory.smoothed.as_ref().unwrap();
     assert_eq!(smoothed.len(), memory.forward.len());
-    for block_rows in [1, 97, 5000] {
+    // Every block start kept (what sets of up to a million rows get), and sparser: every
+    // 3rd or 7th, the others regenerated going backward (what longer sets get).
+    for (block_rows, every) in [(1, 1), (97, 1), (5000, 1), (97, 3), (1, 7), (250, 2)] {
         let mut sink = Collect::default();
-        let streamed = calibrate_streaming(
+        let streamed = calibrate_streaming_kept(
             &inputs,
             &prepared,
             &Mode::Full,
             model(),
             Algebra::Structured,
             block_rows,
+            every,
             &mut sink,
         )
         .unwrap();
-        assert_eq!(sink.forward, memory.forward, "blocks of {block_rows}");
-        assert_eq!(sink.residuals, memory.residuals, "blocks of {block_rows}");
+        assert_eq!(
+            sink.forward, memory.forward,
+            "blocks of {block_rows}, every {every}"
+        );
+        assert_eq!(
+            sink.residuals, memory.residuals,
+            "blocks of {block_rows}, every {every}"
+        );
         assert_eq!(streamed.calibration, memory.calibration);
         assert_eq!(streamed.final_covariance, memory.final_covariance);
         assert_eq!(streamed.counts, memory.counts);
@@ -116,7 +125,7 @@ fn compare(
         assert_eq!(streamed.segments, memory.segments);
         // Blocks arrive last first, each in row order.
         let joined: Vec<StepEstimate> = sink.segments.iter().rev().flatten().cloned().collect();
-        assert_eq!(&joined, smoothed, "blocks of {block_rows}");
+        assert_eq!(&joined, smoothed, "blocks of {block_rows}, every {every}");
         assert!(sink.segments.iter().all(|s| s.len() <= block_rows + 1));
     }
     memory

@@ -283,9 +283,27 @@ pub fn run_dirs_forced(
     config: &RunConfig,
     force: bool,
 ) -> Result<(Outcome, crate::schema::Summary)> {
+    run_dirs_kept(datasets, out, config, force, FILE_TELEMETRY_BYTES)
+}
+
+/// A telemetry.csv of at least this many bytes (about 140 000 rows of the rax2-like
+/// layout) keeps its photodiode columns in files of the output's staging directory, read
+/// by blocks ([`pdcal_dataset::TelemetryStorage::Files`]); a smaller one is held in memory,
+/// where it costs at most about 20 MB and is read without the cache's lookups.
+pub const FILE_TELEMETRY_BYTES: u64 = 64 << 20;
+
+/// [`run_dirs_forced`] with the size from which a set's photodiode columns are kept in
+/// files instead of [`FILE_TELEMETRY_BYTES`] (0: always; the same outputs either way).
+pub fn run_dirs_kept(
+    datasets: &[PathBuf],
+    out: &Path,
+    config: &RunConfig,
+    force: bool,
+    file_telemetry_bytes: u64,
+) -> Result<(Outcome, crate::schema::Summary)> {
     let dir = OutputDir::create_forced(out, "calibrate", force)?;
     // Only meta and telemetry: calibrate never reads truth.*.
-    let mut sets = crate::joint::read(datasets)?;
+    let mut sets = crate::joint::read_kept(datasets, Some((dir.path(), file_telemetry_bytes)))?;
     let Some(cal) = &config.mag_cal else {
         return run_sets(sets, dir, config, None);
     };

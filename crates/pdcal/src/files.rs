@@ -70,5 +70,10 @@ pub fn write_summary_and_figures(
         )?;
     }
     crate::figures::write_index(dir.path(), summary, rows.as_deref(), &figures)?;
+    // A photodiode column kept in a file that could not be read or written read as blank:
+    // nothing computed from it is published.
+    if let Some(e) = telemetry.storage_error() {
+        anyhow::bail!("{e}");
+    }
     dir.commit()
 }

@@ -7,7 +7,9 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use pdcal_dataset::{CurrentColumn, DatasetMeta, OrbitSpec, Samples, Telemetry, TemperatureColumn};
+use pdcal_dataset::{
+    CurrentColumn, DatasetMeta, OrbitSpec, Samples, Telemetry, TelemetryStorage, TemperatureColumn,
+};
 use pdcal_ephem::Reference;
 use serde::Serialize;
 
@@ -47,10 +49,29 @@ pub struct Joint {
 
 /// Reads the data sets in `dirs` (never their truth) and joins them ([`join`]).
 pub fn read(dirs: &[PathBuf]) -> Result<Vec<(PathBuf, DatasetMeta, Telemetry)>> {
+    read_kept(dirs, None)
+}
+
+/// [`read`]; with `files = Some((dir, min_bytes))`, a set whose telemetry.csv has at least
+/// `min_bytes` keeps its photodiode columns in files of `dir`
+/// ([`pdcal_dataset::TelemetryStorage::Files`]): a long set read in memory that does not
+/// grow with its photodiode samples.
+pub fn read_kept(
+    dirs: &[PathBuf],
+    files: Option<(&Path, u64)>,
+) -> Result<Vec<(PathBuf, DatasetMeta, Telemetry)>> {
     dirs.iter()
         .map(|dir| {
             let meta = pdcal_dataset::read_meta(dir)?;
-            let telemetry = pdcal_dataset::read_telemetry(dir, &meta)?;
+            let bytes =
+                std::fs::metadata(dir.join(pdcal_dataset::TELEMETRY_CSV)).map_or(0, |m| m.len());
+            let storage = match files {
+                Some((spill, min_bytes)) if bytes >= min_bytes => {
+                    TelemetryStorage::Files(spill.to_path_buf())
+                }
+                _ => TelemetryStorage::Memory,
+            };
+            let telemetry = pdcal_dataset::read_telemetry_into(dir, &meta, &storage)?;
             Ok((dir.clone(), meta, telemetry))
         })
         .collect()

@@ -5,17 +5,24 @@ use pdcal_sim::Scenario;
 
 #[test]
 fn streamed_files_equal_the_in_memory_files() {
-    streamed_equals_in_memory(true);
+    streamed_equals_in_memory(true, false);
+}
+
+/// The photodiode columns kept in files of the staging directory (as a long set's are,
+/// `calibrate::FILE_TELEMETRY_BYTES`) give the same files, and leave none of theirs.
+#[test]
+fn telemetry_kept_in_files_gives_the_in_memory_files() {
+    streamed_equals_in_memory(true, true);
 }
 
 /// Without the smoother the attitudes of the Sun-vector metrics are the forward ones,
 /// spilled in row order.
 #[test]
 fn streamed_forward_only_run_equals_the_in_memory_run() {
-    streamed_equals_in_memory(false);
+    streamed_equals_in_memory(false, false);
 }
 
-fn streamed_equals_in_memory(smoother: bool) {
+fn streamed_equals_in_memory(smoother: bool, kept_in_files: bool) {
     let tmp = tempfile::tempdir().unwrap();
     let (dataset, streamed, memory) = (
         tmp.path().join("set"),
@@ -29,7 +36,28 @@ fn streamed_equals_in_memory(smoother: bool) {
     pdcal::simulate::run_to_dir(&scenario, 4, &dataset).unwrap();
     let mut config = pdcal::calibrate::RunConfig::default();
     config.filter.smoother = smoother;
-    pdcal::calibrate::run_dir(&dataset, &streamed, &config).unwrap();
+    let file_bytes = if kept_in_files { 0 } else { u64::MAX };
+    let read = pdcal::joint::read_kept(
+        std::slice::from_ref(&dataset),
+        Some((tmp.path(), file_bytes)),
+    );
+    let read = read.unwrap();
+    assert!(
+        read[0]
+            .2
+            .pd_v
+            .iter()
+            .all(|pd| pd.is_in_file() == kept_in_files)
+    );
+    drop(read);
+    pdcal::calibrate::run_dirs_kept(
+        std::slice::from_ref(&dataset),
+        &streamed,
+        &config,
+        false,
+        file_bytes,
+    )
+    .unwrap();
 
     let meta = pdcal_dataset::read_meta(&dataset).unwrap();
     let telemetry = pdcal_dataset::read_telemetry(&dataset, &meta).unwrap();
@@ -59,4 +87,10 @@ fn streamed_equals_in_memory(smoother: bool) {
     assert_eq!(summary(&streamed), summary(&memory));
     assert!(!streamed.join(".estimates_smoothed.spill").exists());
     assert!(!streamed.join(".attitudes.spill").exists());
+    let left: Vec<_> = std::fs::read_dir(&streamed)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|name| name.ends_with(".spill"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
 }

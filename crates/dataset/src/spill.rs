@@ -1,0 +1,265 @@
+//! A column of `f64` rows kept in a file and read through a small cache of blocks, so that
+//! a data set of millions of rows does not take its size in memory.
+//!
+//! # Why this shape
+//! The photodiode columns are most of a long data set (17 of 24 numbers a row in the
+//! rax2-like layout), and every reader of them already goes through [`crate::Samples`]'
+//! by-value `get(k)` and `iter()`, never a slice: the file can stand behind that API alone,
+//! and the filter, the checks, the metrics and the figures read the same bits from either
+//! storage. The file is made in a directory the caller names (the output's staging
+//! directory) and unlinked at once, so it never appears in a published output and vanishes
+//! with the process however that ends. Rows are read by `pread` a block at a time
+//! ([`BLOCK_ROWS`]); the last [`CACHED_BLOCKS`] blocks read stay cached, enough for a
+//! forward pass, a smoother's backward replay by blocks and the screening's neighbours. A
+//! row is written through (`pwrite`) and into a cached block holding it. The rows after
+//! the last whole block are held in memory until the block fills.
+//!
+//! A failure to read or write the file (a disk error, not a data error) is kept and
+//! reported by [`SpillColumn::error`] (through `Samples::storage_error` and
+//! `Telemetry::storage_error`); the rows it concerns read as blank, so a caller checks
+//! before trusting a result.
+
+use std::fs::File;
+use std::os::unix::fs::FileExt;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, MutexGuard};
+
+/// Rows per block read from the file (32 KiB).
+pub const BLOCK_ROWS: usize = 4096;
+/// Blocks kept per column: 128 KiB of cache per column.
+pub const CACHED_BLOCKS: usize = 4;
+
+const ROW_BYTES: usize = std::mem::size_of::<f64>();
+
+static NEXT_FILE: AtomicU64 = AtomicU64::new(0);
+
+/// One column of `f64` rows in a file.
+pub(crate) struct SpillColumn {
+    file: File,
+    dir: PathBuf,
+    /// Rows written to the file: a multiple of [`BLOCK_ROWS`].
+    flushed: usize,
+    /// Rows after `flushed`, fewer than a block.
+    tail: Vec<f64>,
+    cache: Mutex<Cache>,
+}
+
+#[derive(Default)]
+struct Cache {
+    /// The cached blocks, most recently used first: (block index, rows).
+    blocks: Vec<(usize, Vec<f64>)>,
+    error: Option<String>,
+}
+
+impl SpillColumn {
+    /// An empty column in a new file in `dir`, unlinked at once.
+    pub(crate) fn create(dir: &Path) -> std::io::Result<Self> {
+        let id = NEXT_FILE.fetch_add(1, Ordering::Relaxed);
+        let path = dir.join(format!(".column-{}-{id}.spill", std::process::id()));
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create_new(true)
+            .open(&path)?;
+        std::fs::remove_file(&path)?;
+        Ok(SpillColumn {
+            file,
+            dir: dir.to_path_buf(),
+            flushed: 0,
+            tail: Vec::with_capacity(BLOCK_ROWS),
+            cache: Mutex::new(Cache::default()),
+        })
+    }
+
+    fn cache(&self) -> MutexGuard<'_, Cache> {
+        self.cache.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn failed(&self, action: &str, e: &std::io::Error) {
+        let mut cache = self.cache();
+        if cache.error.is_none() {
+            cache.error = Some(format!(
+                "{}: cannot {action} a telemetry column kept there: {e}",
+                self.dir.display()
+            ));
+        }
+    }
+
+    pub(crate) fn error(&self) -> Option<String> {
+        self.cache().error.clone()
+    }
+
+    pub(crate) fn len(&self) -> usize {
+        self.flushed + self.tail.len()
+    }
+
+    /// Row `k`, `None` past the last row (or after a read error, [`SpillColumn::error`]).
+    #[inline]
+    pub(crate) fn get(&self, k: usize) -> Option<f64> {
+        if k >= self.flushed {
+            return self.tail.get(k - self.flushed).copied();
+        }
+        let (block, at) = (k / BLOCK_ROWS, k % BLOCK_ROWS);
+        let mut cache = self.cache();
+        if let Some(i) = cache.blocks.iter().position(|(b, _)| *b == block) {
+            if i > 0 {
+                let hit = cache.blocks.remove(i);
+                cache.blocks.insert(0, hit);
+            }
+            return cache.blocks[0].1.get(at).copied();
+        }
+        let mut rows = if cache.blocks.len() >= CACHED_BLOCKS {
+            cache.blocks.pop().map(|(_, rows)| rows).unwrap_or_default()
+        } else {
+            Vec::with_capacity(BLOCK_ROWS)
+        };
+        drop(cache);
+        match self.read_block(block, &mut rows) {
+            Ok(()) => {
+                let x = rows.get(at).copied();
+                self.cache().blocks.insert(0, (block, rows));
+                x
+            }
+            Err(e) => {
+                self.failed("read", &e);
+                None
+            }
+        }
+    }
+
+    fn read_block(&self, block: usize, rows: &mut Vec<f64>) -> std::io::Result<()> {
+        let mut bytes = vec![0_u8; BLOCK_ROWS * ROW_BYTES];
+        self.file
+            .read_exact_at(&mut bytes, (block * BLOCK_ROWS * ROW_BYTES) as u64)?;
+        rows.clear();
+        rows.extend(
+            bytes
+                .chunks_exact(ROW_BYTES)
+                .map(|c| f64::from_le_bytes(c.try_into().unwrap_or_default())),
+        );
+        Ok(())
+    }
+
+    /// Sets row `k`; ignored past the last row.
+    pub(crate) fn set(&mut self, k: usize, x: f64) {
+        if k >= self.flushed {
+            if let Some(cell) = self.tail.get_mut(k - self.flushed) {
+                *cell = x;
+            }
+            return;
+        }
+        let written = self
+            .file
+            .write_all_at(&x.to_le_bytes(), (k * ROW_BYTES) as u64);
+        if let Err(e) = written {
+            self.failed("write", &e);
+        }
+        let (block, at) = (k / BLOCK_ROWS, k % BLOCK_ROWS);
+        let cache = self.cache.get_mut().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, rows)) = cache.blocks.iter_mut().find(|(b, _)| *b == block)
+            && let Some(cell) = rows.get_mut(at)
+        {
+            *cell = x;
+        }
+    }
+
+    /// Appends a row; the tail goes to the file when it makes a whole block.
+    pub(crate) fn try_push(&mut self, x: f64) -> std::io::Result<()> {
+        self.tail.push(x);
+        if self.tail.len() == BLOCK_ROWS {
+            let bytes: Vec<u8> = self.tail.iter().flat_map(|x| x.to_le_bytes()).collect();
+            self.file
+                .write_all_at(&bytes, (self.flushed * ROW_BYTES) as u64)?;
+            self.flushed += BLOCK_ROWS;
+            self.tail.clear();
+        }
+        Ok(())
+    }
+
+    /// [`SpillColumn::try_push`], a failure kept for [`SpillColumn::error`].
+    pub(crate) fn push(&mut self, x: f64) {
+        if let Err(e) = self.try_push(x) {
+            self.failed("write", &e);
+        }
+    }
+
+    /// Removes the last row.
+    pub(crate) fn pop(&mut self) -> Option<f64> {
+        if self.tail.is_empty() && self.flushed > 0 {
+            let block = self.flushed / BLOCK_ROWS - 1;
+            let mut rows = Vec::new();
+            if let Err(e) = self.read_block(block, &mut rows) {
+                self.failed("read", &e);
+                rows = vec![f64::NAN; BLOCK_ROWS];
+            }
+            self.flushed -= BLOCK_ROWS;
+            self.tail = rows;
+            let cache = self.cache.get_mut().unwrap_or_else(|e| e.into_inner());
+            cache.blocks.retain(|(b, _)| *b != block);
+        }
+        self.tail.pop()
+    }
+
+    /// A copy in a new file of the same directory.
+    pub(crate) fn try_clone(&self) -> std::io::Result<Self> {
+        let mut copy = Self::create(&self.dir)?;
+        let mut rows = Vec::new();
+        for block in 0..self.flushed / BLOCK_ROWS {
+            self.read_block(block, &mut rows)?;
+            for &x in &rows {
+                copy.try_push(x)?;
+            }
+        }
+        for &x in &self.tail {
+            copy.try_push(x)?;
+        }
+        Ok(copy)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_file_column_reads_back_what_was_written_in_any_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut column = SpillColumn::create(dir.path()).unwrap();
+        let n = 5 * BLOCK_ROWS + 17;
+        let value = |k: usize| (k as f64).sqrt() - 3.0;
+        for k in 0..n {
+            column.try_push(value(k)).unwrap();
+        }
+        assert_eq!(column.len(), n);
+        // Backward, forward, jumping between blocks: more blocks than the cache holds.
+        for k in (0..n).rev().chain(0..n).chain((0..n).step_by(977)) {
+            assert_eq!(column.get(k).map(f64::to_bits), Some(value(k).to_bits()));
+        }
+        assert_eq!(column.get(n), None);
+        column.get(3);
+        column.set(3, -1.0);
+        column.set(n - 1, -2.0);
+        column.set(BLOCK_ROWS * 4 + 1, -3.0);
+        let copy = column.try_clone().unwrap();
+        for c in [&column, &copy] {
+            assert_eq!(c.get(3), Some(-1.0));
+            assert_eq!(c.get(n - 1), Some(-2.0));
+            assert_eq!(c.get(BLOCK_ROWS * 4 + 1), Some(-3.0));
+        }
+        let mut column = column;
+        for k in (0..n).rev() {
+            let expected = match k {
+                3 => -1.0,
+                k if k == n - 1 => -2.0,
+                k if k == BLOCK_ROWS * 4 + 1 => -3.0,
+                k => value(k),
+            };
+            assert_eq!(column.pop(), Some(expected));
+        }
+        assert_eq!(column.pop(), None);
+        assert!(column.error().is_none());
+        // Unlinked when made: nothing is left in the directory.
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
+}
