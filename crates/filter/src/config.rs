@@ -47,8 +47,22 @@ pub enum Mode {
 pub struct FilterConfig {
     /// Photodiode noise 1-sigma, V; `None`: the dataset hint, else 0.015 V.
     pub photodiode_sigma_v: Option<f64>,
-    /// Albedo-model uncertainty, W/m^2 (paper IV.B: 50); enters R as `(C sigma / E_AM0)^2`.
+    /// Albedo-model uncertainty of one row, W/m^2 (paper IV.B: 50); enters R as
+    /// `(C sigma / E_AM0)^2`, less the part the albedo gain state carries
+    /// (`albedo_gain_sigma`): the white part of the albedo's error.
     pub albedo_sigma_w_m2: f64,
+    /// Stationary sigma of the albedo gain `g` (the albedo seen is `(1 + g)` times the
+    /// modelled one), a state correlated over `albedo_gain_time_s`; 0 leaves the albedo's
+    /// error white. Default 0.2: the footprint-weighted reflectivity of the two shipped
+    /// families of maps (TOMS mean, CERES 2018 annual) differs along a low orbit by 0.21
+    /// in log ratio (docs/validation.md, "Another simulator's albedo"), and a map of any
+    /// kind differs from the Earth of one day by that day's clouds.
+    pub albedo_gain_sigma: f64,
+    /// Correlation time of the albedo gain, s. Default 360: the time the footprint takes
+    /// to cross a region of one reflectivity (a cloud system, an ocean, an ice sheet, a
+    /// few thousand km at a ground speed of about 7 km/s); the map-to-map ratio above
+    /// falls to 1/e in 360 s.
+    pub albedo_gain_time_s: f64,
     /// Magnetometer noise 1-sigma per axis, nT; `None`: the dataset hint, else 320 nT.
     pub mag_sigma_nt: Option<f64>,
     /// Gyro white noise per sample, rad/s; `None`: the dataset hint, else 0.05 deg/s.
@@ -233,6 +247,8 @@ impl Default for FilterConfig {
         FilterConfig {
             photodiode_sigma_v: None,
             albedo_sigma_w_m2: 50.0,
+            albedo_gain_sigma: 0.2,
+            albedo_gain_time_s: 360.0,
             mag_sigma_nt: None,
             gyro_sigma_rad_s: None,
             gyro_noise_inflation: 1.5,
@@ -341,6 +357,7 @@ impl FilterConfig {
             ("torque_noise_n_m_sqrt_s", self.torque_noise_n_m_sqrt_s),
             ("initial_rate_sigma_deg_s", self.initial_rate_sigma_deg_s),
             ("dipole_sigma_a_m2", self.dipole_sigma_a_m2),
+            ("albedo_gain_time_s", self.albedo_gain_time_s),
         ];
         for (field, value) in positive {
             if !(value > 0.0 && value.is_finite()) {
@@ -349,6 +366,7 @@ impl FilterConfig {
         }
         let non_negative = [
             ("albedo_sigma_w_m2", self.albedo_sigma_w_m2),
+            ("albedo_gain_sigma", self.albedo_gain_sigma),
             ("dipole_walk_a_m2_sqrt_s", self.dipole_walk_a_m2_sqrt_s),
             ("inertia_sigma_fraction", self.inertia_sigma_fraction),
             ("rate_change_fraction", self.rate_change_fraction),

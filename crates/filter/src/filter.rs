@@ -49,8 +49,12 @@ pub struct FilterNoise {
     pub extra_walk_var_per_s: Vec<f64>,
     /// Photodiode noise sigma, V.
     pub photodiode_sigma_v: f64,
-    /// Albedo-model uncertainty as a fraction of `E_AM0` (R adds `(C this)^2`).
+    /// Albedo-model uncertainty of one row as a fraction of `E_AM0`: R adds `(C this)^2`,
+    /// less the part the albedo gain state carries ([`FilterNoise::albedo_gain`]).
     pub albedo_sigma_ratio: f64,
+    /// The albedo's error correlated in time, as a gain state; `None`: the albedo error
+    /// is white only (`albedo_sigma_ratio`).
+    pub albedo_gain: Option<AlbedoGainNoise>,
     /// Magnetometer sigma per axis, nT.
     pub mag_sigma_nt: f64,
     /// Gate in sigmas: each photodiode row `nu^2 <= g^2 s`; the magnetometer's 3-vector by
@@ -63,6 +67,28 @@ pub struct FilterNoise {
     pub min_sun_fraction: f64,
     /// Add the second-order (curvature) variance of the measurement functions to R.
     pub second_order: bool,
+}
+
+/// The albedo gain `g` (the albedo seen is `(1 + g)` times the modelled one, Eq. 15's
+/// second term) as a first-order Gauss-Markov process: `g(t + dt) = e^(-dt/tau) g(t) + w`
+/// with stationary variance `sigma^2` (`var w = sigma^2 (1 - e^(-2 dt/tau))`). A
+/// reflectivity map is a mean; the Earth under the satellite has today's clouds, and the
+/// difference persists while the footprint crosses one region, so it is a state, not
+/// white noise: as white noise, averaged over hundreds of rows, it would shrink the
+/// calibration's sigmas below its errors.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AlbedoGainNoise {
+    /// Stationary sigma of `g` (dimensionless).
+    pub sigma: f64,
+    /// Correlation time `tau`, s.
+    pub time_s: f64,
+}
+
+impl AlbedoGainNoise {
+    /// The transition `e^(-dt/tau)` over `dt_s` (negative steps count as none).
+    pub fn decay(&self, dt_s: f64) -> f64 {
+        (-dt_s.max(0.0) / self.time_s).exp()
+    }
 }
 
 /// The state the filter starts from.
@@ -164,6 +190,8 @@ pub struct Propagation {
     pub qd: Matrix6<f64>,
     /// Step, s.
     pub dt_s: f64,
+    /// The albedo gain's transition `e^(-dt/tau)` over the step (1 without the state).
+    pub albedo_gain_decay: f64,
     /// With dynamics ([`crate::rate`]): `Phi` and `Qd` of `[a, beta, w, m, c]` (`phi` and `qd`
     /// above are then unused) and the body rate the step ended with.
     pub rate: Option<Box<RatePropagation>>,
@@ -209,6 +237,8 @@ pub struct Filter {
     basis: Vec<(Vector3<f64>, Vector3<f64>)>,
     used: Vec<bool>,
     rate_est: Vector3<f64>,
+    /// The albedo gain estimate `g` (0 without the state).
+    albedo_gain: f64,
     p: DMatrix<f64>,
     /// The diagonal of the initial covariance (what a state the guard resets returns to).
     initial_variance: Vec<f64>,
@@ -235,6 +265,7 @@ pub struct FilterState {
     normal: Vec<Vector3<f64>>,
     basis: Vec<(Vector3<f64>, Vector3<f64>)>,
     rate_est: Vector3<f64>,
+    albedo_gain: f64,
     p: DMatrix<f64>,
     parameters: Vec<f64>,
     counts: UpdateCounts,
@@ -298,6 +329,9 @@ impl Filter {
         algebra: Algebra,
     ) -> Result<Self, FilterError> {
         let m = model.photodiodes().len();
+        if noise.albedo_gain.is_some() {
+            layout.add_albedo_gain();
+        }
         let n = layout.len();
         for (what, len) in [
             ("initial scales", init.scale_v.len()),
@@ -334,6 +368,9 @@ impl Filter {
         }
         for (e, s) in layout.extras().iter().zip(&init.extra_sigma) {
             p[(e.state, e.state)] = s * s;
+        }
+        if let (Some(g), Some(gain)) = (layout.albedo_gain(), noise.albedo_gain) {
+            p[(g, g)] = gain.sigma * gain.sigma;
         }
         let normal: Vec<Vector3<f64>> = init.n_body.iter().map(|n| n.normalize()).collect();
         layout.set_reference_normals(&normal);
@@ -374,6 +411,7 @@ impl Filter {
             bias: init.bias_rad_s,
             used: init.used,
             rate_est: Vector3::zeros(),
+            albedo_gain: 0.0,
             initial_variance: p.diagonal().iter().copied().collect(),
             p,
             records: Vec::with_capacity(3 + m),
@@ -481,6 +519,7 @@ impl Filter {
         r.motion.w_body_rad_s = step.w_body_rad_s;
         self.rate_est = step.w_body_rad_s;
         let idx = r.idx;
+        let albedo_gain_decay = self.decay_albedo_gain(dt_s);
         self.fill_calibration_noise(dt_s);
         crate::rate::propagate_covariance(
             &mut self.p,
@@ -493,6 +532,7 @@ impl Filter {
             phi: Matrix6::identity(),
             qd: Matrix6::zeros(),
             dt_s,
+            albedo_gain_decay,
             rate: Some(Box::new(RatePropagation {
                 phi: step.phi,
                 qd: step.qd,
@@ -537,6 +577,7 @@ impl Filter {
         for k in 0..3 {
             qd[(k, k)] += extra;
         }
+        let albedo_gain_decay = self.decay_albedo_gain(dt_s);
         self.fill_calibration_noise(dt_s);
         match self.algebra {
             Algebra::Structured => self.propagate_structured(&phi, &qd),
@@ -546,6 +587,7 @@ impl Filter {
             phi,
             qd,
             dt_s,
+            albedo_gain_decay,
             rate: None,
         });
     }
@@ -559,6 +601,7 @@ impl Filter {
     pub fn reacquire(&mut self, q: Quat, attitude_cov: &Matrix3<f64>, dt_s: f64) {
         let n = self.p.nrows();
         let dt_s = dt_s.max(0.0);
+        self.decay_albedo_gain(dt_s);
         self.fill_calibration_noise(dt_s);
         for k in CORE..n {
             self.p[(k, k)] += self.scratch.cal_noise[k];
@@ -705,8 +748,29 @@ impl Filter {
         Ok(true)
     }
 
+    /// The albedo gain's Gauss-Markov transition over `dt_s`: its estimate and its row and
+    /// column of `P` times `e^(-dt/tau)`, before the step's own transition (they act on
+    /// different states, so the order does not matter) and before its noise
+    /// ([`Filter::fill_calibration_noise`]). The factor; 1 without the state.
+    fn decay_albedo_gain(&mut self, dt_s: f64) -> f64 {
+        let (Some(g), Some(gain)) = (self.layout.albedo_gain(), self.noise.albedo_gain) else {
+            return 1.0;
+        };
+        let decay = gain.decay(dt_s);
+        self.albedo_gain *= decay;
+        let n = self.p.nrows();
+        for k in 0..n {
+            self.p[(g, k)] *= decay;
+        }
+        for k in 0..n {
+            self.p[(k, g)] *= decay;
+        }
+        decay
+    }
+
     /// Diagonal calibration-state process noise over `dt_s` into `scratch.cal_noise`
-    /// (entries 0..6 stay zero).
+    /// (entries 0..6 stay zero); for the albedo gain, the Gauss-Markov process noise
+    /// `sigma^2 (1 - e^(-2 dt/tau))`.
     fn fill_calibration_noise(&mut self, dt_s: f64) {
         let q = &mut self.scratch.cal_noise;
         for i in 0..self.layout.photodiodes() {
@@ -723,6 +787,9 @@ impl Filter {
             .zip(&self.noise.extra_walk_var_per_s)
         {
             q[e.state] = v * dt_s;
+        }
+        if let (Some(g), Some(gain)) = (self.layout.albedo_gain(), self.noise.albedo_gain) {
+            q[g] = gain.sigma * gain.sigma * (1.0 - gain.decay(dt_s).powi(2));
         }
     }
 
@@ -956,16 +1023,56 @@ impl Filter {
             };
             self.model
                 .partials_into(i, &scene, &mut self.scratch.partials)?;
-            let albedo_sigma = self.model.photodiodes()[i].scale_v * self.noise.albedo_sigma_ratio;
-            let r = self.noise.photodiode_sigma_v.powi(2)
-                + albedo_sigma * albedo_sigma
-                + self.photodiode_second_order_var(i, cos_incidence);
             let predicted = self.scratch.partials.value_v;
+            let d_gain = match (albedo_used, self.noise.albedo_gain) {
+                (Some(_), Some(_)) => self.albedo_gain_partial(i, &scene, predicted)?,
+                _ => 0.0,
+            };
+            let r = self.noise.photodiode_sigma_v.powi(2)
+                + self.white_albedo_var(i, d_gain)
+                + self.photodiode_second_order_var(i, cos_incidence);
             self.scratch.rows.begin(y - predicted, r);
-            self.fill_photodiode_row(i);
+            self.fill_photodiode_row(i, d_gain);
             self.scratch.sources.push((Sensor::Photodiode(i), y));
         }
         Ok(())
+    }
+
+    /// `dh/dg`, the output's partial with respect to the albedo gain: the modelled albedo
+    /// part of photodiode `i`'s prediction (Eq. 15's second term through the model's gains),
+    /// `(h - h_0) / (1 + g)` with `h` the prediction `predicted_v` (albedo times `1 + g`)
+    /// and `h_0` the prediction without albedo. Every term is linear in the albedo
+    /// irradiance, so this is exact below an output stage's knee.
+    fn albedo_gain_partial(
+        &self,
+        i: usize,
+        scene: &Scene,
+        predicted_v: f64,
+    ) -> Result<f64, FilterError> {
+        let factor = 1.0 + self.albedo_gain;
+        if factor.abs() < 1e-9 {
+            return Ok(0.0);
+        }
+        let without = Scene {
+            albedo: None,
+            ..*scene
+        };
+        Ok((predicted_v - self.model.evaluate(i, &without)?) / factor)
+    }
+
+    /// The white part of photodiode `i`'s albedo variance, V^2: the declared one-row
+    /// albedo variance `(C albedo_sigma_ratio)^2` less what the gain state carries,
+    /// `(sigma_g dh/dg)^2`, so that one error is not counted twice (the declared sigma is
+    /// the whole albedo error of one row; where the albedo is strong the gain's share is
+    /// all of it).
+    fn white_albedo_var(&self, i: usize, d_gain: f64) -> f64 {
+        let declared =
+            (self.model.photodiodes()[i].scale_v * self.noise.albedo_sigma_ratio).powi(2);
+        let correlated = self
+            .noise
+            .albedo_gain
+            .map_or(0.0, |g| (g.sigma * d_gain).powi(2));
+        (declared - correlated).max(0.0)
     }
 
     /// The photodiodes this step updates, into `scratch.selected`: sampled, lit (full Sun),
@@ -1072,6 +1179,8 @@ impl Filter {
     /// together), each kept as the [`LinearAlbedo`] at its prior normal, which returns the
     /// evaluation itself there.
     fn prior_albedo(&mut self, attitude: &Matrix3<f64>, albedo: &dyn AlbedoIrradiance) {
+        // The albedo seen: the modelled one times the gain's `1 + g` (1 without the state).
+        let gain = 1.0 + self.albedo_gain;
         let a = &mut self.scratch.albedo;
         a.normals_gcrf.clear();
         a.cos_fov.clear();
@@ -1092,8 +1201,8 @@ impl Filter {
                 .zip(&a.results)
                 .map(|(n0, &(ratio0, vector))| LinearAlbedo {
                     n0_gcrf: *n0,
-                    ratio0,
-                    vector_gcrf: vector,
+                    ratio0: gain * ratio0,
+                    vector_gcrf: gain * vector,
                 }),
         );
     }
@@ -1102,7 +1211,7 @@ impl Filter {
     /// begun last: Eq. (20) for `a`, Eq. (22) for `C`, the normal gradient projected on the
     /// tangent basis for `(d1, d2)` (the singularity-free replacement of Eqs. 23-24), and the
     /// estimated parameters.
-    fn fill_photodiode_row(&mut self, i: usize) {
+    fn fill_photodiode_row(&mut self, i: usize, d_gain: f64) {
         let s = &mut self.scratch;
         let pa = &s.partials;
         for k in 0..3 {
@@ -1117,6 +1226,9 @@ impl Filter {
         for &k in self.layout.extras_of(i) {
             let e = &self.layout.extras()[k];
             s.rows.entry(e.state, pa.d_parameters[e.parameter]);
+        }
+        if let Some(g) = self.layout.albedo_gain() {
+            s.rows.entry(g, d_gain);
         }
     }
 
@@ -1142,6 +1254,9 @@ impl Filter {
         }
         self.reset_photodiodes();
         let dx = &self.scratch.dx;
+        if let Some(g) = self.layout.albedo_gain() {
+            self.albedo_gain += dx[g];
+        }
         for e in self.layout.extras() {
             let p = self.model.parameter_mut(e.parameter)?;
             p.value += dx[e.state];
@@ -1236,6 +1351,11 @@ impl Filter {
             .collect()
     }
 
+    /// The albedo gain estimate `g` ([`AlbedoGainNoise`]), when it is a state.
+    pub fn albedo_gain(&self) -> Option<f64> {
+        self.layout.albedo_gain().map(|_| self.albedo_gain)
+    }
+
     /// Values of the extra states, in layout order.
     pub fn extra_values(&self) -> Vec<f64> {
         let params: Vec<f64> = self.model.parameters().map(|(_, p)| p.value).collect();
@@ -1260,6 +1380,7 @@ impl Filter {
             normal: self.normals(),
             basis: self.basis.clone(),
             rate_est: self.rate_est,
+            albedo_gain: self.albedo_gain,
             p: self.p.clone(),
             parameters: self.model.parameters().map(|(_, p)| p.value).collect(),
             counts: self.counts,
@@ -1278,6 +1399,7 @@ impl Filter {
         set_estimates(&mut self.model, &state.scale, &state.normal);
         self.basis.copy_from_slice(&state.basis);
         self.rate_est = state.rate_est;
+        self.albedo_gain = state.albedo_gain;
         self.p.copy_from(&state.p);
         for (k, value) in state.parameters.iter().enumerate() {
             self.model.parameter_mut(k)?.value = *value;
@@ -1425,5 +1547,155 @@ impl StateView<'_> {
                 .collect(),
             status: Vec::new(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Matrix3, Vector3};
+    use pdcal_albedo::LinearAlbedo;
+    use pdcal_attitude::{GyroNoise, Quat};
+    use pdcal_photodiode::{MeasurementModel, Photodiode, ScaleDrift, Scene};
+
+    use super::*;
+
+    /// A filter over four photodiodes, the paper's model with a scale drift (a gain the
+    /// albedo part must go through), and the albedo gain a state.
+    fn filter() -> Filter {
+        let pds: Vec<Photodiode> = [(0.0, 10.0), (90.0, -20.0), (200.0, 40.0), (300.0, 0.0)]
+            .iter()
+            .map(|&(az, el)| Photodiode::from_az_el_deg(3.7, az, el, 0.015))
+            .collect();
+        let m = pds.len();
+        let mut model = MeasurementModel::paper(pds);
+        model.add_gain(ScaleDrift::shared(0.02)).unwrap();
+        let layout = StateLayout::new(&model, true);
+        let init = InitialState {
+            q: Quat::IDENTITY,
+            attitude_cov: Matrix3::identity() * 1e-4,
+            bias_rad_s: Vector3::zeros(),
+            bias_sigma_rad_s: 1e-3,
+            scale_v: vec![3.7; m],
+            scale_sigma_v: vec![0.3; m],
+            n_body: model.photodiodes().iter().map(|p| p.n_body).collect(),
+            normal_sigma_rad: 0.1,
+            extra_sigma: Vec::new(),
+            used: vec![true; m],
+        };
+        let noise = FilterNoise {
+            gyro: GyroNoise {
+                sigma_v_rad_sqrt_s: 1e-3,
+                sigma_u_rad_s_sqrt_s: 2e-6,
+            },
+            rate_change_fraction: 0.3,
+            scale_walk_var_per_s: vec![1e-9; m],
+            normal_walk_var_per_s: 1e-12,
+            extra_walk_var_per_s: Vec::new(),
+            photodiode_sigma_v: 0.015,
+            albedo_sigma_ratio: 50.0 / 1367.0,
+            albedo_gain: Some(AlbedoGainNoise {
+                sigma: 0.2,
+                time_s: 360.0,
+            }),
+            mag_sigma_nt: 320.0,
+            gate_sigmas: 5.0,
+            cos_fov: 60f64.to_radians().cos(),
+            min_sun_fraction: 0.999,
+            second_order: true,
+        };
+        Filter::new(model, layout, init, noise, Algebra::Structured).unwrap()
+    }
+
+    /// The albedo `factor` times a fixed linearised one.
+    fn albedo(factor: f64) -> LinearAlbedo {
+        LinearAlbedo {
+            n0_gcrf: Vector3::new(0.3, -0.2, 0.93).normalize(),
+            ratio0: 0.21 * factor,
+            vector_gcrf: Vector3::new(0.05, 0.12, 0.3) * factor,
+        }
+    }
+
+    #[test]
+    fn albedo_gain_partial_matches_finite_differences() {
+        let mut f = filter();
+        let attitude = *nalgebra::Rotation3::from_euler_angles(0.3, -0.4, 1.1).matrix();
+        let sun_body = attitude * Vector3::new(0.2, 0.5, 0.84).normalize();
+        for g in [-0.4, 0.0, 0.35] {
+            f.albedo_gain = g;
+            let seen = albedo(1.0 + g);
+            fn scene<'a>(
+                attitude: Matrix3<f64>,
+                sun_body: Vector3<f64>,
+                a: &'a LinearAlbedo,
+            ) -> Scene<'a> {
+                Scene {
+                    attitude,
+                    sun_body,
+                    sun_fraction: 1.0,
+                    sun_distance_factor: 1.0,
+                    rate_body_rad_s: Vector3::zeros(),
+                    t_s: 5400.0,
+                    albedo: Some(a as &dyn AlbedoIrradiance),
+                    temperature_c: &[],
+                }
+            }
+            for i in 0..4 {
+                let predicted = f
+                    .model
+                    .evaluate(i, &scene(attitude, sun_body, &seen))
+                    .unwrap();
+                let d = f
+                    .albedo_gain_partial(i, &scene(attitude, sun_body, &seen), predicted)
+                    .unwrap();
+                let h = 1e-6;
+                let up = f
+                    .model
+                    .evaluate(i, &scene(attitude, sun_body, &albedo(1.0 + g + h)))
+                    .unwrap();
+                let down = f
+                    .model
+                    .evaluate(i, &scene(attitude, sun_body, &albedo(1.0 + g - h)))
+                    .unwrap();
+                let fd = (up - down) / (2.0 * h);
+                assert!(d.abs() > 1e-3, "photodiode {i}: no albedo seen ({d})");
+                assert!(
+                    (d - fd).abs() <= 1e-7 * fd.abs().max(1.0),
+                    "photodiode {i}, g {g}: partial {d} against finite differences {fd}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn albedo_gain_is_a_stationary_gauss_markov_process() {
+        // Unobserved, the gain's variance stays its prior over any steps (the decay and
+        // the noise balance), its estimate decays by e^(-dt/tau) and its correlation with
+        // another state with it.
+        let mut f = filter();
+        let g = f.layout().albedo_gain().unwrap();
+        let c = f.layout().scale(0);
+        f.albedo_gain = 0.1;
+        f.p[(g, c)] = 0.01;
+        f.p[(c, g)] = 0.01;
+        let mut decay = 1.0;
+        for dt in [1.0, 10.0, 100.0, 1000.0] {
+            f.propagate(&Vector3::new(0.01, -0.02, 0.005), 0.0, dt);
+            decay *= (-dt / 360.0f64).exp();
+            assert!(
+                (f.p[(g, g)] - 0.04).abs() < 1e-15,
+                "variance {}",
+                f.p[(g, g)]
+            );
+            assert!((f.albedo_gain - 0.1 * decay).abs() < 1e-15);
+            assert!((f.p[(g, c)] - 0.01 * decay).abs() < 1e-15);
+            assert_eq!(f.p[(g, c)], f.p[(c, g)]);
+            assert_eq!(
+                f.last_propagation().unwrap().albedo_gain_decay,
+                (-dt / 360.0f64).exp()
+            );
+        }
+        f.reacquire(Quat::IDENTITY, &(Matrix3::identity() * 1e-4), 1e5);
+        assert!((f.p[(g, g)] - 0.04).abs() < 1e-15);
+        assert!(f.albedo_gain.abs() < 1e-100);
     }
 }

@@ -14,7 +14,8 @@ use crate::calibration::Calibration;
 use crate::config::{E_AM0_W_M2, FilterConfig, Mode, SensorSigmas};
 use crate::error::check_len;
 use crate::filter::{
-    Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Sensor, StateView,
+    AlbedoGainNoise, Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Sensor,
+    StateView,
 };
 use crate::guard::RepairLog;
 use crate::init::{InitialScales, Start, StartInputs, find_start, initial_scales};
@@ -1048,7 +1049,11 @@ fn initial_state(
             (s, w * w)
         })
         .unzip();
-    let noise = filter_noise(config, sigmas, rules, &scale_v, extra_walk);
+    let mut noise = filter_noise(config, sigmas, rules, &scale_v, extra_walk);
+    if inputs.albedo.is_none() {
+        // No albedo modelled: nothing for a gain to scale.
+        noise.albedo_gain = None;
+    }
     let init = InitialState {
         // Set by the first acquisition.
         q: Quat::IDENTITY,
@@ -1139,6 +1144,10 @@ fn filter_noise(
         extra_walk_var_per_s,
         photodiode_sigma_v: sigmas.photodiode_v,
         albedo_sigma_ratio: config.albedo_sigma_w_m2 / E_AM0_W_M2,
+        albedo_gain: (config.albedo_gain_sigma > 0.0).then_some(AlbedoGainNoise {
+            sigma: config.albedo_gain_sigma,
+            time_s: config.albedo_gain_time_s,
+        }),
         mag_sigma_nt: sigmas.mag_nt,
         gate_sigmas: config.gate_sigmas,
         cos_fov: config.fov_half_angle_deg.to_radians().cos(),

@@ -1,7 +1,8 @@
 //! The error-state layout: which state index holds what.
 //!
 //! ```text
-//! [ a (3) | beta (3) | pd 1: C, d1, d2 | pd 2: C, d1, d2 | ... | extra parameters ]
+//! [ a (3) | beta (3) | pd 1: C, d1, d2 | pd 2: C, d1, d2 | ... | extra parameters
+//!   | albedo gain g (optional) | body rate, dipole, inertia (optional) ]
 //! ```
 //!
 //! The paper orders Eq. (17) as `[a, beta, C, alpha, eps]`; here each photodiode's states are
@@ -56,6 +57,8 @@ pub struct StateLayout {
     /// State index of the body-rate error `dw` (3 states, then the 3 of the residual
     /// dipole `dm`, last), with dynamics only.
     rate: Option<usize>,
+    /// State index of the correlated albedo gain `g` ([`crate::filter::AlbedoGainNoise`]).
+    albedo_gain: Option<usize>,
 }
 
 impl StateLayout {
@@ -103,7 +106,22 @@ impl StateLayout {
             reference_frames: reference_normals.iter().map(TangentFrame::about).collect(),
             reference_normals,
             rate: None,
+            albedo_gain: None,
         }
+    }
+
+    /// Appends the albedo gain state `g` (albedo seen = `(1 + g)` times the modelled one)
+    /// after every state so far, once; its index.
+    pub fn add_albedo_gain(&mut self) -> usize {
+        *self.albedo_gain.get_or_insert_with(|| {
+            self.len += 1;
+            self.len - 1
+        })
+    }
+
+    /// State index of the albedo gain `g`, when it is a state.
+    pub fn albedo_gain(&self) -> Option<usize> {
+        self.albedo_gain
     }
 
     /// Appends the three body-rate states, the three residual-dipole states and the three
@@ -189,6 +207,7 @@ impl StateLayout {
     /// Largest number of non-zeros in a photodiode's H row.
     pub fn max_row_len(&self) -> usize {
         CORE + self.pd_extras.iter().map(Vec::len).max().unwrap_or(0)
+            + usize::from(self.albedo_gain.is_some())
     }
 }
 

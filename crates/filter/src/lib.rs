@@ -71,7 +71,8 @@
 //! | `alpha_i`, `eps_i` (Eq. 16) | `azimuth_deg`, `elevation_deg` of [`PdCalibration`] | deg |
 //! | `(d1_i, d2_i)` | tangent correction replacing `alpha_i`, `eps_i` as states | rad |
 //! | `E_a / E_AM0` (Eq. 13) | albedo term of the model | - |
-//! | `R` photodiode | `sigma_pd^2 + (C albedo_sigma / E_AM0)^2` | V^2 |
+//! | `g` (albedo gain) | [`Filter::albedo_gain`]: albedo seen `(1 + g) E_a/E_AM0` | - |
+//! | `R` photodiode | `sigma_pd^2 + max(0, (C albedo_sigma / E_AM0)^2 - (sigma_g dh/dg)^2)` | V^2 |
 //! | `epsilon` (Eq. 25) | [`ResidualRecord::residual`] | V, nT |
 //!
 //! # Why hand-written
@@ -122,8 +123,8 @@ pub use config::{BiasAcrossSets, Dynamics, FilterConfig, Mode, ParameterSigma, S
 pub use consistency::{Consistency, ConsistencyAccumulator, Verdict};
 pub use error::FilterError;
 pub use filter::{
-    Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Propagation, Sensor,
-    SensorCounts, UpdateCounts, UpdateRecord,
+    AlbedoGainNoise, Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements,
+    Propagation, Sensor, SensorCounts, UpdateCounts, UpdateRecord,
 };
 pub use forward::ForwardPass;
 pub use guard::{CovarianceRepair, RepairKind, RepairLog};

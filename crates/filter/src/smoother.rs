@@ -37,6 +37,8 @@ use crate::rate::Motion;
 struct Transition {
     phi: Matrix6<f64>,
     qd: Matrix6<f64>,
+    /// The albedo gain's `e^(-dt/tau)` (1 without the state).
+    albedo_gain_decay: f64,
     q_prior_next: Quat,
     /// With dynamics: the transition of `[a, beta, w, m]` instead of `phi`, `qd`.
     rate: Option<Box<RatePropagation>>,
@@ -51,6 +53,8 @@ struct Stored {
     scale: Vec<f64>,
     normal: Vec<Vector3<f64>>,
     extras: Vec<f64>,
+    /// The albedo gain (0 without the state).
+    albedo_gain: f64,
     /// The body rate and residual dipole, with dynamics.
     w: Option<Motion>,
     next: Option<Transition>,
@@ -85,6 +89,7 @@ impl SmootherStore {
             last.next = Some(Transition {
                 phi: prop.phi,
                 qd: prop.qd,
+                albedo_gain_decay: prop.albedo_gain_decay,
                 q_prior_next: q_prior,
                 rate: prop.rate.clone(),
             });
@@ -113,6 +118,7 @@ impl SmootherStore {
             scale: filter.scales_v(),
             normal: filter.normals(),
             extras: filter.extra_values(),
+            albedo_gain: filter.albedo_gain().unwrap_or(0.0),
             w: filter.motion(),
             next: None,
         });
@@ -184,7 +190,11 @@ impl SmootherStore {
                     index: stored.index,
                 })?;
             self.unpack_into(k, &mut work.pf);
-            work.predict(trans, &self.cal_noise[k * n..(k + 1) * n]);
+            work.predict(
+                trans,
+                &self.cal_noise[k * n..(k + 1) * n],
+                layout.albedo_gain(),
+            );
             work.gain_transposed()
                 .map_err(|_| FilterError::NotPositiveDefinite {
                     index: stored.index,
@@ -242,15 +252,25 @@ impl Work {
         }
     }
 
-    /// `gt = Phi P+` and `pp = Phi P+ Phi^T + Q` with `Phi = diag(Phi6, I)`: only the first
-    /// 6 rows (and columns) differ from `P+` (`O(36 n)` instead of two `n^3` products);
-    /// `pp` mirrored from its lower triangle so that it is exactly symmetric.
-    fn predict(&mut self, trans: &Transition, cal_noise: &[f64]) {
+    /// `gt = Phi P+` and `pp = Phi P+ Phi^T + Q` with `Phi = diag(Phi6, I)`, the albedo
+    /// gain's (index `gain`) diagonal entry its decay: only the first 6 rows (and columns)
+    /// and the gain's differ from `P+` (`O(36 n)` instead of two `n^3` products); `pp`
+    /// mirrored from its lower triangle so that it is exactly symmetric.
+    fn predict(&mut self, trans: &Transition, cal_noise: &[f64], gain: Option<usize>) {
+        let decay = trans.albedo_gain_decay;
         if let Some(rate) = &trans.rate {
             self.gt.copy_from(&self.pf);
             crate::rate::left_multiply(&mut self.gt, &rate.idx, &rate.phi);
+            if let Some(g) = gain {
+                let mut row = self.gt.row_mut(g);
+                row *= decay;
+            }
             self.pp.copy_from(&self.gt);
             crate::rate::right_multiply_transpose(&mut self.pp, &rate.idx, &rate.phi);
+            if let Some(g) = gain {
+                let mut column = self.pp.column_mut(g);
+                column *= decay;
+            }
             crate::rate::add_noise(&mut self.pp, &rate.idx, &rate.qd, cal_noise);
             self.pp.fill_upper_triangle_with_lower_triangle();
             return;
@@ -259,9 +279,17 @@ impl Work {
         self.gt.copy_from(&self.pf);
         let top = trans.phi * self.pf.rows(0, CORE);
         self.gt.rows_mut(0, CORE).copy_from(&top);
+        if let Some(g) = gain {
+            let mut row = self.gt.row_mut(g);
+            row *= decay;
+        }
         self.pp.copy_from(&self.gt);
         let left = self.gt.columns(0, CORE) * trans.phi.transpose();
         self.pp.columns_mut(0, CORE).copy_from(&left);
+        if let Some(g) = gain {
+            let mut column = self.pp.column_mut(g);
+            column *= decay;
+        }
         let mut corner = self.pp.fixed_view_mut::<CORE, CORE>(0, 0);
         corner += trans.qd;
         for (i, q) in cal_noise.iter().enumerate().take(n).skip(CORE) {
@@ -321,6 +349,7 @@ struct SmoothedState {
     scale: Vec<f64>,
     normal: Vec<Vector3<f64>>,
     extras: Vec<f64>,
+    albedo_gain: f64,
     w: Option<Motion>,
 }
 
@@ -332,6 +361,7 @@ impl SmoothedState {
             scale: s.scale.clone(),
             normal: s.normal.clone(),
             extras: s.extras.clone(),
+            albedo_gain: s.albedo_gain,
             w: s.w,
         }
     }
@@ -381,6 +411,9 @@ impl SmoothedState {
         {
             d[e.state] = s - p;
         }
+        if let (Some(g), Some(t)) = (layout.albedo_gain(), prev.next.as_ref()) {
+            d[g] = self.albedo_gain - t.albedo_gain_decay * prev.albedo_gain;
+        }
     }
 
     fn plus(mut self, delta: &DVector<f64>, layout: &StateLayout) -> Self {
@@ -397,6 +430,9 @@ impl SmoothedState {
         }
         for (e, v) in layout.extras().iter().zip(self.extras.iter_mut()) {
             *v += delta[e.state];
+        }
+        if let Some(g) = layout.albedo_gain() {
+            self.albedo_gain += delta[g];
         }
         if let (Some(k), Some(w)) = (layout.rate(), self.w.as_mut()) {
             w.w_body_rad_s += Vector3::new(delta[k], delta[k + 1], delta[k + 2]);

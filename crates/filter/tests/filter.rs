@@ -73,6 +73,7 @@ fn filter_with(
         extra_walk_var_per_s: vec![1e-10; extras],
         photodiode_sigma_v: 0.015,
         albedo_sigma_ratio: 50.0 / 1367.0,
+        albedo_gain: None,
         mag_sigma_nt: 320.0,
         gate_sigmas: 5.0,
         cos_fov: 60f64.to_radians().cos(),

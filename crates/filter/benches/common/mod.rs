@@ -65,6 +65,10 @@ pub fn setup(m: usize, algebra: Algebra, albedo: &AlbedoExpansion) -> Setup {
         extra_walk_var_per_s: vec![],
         photodiode_sigma_v: 0.015,
         albedo_sigma_ratio: 50.0 / 1367.0,
+        albedo_gain: Some(pdcal_filter::AlbedoGainNoise {
+            sigma: 0.2,
+            time_s: 360.0,
+        }),
         mag_sigma_nt: 320.0,
         gate_sigmas: 5.0,
         // Every photodiode is updated (the benchmark counts m_p updates per step).
