@@ -343,15 +343,23 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
         100.0 * m,
         100.0 * wi
     );
-    let (m, lo, hi) = stats(r.iter().map(|x| x.magnitude.0));
+    // A seed with no calibrated Sun-vector sample has no magnitude to average.
+    let sampled = || r.iter().filter(|x| x.magnitude.0.is_finite());
+    let n = sampled().count();
+    let of = if n < r.len() {
+        format!(" (seeds with a calibrated sample: {n} of {})", r.len())
+    } else {
+        String::new()
+    };
+    let (m, lo, hi) = stats(sampled().map(|x| x.magnitude.0));
     let _ = writeln!(
         s,
-        "| calibrated sun-vector magnitude mean | {m:.4} | {lo:.4} .. {hi:.4} | 0.99 .. 1.01 |"
+        "| calibrated sun-vector magnitude mean{of} | {m:.4} | {lo:.4} .. {hi:.4} | 0.99 .. 1.01 |"
     );
-    let (m, _, w) = stats(r.iter().map(|x| x.magnitude.1));
+    let (m, _, w) = stats(sampled().map(|x| x.magnitude.1));
     let _ = writeln!(
         s,
-        "| calibrated sun-vector magnitude std | {m:.4} | {w:.4} | <= 0.02 |"
+        "| calibrated sun-vector magnitude std{of} | {m:.4} | {w:.4} | <= 0.02 |"
     );
     let (m, wi, _) = stats(r.iter().map(|x| x.converged));
     let _ = writeln!(

@@ -186,6 +186,15 @@ pub struct FilterConfig {
     /// (docs/validation.md, "Rigid-body dynamics in the filter"). The uncertain inertia is
     /// estimated, not added here ([`FilterConfig::inertia_sigma_fraction`]).
     pub torque_noise_n_m_sqrt_s: f64,
+    /// No longer read: `dynamics: Auto` tests the gyro's samples themselves
+    /// ([`crate::propagation`]) instead of comparing their spacing with a step. Accepted so
+    /// that configuration files written for the spacing rule still load; `pdcal calibrate`
+    /// warns when it is set.
+    #[serde(
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "number_as_set"
+    )]
+    pub dynamics_gyro_step_s: Option<f64>,
     /// With dynamics and no gyro, the initial body-rate sigma per axis, deg/s (the rate
     /// starts at zero and the vector measurements find it). Default 10 deg/s.
     pub initial_rate_sigma_deg_s: f64,
@@ -281,6 +290,7 @@ impl Default for FilterConfig {
             segments: SegmentConfig::default(),
             dynamics: Dynamics::Auto,
             torque_noise_n_m_sqrt_s: 1e-6,
+            dynamics_gyro_step_s: None,
             initial_rate_sigma_deg_s: 10.0,
             dipole_sigma_a_m2: 1.0,
             dipole_walk_a_m2_sqrt_s: 1e-4,
@@ -477,4 +487,10 @@ pub struct SensorSigmas {
     pub mag_nt: f64,
     /// Gyro white noise per sample, rad/s.
     pub gyro_rad_s: f64,
+}
+
+/// A number field that is only there or not: written as the number, as before it became
+/// optional.
+fn number_as_set<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+    <f64 as Deserialize>::deserialize(d).map(Some)
 }

@@ -443,3 +443,12 @@ fn a_correlated_acquisition_keeps_the_covariance_and_its_attitude_given_the_cali
         "the calibration adds to the attitude's own variance"
     );
 }
+
+#[test]
+fn a_config_written_for_the_gyro_spacing_rule_still_loads() {
+    let old = pdcal_filter::FilterConfig::from_ron_str("(dynamics_gyro_step_s: 2.0)").unwrap();
+    assert_eq!(old.dynamics_gyro_step_s, Some(2.0));
+    let new = pdcal_filter::FilterConfig::from_ron_str("()").unwrap();
+    assert_eq!(new.dynamics_gyro_step_s, None);
+    assert!(pdcal_filter::FilterConfig::from_ron_str("(dynamics_gyro_step_s: \"two\")").is_err());
+}

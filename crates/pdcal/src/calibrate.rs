@@ -96,6 +96,14 @@ pub fn load_config(path: &Path) -> Result<RunConfig> {
     }
     let filter =
         FilterConfig::from_ron_str(&text).with_context(|| format!("{}", path.display()))?;
+    if filter.dynamics_gyro_step_s.is_some() {
+        eprintln!(
+            "pdcal: warning: {}: dynamics_gyro_step_s is no longer used: dynamics: Auto now \
+             tests whether the gyro's rate changes between its samples beyond its noise \
+             (summary.json propagation); use dynamics: On or Off to choose",
+            path.display()
+        );
+    }
     Ok(RunConfig {
         filter,
         ..RunConfig::default()
