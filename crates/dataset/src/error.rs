@@ -413,3 +413,18 @@ pub(crate) fn text_of(file: &Path, bytes: Vec<u8>) -> Result<String, DatasetErro
         }
     })
 }
+
+/// An I/O failure on `file` while doing `action` ("cannot read", ...).
+pub(crate) fn io_error(
+    file: &std::path::Path,
+    action: &str,
+    source: std::io::Error,
+) -> DatasetError {
+    DatasetError::whole_file(
+        file,
+        ErrorKind::Io {
+            action: action.to_owned(),
+            source,
+        },
+    )
+}

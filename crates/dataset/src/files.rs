@@ -5,7 +5,7 @@ use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
 use crate::bounded::{MAX_RON_BYTES, open_regular, read_bounded};
-use crate::error::{DatasetError, ErrorKind, FileFaultKind, text_of};
+use crate::error::{DatasetError, ErrorKind, FileFaultKind, io_error, text_of};
 use crate::manifest::Manifest;
 use crate::meta::{DatasetMeta, parse_meta, render_meta};
 use crate::publish::{Publication, PublishError, PublishErrorKind};
@@ -26,16 +26,6 @@ pub struct Dataset {
     pub telemetry: Telemetry,
     /// truth.csv and truth.ron, both or neither.
     pub truth: Option<(TruthSeries, TruthConstants)>,
-}
-
-pub(crate) fn io_error(file: &Path, action: &str, source: std::io::Error) -> DatasetError {
-    DatasetError::whole_file(
-        file,
-        ErrorKind::Io {
-            action: action.to_owned(),
-            source,
-        },
-    )
 }
 
 fn read_text(file: &Path) -> Result<String, DatasetError> {

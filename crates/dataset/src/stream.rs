@@ -8,8 +8,9 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 
+use crate::error::io_error;
 use crate::error::{DatasetError, ErrorKind};
-use crate::files::{DatasetWriter, io_error, write_synced};
+use crate::files::{DatasetWriter, write_synced};
 use crate::meta::{DatasetMeta, OrbitSpec, meta_from_str, render_meta};
 use crate::table::CsvRows;
 use crate::telemetry::{TelemetryRow, check_rows, header, push_telemetry_row};

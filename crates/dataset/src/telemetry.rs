@@ -423,7 +423,7 @@ pub(crate) fn telemetry_from_rows_in<R: Read>(
     storage: &TelemetryStorage,
 ) -> Result<Telemetry, DatasetError> {
     let lay = layout(&rows, meta)?;
-    let spill_error = |e| crate::files::io_error(storage.path(), "cannot keep telemetry in", e);
+    let spill_error = |e| crate::error::io_error(storage.path(), "cannot keep telemetry in", e);
     let mut tm = empty_telemetry(&rows, &lay, storage).map_err(spill_error)?;
     let mut failed = None;
     visit_rows(&mut rows, &lay, |row| {

@@ -107,6 +107,7 @@ pub mod mounting;
 pub mod output;
 pub mod prepare;
 pub mod propagation;
+pub mod quantiles;
 pub mod rate;
 pub mod references;
 pub mod run;

@@ -32,7 +32,7 @@ use pdcal_dataset::{DatasetMeta, Telemetry};
 use serde::Serialize;
 
 use crate::config::{Dynamics, FilterConfig};
-use crate::consistency::{chi_square_quantile_wh, normal_quantile};
+use crate::quantiles::{chi_square_quantile_wh, normal_quantile};
 
 /// The probability that the test finds a rate change in a gyro whose samples carry the
 /// rate (a false alarm): the 3-sigma two-sided tail, the project's false-alarm rate.

@@ -36,8 +36,8 @@
 //! beyond 3 sigma of the prior still is (the prior is too narrow for this gyro).
 
 use pdcal_filter::Calibration;
-use pdcal_filter::consistency::normal_quantile;
 use pdcal_filter::identifiability::{Judged, PdIdentifiability, Status};
+use pdcal_filter::quantiles::normal_quantile;
 use serde::Serialize;
 
 /// The nominal family-wise false-alarm rate of a run's repeatability tests: the two-sided
