@@ -131,6 +131,7 @@ def test_equals_xtask_sim_calibrate(client, tmp_path):
                 row["about_sun_turned"],
                 row["about_sun_undecided"],
             ],
+            "dynamics": [row["dynamics"], row["gyro_rate_chi_square_per_dof"]],
         }
         want = {k: v for k, v in want.items() if k not in ("seed", "runtime_s")}
         assert got == want, row["run_id"]

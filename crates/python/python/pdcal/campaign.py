@@ -105,6 +105,8 @@ FIGURES = [
     "about_sun_probes",
     "about_sun_turned",
     "about_sun_undecided",
+    "dynamics",
+    "gyro_rate_chi_square_per_dof",
 ]
 
 _DEG = math.pi / 180.0
@@ -473,6 +475,10 @@ def _flatten(result: dict) -> dict:
         "about_sun_probes": int(result["about_sun_probes"][0]),
         "about_sun_turned": int(result["about_sun_probes"][1]),
         "about_sun_undecided": int(result["about_sun_probes"][2]),
+        # Whether the rigid-body dynamics carried the attitude between samples, and the
+        # chi-square per degree of freedom of the gyro's rate test (None when not run).
+        "dynamics": bool(result["dynamics"][0]),
+        "gyro_rate_chi_square_per_dof": result["dynamics"][1],
     }
     for pd in result["photodiodes"]:
         p = f"pd{pd['index']:02d}"
