@@ -124,6 +124,10 @@ pub struct Consistency {
     /// The same across the Sun line (the two directions a Sun vector observes), per
     /// principal axis of the covariance across it.
     pub attitude_across_sun_within_3sigma: f64,
+    /// Fraction of the gyro-bias errors inside their 3 sigma, per axis, over the same
+    /// samples as `attitude_within_3sigma` (the running estimate against the simulated
+    /// bias of that sample).
+    pub gyro_bias_within_3sigma: f64,
     /// The final calibration states by their reported status (calibration.ron `status`):
     /// how many of each, and how many of those lie outside 3 sigma of the truth.
     pub by_status: StatusTally,
@@ -600,6 +604,7 @@ fn consistency(
         })
         .flatten()
         .collect();
+    let bias_inside = gyro_bias_inside(estimates, truth, converged);
     let sun_line: Vec<(bool, bool)> = converged
         .iter()
         .filter_map(|&(k, row)| {
@@ -614,11 +619,32 @@ fn consistency(
         by_status,
         attitude_about_sun_within_3sigma: fraction(&about),
         attitude_across_sun_within_3sigma: fraction(&across),
+        gyro_bias_within_3sigma: fraction(&bias_inside),
         final_states_within_3sigma: fraction(&inside),
         final_states: inside.len(),
         attitude_within_3sigma: fraction(&attitude_inside),
         converged_within_3sigma_of_final: converged_to_final(estimates, final_cal, converged),
     }
+}
+
+/// Per axis of each sample of `converged`: whether the running gyro-bias estimate lies
+/// within 3 sigma of the simulated bias at that sample.
+fn gyro_bias_inside(
+    estimates: &[StepEstimate],
+    truth: &TruthSeries,
+    converged: &[(usize, usize)],
+) -> Vec<bool> {
+    converged
+        .iter()
+        .flat_map(|&(k, row)| {
+            let cal = &estimates[k].calibration;
+            let truth_bias = truth.gyro_bias_rad_s[row];
+            (0..3).map(move |axis| {
+                let err = cal.gyro_bias_rad_s[axis] - truth_bias[axis];
+                err.abs() <= 3.0 * cal.gyro_bias_sigma_rad_s[axis]
+            })
+        })
+        .collect()
 }
 
 fn converged_to_final(

@@ -127,6 +127,13 @@ pub struct FilterConfig {
     /// Default 1800 (half an orbit's sunlit arc of a low orbit: long enough for the albedo
     /// pattern to move across the photodiodes).
     pub about_sun_probe_s: f64,
+    /// Sun alone: after each acquisition the filter runs this long, s, once as it would,
+    /// then again from the acquisition with each row linearised about the first run's end
+    /// state carried back to it by the gyro ([`crate::ForwardPass`], the window's
+    /// iterated smoother). 0 turns it off. Default 120, the bias fit's window
+    /// (`bias_fit_window_s`): the rows from which the acquisition's bias and calibration
+    /// are first learnt, tens of degrees from the truth for an uncalibrated head.
+    pub relinearise_window_s: f64,
     /// Smallest angle between Sun and field for the two-vector initialisation, deg.
     /// Default 20 (the q-method's cross-axis error grows as 1/sin of that angle).
     pub initial_min_sun_field_angle_deg: f64,
@@ -275,6 +282,7 @@ impl Default for FilterConfig {
             initial_attitude_sigma_floor_deg: 1.0,
             unobserved_axis_sigma_deg: 90.0,
             about_sun_probe_s: 1800.0,
+            relinearise_window_s: 120.0,
             initial_min_sun_field_angle_deg: 20.0,
             fov_half_angle_deg: 60.0,
             min_sun_fraction: 0.999,
@@ -394,6 +402,7 @@ impl FilterConfig {
             ),
             ("min_lit_output_sigmas", self.min_lit_output_sigmas),
             ("about_sun_probe_s", self.about_sun_probe_s),
+            ("relinearise_window_s", self.relinearise_window_s),
         ];
         for (field, value) in non_negative {
             if !(value >= 0.0 && value.is_finite()) {

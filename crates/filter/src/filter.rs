@@ -298,6 +298,20 @@ struct Scratch {
     albedo: AlbedoScratch,
 }
 
+/// A linearisation point of the states the photodiode rows depend on
+/// ([`Filter::update_about`]).
+#[derive(Debug, Clone)]
+pub struct Nominal {
+    /// Attitude.
+    pub q: Quat,
+    /// Gyro bias, rad/s.
+    pub bias: Vector3<f64>,
+    /// Scale factor per photodiode, V.
+    pub scale_v: Vec<f64>,
+    /// Unit normal per photodiode, body.
+    pub n_body: Vec<Vector3<f64>>,
+}
+
 /// A photodiode this step updates.
 #[derive(Debug, Clone, Copy)]
 struct Selected {
@@ -846,6 +860,85 @@ impl Filter {
         albedo: Option<&dyn AlbedoIrradiance>,
     ) -> Result<(), FilterError> {
         check_len("photodiode samples", self.used.len(), meas.pd_v.len())?;
+        self.linearise(t_s, meas, reference, albedo)?;
+        if self.apply_rows() {
+            self.reset()?;
+        }
+        Ok(())
+    }
+
+    /// As [`Filter::update`], the rows linearised about `about` instead of the estimate:
+    /// the estimate moved there by the reset with `d = about - x` (which, Sun only,
+    /// carries the covariance into that attitude's error frame), the rows taken there
+    /// with innovation `y - h(about) + H d` (the prior mean `x = about - d` seen from
+    /// `about`), and the correction `dx - d` applied from there. `about` is a better
+    /// estimate of the same state from more of the data (an iterated smoother's
+    /// linearisation point); only where the rows are linearised changes, not the prior.
+    pub fn update_about(
+        &mut self,
+        t_s: f64,
+        meas: &Measurements<'_>,
+        reference: &Reference,
+        albedo: Option<&dyn AlbedoIrradiance>,
+        about: &Nominal,
+    ) -> Result<(), FilterError> {
+        check_len("photodiode samples", self.used.len(), meas.pd_v.len())?;
+        let saved = self.state();
+        let offset = self.offset_to(about);
+        self.scratch.dx.copy_from(&offset);
+        self.reset()?;
+        self.linearise(t_s, meas, reference, albedo)?;
+        self.scratch.rows.shift_innovations(offset.as_slice());
+        self.counts = saved.counts;
+        if self.apply_rows() {
+            let dx = &self.scratch.dx - &offset;
+            self.scratch.dx.copy_from(&dx);
+            self.reset()?;
+        } else {
+            let counts = self.counts;
+            self.restore(&saved)?;
+            self.counts = counts;
+        }
+        Ok(())
+    }
+
+    /// The error state that takes the estimate to `about`: attitude, bias, scales and
+    /// normals (in their tangent bases); zero elsewhere.
+    fn offset_to(&self, about: &Nominal) -> DVector<f64> {
+        let mut d = DVector::zeros(self.p.nrows());
+        let a = pdcal_attitude::mekf::error_vector(&about.q, &self.q);
+        let b = about.bias - self.bias;
+        for k in 0..3 {
+            d[ATTITUDE + k] = a[k];
+            d[BIAS + k] = b[k];
+        }
+        let photodiodes = self.model.photodiodes();
+        for (i, pd) in photodiodes.iter().enumerate() {
+            d[self.layout.scale(i)] = about.scale_v[i] - pd.scale_v;
+            if let Some(k) = self.layout.normal(i) {
+                let n = pd.n_body;
+                let target = about.n_body[i];
+                let along = target - n * n.dot(&target);
+                let angle = along.norm().atan2(n.dot(&target));
+                let t = along
+                    .try_normalize(1e-15)
+                    .map_or(Vector3::zeros(), |u| u * angle);
+                let (e1, e2) = &self.basis[i];
+                d[k] = t.dot(e1);
+                d[k + 1] = t.dot(e2);
+            }
+        }
+        d
+    }
+
+    /// The step's rows at the current estimate into `scratch.rows` (records cleared).
+    fn linearise(
+        &mut self,
+        t_s: f64,
+        meas: &Measurements<'_>,
+        reference: &Reference,
+        albedo: Option<&dyn AlbedoIrradiance>,
+    ) -> Result<(), FilterError> {
         self.records.clear();
         self.scratch.rows.clear();
         self.scratch.sources.clear();
@@ -860,11 +953,17 @@ impl Filter {
             meas.temperature_c,
             reference,
             albedo,
-        )?;
-        if self.apply_rows() {
-            self.reset()?;
+        )
+    }
+
+    /// The estimate as a linearisation point ([`Filter::update_about`]).
+    pub fn nominal(&self) -> Nominal {
+        Nominal {
+            q: self.q,
+            bias: self.bias,
+            scale_v: self.scales_v(),
+            n_body: self.normals(),
         }
-        Ok(())
     }
 
     /// Tells the filter the Sun is its only vector (no magnetometer): the curvature

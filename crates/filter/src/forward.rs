@@ -14,8 +14,8 @@ use crate::calibration::Calibration;
 use crate::config::{E_AM0_W_M2, FilterConfig, Mode, SensorSigmas};
 use crate::error::check_len;
 use crate::filter::{
-    AlbedoGainNoise, Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements, Sensor,
-    StateView,
+    AlbedoGainNoise, Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements,
+    Nominal, Sensor, StateView,
 };
 use crate::guard::RepairLog;
 use crate::init::{InitialScales, Start, StartInputs, find_start, initial_scales};
@@ -137,6 +137,11 @@ pub struct ForwardPass<'a> {
     sets_ahead: Vec<usize>,
     /// The propagation between samples and why.
     propagation: PropagationChoice,
+    /// While a window is run to find linearisation points: each propagation's row, gyro
+    /// rate and step ([`ForwardPass::relinearise_window`]).
+    gyro_log: Option<Vec<(usize, Vector3<f64>, f64)>>,
+    /// The linearisation point of each row of the window after a Sun-only acquisition.
+    nominals: std::collections::BTreeMap<usize, Nominal>,
 }
 
 impl<'a> ForwardPass<'a> {
@@ -201,6 +206,8 @@ impl<'a> ForwardPass<'a> {
             repairs: RepairLog::default(),
             sets_ahead: inputs.set_first_rows.iter().rev().copied().collect(),
             propagation,
+            gyro_log: None,
+            nominals: std::collections::BTreeMap::new(),
             telemetry,
         };
         pass.acquire_first(inputs.meta)?;
@@ -220,7 +227,8 @@ impl<'a> ForwardPass<'a> {
             .held_temperatures(meta)
             .at(self.start)
             .to_vec();
-        self.choose_about_sun_line()
+        self.choose_about_sun_line()?;
+        self.relinearise_window()
     }
 
     /// Acquires the attitude in the open segment from row `next` on: the first usable row
@@ -561,7 +569,63 @@ impl<'a> ForwardPass<'a> {
             self.hold_temperatures(k);
         }
         self.choose_about_sun_line()?;
+        self.relinearise_window()?;
         Ok(true)
+    }
+
+    /// Right after a Sun-only acquisition: the next `relinearise_window_s` of the
+    /// segment, run first as the EKF runs it, give its end state (attitude, bias,
+    /// calibration), carried back to each of the window's rows by the gyro with that
+    /// state's bias; the rows are then processed again from the acquisition, each
+    /// linearised about its row's point ([`Filter::update_about`]): one Gauss-Newton
+    /// iteration of the window's smoother. Tens of degrees from the truth, as an
+    /// uncalibrated head's first acquisitions are, the EKF's linearisation at each row's
+    /// own estimate makes the bias and the calibration look known before they are. Not
+    /// with the dynamics (the window's points come from the gyro).
+    fn relinearise_window(&mut self) -> Result<(), FilterError> {
+        self.nominals.clear();
+        let window_s = self.config.relinearise_window_s;
+        if self.current.acquisition != Acquisition::SunOnly
+            || self.filter.has_dynamics()
+            || window_s <= 0.0
+        {
+            return Ok(());
+        }
+        let first = self.at.next;
+        let until_t_s = self.telemetry.t_s[first] + window_s;
+        let start = self.probe_point();
+        self.gyro_log = Some(Vec::new());
+        let mut last = None;
+        while !self.at.acquiring
+            && self
+                .telemetry
+                .t_s
+                .get(self.at.next)
+                .is_some_and(|&t| t <= until_t_s)
+        {
+            match self.step()? {
+                Some(k) => last = Some(k),
+                None => break,
+            }
+        }
+        let log = self.gyro_log.take().unwrap_or_default();
+        let end = self.filter.nominal();
+        self.back_to(&start)?;
+        let Some(last) = last else {
+            return Ok(());
+        };
+        // Each logged propagation ends at its row `k`: undone with the end state's bias,
+        // it gives the point of row `k - 1`.
+        let mut q = end.q;
+        self.nominals.insert(last, end.clone());
+        for &(k, gyro_rad_s, dt_s) in log.iter().rev() {
+            if k > last || k <= first {
+                continue;
+            }
+            q = pdcal_attitude::mekf::propagate(&q, &(gyro_rad_s - end.bias), -dt_s);
+            self.nominals.insert(k - 1, Nominal { q, ..end.clone() });
+        }
+        Ok(())
     }
 
     /// The propagation from the previous row to row `k` (none at a segment's first row):
@@ -592,6 +656,9 @@ impl<'a> ForwardPass<'a> {
                 None => self.gyro_after(k),
             };
             let (rate, change) = step_rate(before, after, (t0, t_s), self.average_gyro);
+            if let Some(log) = self.gyro_log.as_mut() {
+                log.push((k, rate, t_s - t0));
+            }
             self.filter.propagate(&rate, change, t_s - t0);
             self.at.prior_q = self.filter.q();
         }
@@ -627,16 +694,17 @@ impl<'a> ForwardPass<'a> {
             }
             _ => None,
         };
-        self.filter.update(
-            t_s,
-            &Measurements {
-                mag_nt,
-                pd_v: &self.row,
-                temperature_c: &self.temperatures_c,
-            },
-            reference,
-            provider,
-        )
+        let meas = Measurements {
+            mag_nt,
+            pd_v: &self.row,
+            temperature_c: &self.temperatures_c,
+        };
+        match self.nominals.get(&k) {
+            Some(about) => self
+                .filter
+                .update_about(t_s, &meas, reference, provider, about),
+            None => self.filter.update(t_s, &meas, reference, provider),
+        }
     }
 
     /// After row `k`'s updates: the gated samples recorded, the covariance guard, the

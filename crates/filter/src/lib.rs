@@ -125,7 +125,7 @@ pub use consistency::{Consistency, ConsistencyAccumulator, Verdict};
 pub use error::FilterError;
 pub use filter::{
     AlbedoGainNoise, Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements,
-    Propagation, Sensor, SensorCounts, UpdateCounts, UpdateRecord,
+    Nominal, Propagation, Sensor, SensorCounts, UpdateCounts, UpdateRecord,
 };
 pub use forward::ForwardPass;
 pub use guard::{CovarianceRepair, RepairKind, RepairLog};

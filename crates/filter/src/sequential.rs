@@ -106,6 +106,20 @@ impl Rows {
         (&self.idx[range.clone()], &self.val[range])
     }
 
+    /// Adds `h_l d` to every row's innovation: rows linearised at `x + d` read as rows
+    /// about the prior mean `x`.
+    pub(crate) fn shift_innovations(&mut self, d: &[f64]) {
+        for l in 0..self.innovation.len() {
+            let range = self.start[l]..self.start[l + 1];
+            let shift: f64 = self.idx[range.clone()]
+                .iter()
+                .zip(&self.val[range])
+                .map(|(&k, &v)| v * d[k])
+                .sum();
+            self.innovation[l] += shift;
+        }
+    }
+
     /// Row `l`'s innovation at the prior and its variance.
     pub(crate) fn innovation_and_variance(&self, l: usize) -> (f64, f64) {
         (self.innovation[l], self.r[l])

@@ -452,3 +452,77 @@ fn a_config_written_for_the_gyro_spacing_rule_still_loads() {
     assert_eq!(new.dynamics_gyro_step_s, None);
     assert!(pdcal_filter::FilterConfig::from_ron_str("(dynamics_gyro_step_s: \"two\")").is_err());
 }
+
+/// Row `k` of `case` through `filter`: plainly, or linearised about `about`.
+fn update_row(
+    case: &Case,
+    filter: &mut pdcal_filter::Filter,
+    k: usize,
+    about: Option<&pdcal_filter::Nominal>,
+) {
+    let (_, tel, refs, _) = case.build();
+    let row: Vec<Option<f64>> = (0..tel.pd_v.len()).map(|i| tel.pd_v[i].get(k)).collect();
+    let meas = Measurements {
+        mag_nt: None,
+        pd_v: &row,
+        temperature_c: &[],
+    };
+    match about {
+        Some(about) => filter.update_about(tel.t_s[k], &meas, &refs[k], None, about),
+        None => filter.update(tel.t_s[k], &meas, &refs[k], None),
+    }
+    .unwrap();
+}
+
+/// How far two filters' estimates and covariances lie apart (attitude in rad, scales in
+/// V, covariance entries).
+fn distance(a: &pdcal_filter::Filter, b: &pdcal_filter::Filter) -> f64 {
+    let attitude = pdcal_attitude::mekf::error_vector(&a.q(), &b.q()).norm();
+    let scales = a
+        .scales_v()
+        .iter()
+        .zip(b.scales_v())
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max);
+    let p = (a.covariance() - b.covariance()).amax();
+    attitude.max(scales).max(p)
+}
+
+#[test]
+fn an_update_about_the_estimate_is_the_update_and_about_a_nearby_point_close_to_it() {
+    // The rows linearised about a point `d` away and read back to the prior mean:
+    // about the estimate itself exactly the plain update (the offset, the innovations'
+    // shift and the two resets compose to nothing); about a nearby point a difference
+    // that shrinks with `d` (of the order of `d` times the step's own correction: Sun
+    // only, each reset turns the covariance's attitude frame, and turns do not commute).
+    let case = Case::rax2(5, 200);
+    let q0 = case.true_attitudes()[0];
+    let mut base = filter_for(&case, q0, Algebra::Structured, false);
+    base.set_sun_only(true);
+    drive(&case, &mut base, 120, |_, _| {});
+    let start = base.state();
+    let k = 120;
+    let mut plain = filter_for(&case, q0, Algebra::Structured, false);
+    plain.set_sun_only(true);
+    plain.restore(&start).unwrap();
+    update_row(&case, &mut plain, k, None);
+    let mut differences = Vec::new();
+    for offset_rad in [0.0, 1e-3, 1e-2] {
+        let mut about = filter_for(&case, q0, Algebra::Structured, false);
+        about.set_sun_only(true);
+        about.restore(&start).unwrap();
+        let mut point = about.nominal();
+        point.q = pdcal_attitude::mekf::apply_error(
+            &point.q,
+            &(Vector3::new(0.6, -0.8, 0.0) * offset_rad),
+        );
+        point.bias += Vector3::new(1.0, 0.5, -0.3) * (1e-3 * offset_rad);
+        update_row(&case, &mut about, k, Some(&point));
+        differences.push(distance(&plain, &about));
+    }
+    eprintln!("differences at 0, 1e-3, 1e-2 rad: {differences:?}");
+    assert!(differences[0] < 1e-12, "{differences:?}");
+    let ratio = differences[2] / differences[1];
+    assert!((5.0..20.0).contains(&ratio), "{differences:?}");
+    assert!(differences[1] < 1e-4, "{differences:?}");
+}

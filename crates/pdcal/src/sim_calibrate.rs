@@ -49,6 +49,8 @@ pub struct SeedResult {
     pub attitude_about_sun_inside: f64,
     /// Attitude errors across the Sun line inside their 3 sigma.
     pub attitude_across_sun_inside: f64,
+    /// Running gyro-bias errors inside their 3 sigma, per axis (converged sunlit samples).
+    pub gyro_bias_inside: f64,
     /// With several sets, the repeatability verdict (`repeatable`, `not-repeatable`,
     /// `not-checked`); empty for one set.
     pub repeatability: String,
@@ -468,6 +470,7 @@ pub fn run_seed(
         by_status: eval.consistency.by_status,
         attitude_about_sun_inside: eval.consistency.attitude_about_sun_within_3sigma,
         attitude_across_sun_inside: eval.consistency.attitude_across_sun_within_3sigma,
+        gyro_bias_inside: eval.consistency.gyro_bias_within_3sigma,
         repeatability: s
             .repeatability
             .as_ref()
