@@ -90,7 +90,7 @@ fn drive(case: &Case, filter: &mut Filter, steps: usize, mut check: impl FnMut(u
     let mut row = vec![None; tel.pd_v.len()];
     for k in 0..steps {
         if k > 0 {
-            let (a, b) = (tel.gyro_rad_s[k - 1].unwrap(), tel.gyro_rad_s[k].unwrap());
+            let (a, b) = (tel.gyro_rad_s.get(k - 1).unwrap(), tel.gyro_rad_s.get(k).unwrap());
             filter.propagate(
                 &(0.5 * (a + b)),
                 (b - a).norm(),
@@ -100,7 +100,7 @@ fn drive(case: &Case, filter: &mut Filter, steps: usize, mut check: impl FnMut(u
         for (i, slot) in row.iter_mut().enumerate() {
             *slot = tel.pd_v[i].get(k);
         }
-        let mag_nt = tel.mag_nt.as_ref().and_then(|m| m[k]);
+        let mag_nt = tel.mag_nt.as_ref().and_then(|m| m.get(k));
         filter
             .update(
                 tel.t_s[k],

@@ -12,7 +12,7 @@
 
 use anyhow::{Result, bail};
 use nalgebra::Vector3;
-use pdcal_dataset::{TELEMETRY_CSV, Telemetry, photodiode_column};
+use pdcal_dataset::{TELEMETRY_CSV, Telemetry, Vectors, photodiode_column};
 
 /// Sampled rows below which a constant column is not called stuck.
 pub const MIN_ROWS_FOR_STUCK: usize = 10;
@@ -49,7 +49,7 @@ fn stuck_value(values: impl Iterator<Item = f64>) -> Option<(f64, usize)> {
     first.filter(|_| n >= MIN_ROWS_FOR_STUCK).map(|f| (f, n))
 }
 
-fn axis<'a>(column: &'a [Option<Vector3<f64>>], i: usize) -> impl Iterator<Item = f64> + 'a {
+fn axis(column: &Vectors, i: usize) -> impl Iterator<Item = f64> + '_ {
     column.iter().flatten().map(move |v| v[i])
 }
 
@@ -60,7 +60,7 @@ pub fn check_telemetry(telemetry: &Telemetry) -> Result<Vec<String>> {
     let mut warnings = Vec::new();
     let gyro = &telemetry.gyro_rad_s;
     let sampled = gyro.iter().flatten().count();
-    if sampled >= MIN_ROWS_FOR_STUCK && gyro.iter().flatten().all(|w| *w == Vector3::zeros()) {
+    if sampled >= MIN_ROWS_FOR_STUCK && gyro.iter().flatten().all(|w| w == Vector3::zeros()) {
         bail!(
             "{f} (gyro_x_rad_s, gyro_y_rad_s, gyro_z_rad_s): the gyro reads exactly 0 on all \
              {sampled} sampled rows; a dead or disconnected gyro makes the attitude, and so the \
@@ -165,13 +165,13 @@ fn check_positions(telemetry: &Telemetry) -> Result<()> {
     let mut previous = None;
     for (k, (t, p)) in telemetry.t_s.iter().zip(r).enumerate() {
         let Some(p) = p else { continue };
-        if let Err(why) = pdcal_dataset::rules::orbit_position(previous, *t, p) {
+        if let Err(why) = pdcal_dataset::rules::orbit_position(previous, *t, &p) {
             bail!(
                 "{TELEMETRY_CSV} (r_x_km, r_y_km, r_z_km), row {k} (t_s = {t:?}): {why}; \
                  these positions are not an orbit"
             );
         }
-        previous = Some((*t, *p));
+        previous = Some((*t, p));
     }
     Ok(())
 }
@@ -180,12 +180,12 @@ fn check_positions(telemetry: &Telemetry) -> Result<()> {
 /// turns in the body frame ([`GYRO_OVER_FIELD_RATE_MAX`]): the medians, over consecutive rows
 /// at most 2 s apart with both sensors sampled, of the gyro's rate across the field times
 /// the step and of the field direction's angle between the rows.
-fn gyro_units(telemetry: &Telemetry, mag: &[Option<Vector3<f64>>]) -> Option<String> {
+fn gyro_units(telemetry: &Telemetry, mag: &Vectors) -> Option<String> {
     let mut predicted = Vec::new();
     let mut observed = Vec::new();
     for k in 1..telemetry.len() {
         let dt = telemetry.t_s[k] - telemetry.t_s[k - 1];
-        let (Some(w), Some(b0), Some(b1)) = (telemetry.gyro_rad_s[k - 1], mag[k - 1], mag[k])
+        let (Some(w), Some(b0), Some(b1)) = (telemetry.gyro_rad_s.get(k - 1), mag.get(k - 1), mag.get(k))
         else {
             continue;
         };
