@@ -1,12 +1,13 @@
-//! A column of rows of `width` `f64`s each kept in a file and read through a small cache of blocks, so that
-//! a data set of millions of rows does not take its size in memory.
+//! A column of rows of `width` `f64`s each (1 for a photodiode, 3 for a gyro,
+//! magnetometer or position vector) kept in a file and read through a small cache of
+//! blocks, so that a data set of millions of rows does not take its size in memory.
 //!
 //! # Why this shape
-//! The photodiode columns are most of a long data set (17 of 24 numbers a row in the
-//! rax2-like layout), and every reader of them already goes through [`crate::Samples`]'
-//! by-value `get(k)` and `iter()`, never a slice: the file can stand behind that API alone,
-//! and the filter, the checks, the metrics and the figures read the same bits from either
-//! storage. The file is made in a directory the caller names (the output's staging
+//! The photodiode, gyro and magnetometer columns are all but the time of a long data set
+//! (23 of 24 numbers a row in the rax2-like layout), and every reader of them goes through
+//! the by-value `get(k)` and `iter()` of [`crate::Samples`] and [`crate::Column`], never a
+//! slice: the file can stand behind that API alone, and the filter, the checks, the
+//! metrics and the figures read the same bits from either storage. The file is made in a directory the caller names (the output's staging
 //! directory) and unlinked at once, so it never appears in a published output and vanishes
 //! with the process however that ends. Rows are read by `pread` a block at a time
 //! ([`BLOCK_ROWS`]); the last [`CACHED_BLOCKS`] blocks read stay cached, enough for a
@@ -15,9 +16,9 @@
 //! the last whole block are held in memory until the block fills.
 //!
 //! A failure to read or write the file (a disk error, not a data error) is kept and
-//! reported by [`SpillColumn::error`] (through `Samples::storage_error` and
-//! `Telemetry::storage_error`); the rows it concerns read as blank, so a caller checks
-//! before trusting a result.
+//! reported by [`SpillColumn::error`] (through `Samples::storage_error`,
+//! `Column::storage_error` and `Telemetry::storage_error`); the rows it concerns read as
+//! blank, so a caller checks before trusting a result.
 
 use std::fs::File;
 use std::os::unix::fs::FileExt;

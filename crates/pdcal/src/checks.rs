@@ -176,37 +176,40 @@ fn check_positions(telemetry: &Telemetry) -> Result<()> {
     Ok(())
 }
 
+/// Over consecutive rows at most 2 s apart with both sensors sampled: the gyro's rate
+/// across the field times the step, and the field direction's angle between the rows.
+fn turns_per_row<'a>(
+    telemetry: &'a Telemetry,
+    mag: &'a Vectors,
+) -> impl Iterator<Item = (f64, f64)> + 'a {
+    (1..telemetry.len()).filter_map(move |k| {
+        let dt = telemetry.t_s[k] - telemetry.t_s[k - 1];
+        let (w, b0, b1) = (telemetry.gyro_rad_s.get(k - 1)?, mag.get(k - 1)?, mag.get(k)?);
+        let b0_unit = b0.try_normalize(0.0)?;
+        if !(dt > 0.0 && dt <= 2.0) || b1.norm() == 0.0 {
+            return None;
+        }
+        let across = w - b0_unit * w.dot(&b0_unit);
+        Some((across.norm() * dt, b0.angle(&b1)))
+    })
+}
+
 /// A warning when the gyro says the body turns far faster than the magnetometer's field
 /// turns in the body frame ([`GYRO_OVER_FIELD_RATE_MAX`]): the medians, over consecutive rows
 /// at most 2 s apart with both sensors sampled, of the gyro's rate across the field times
 /// the step and of the field direction's angle between the rows.
 fn gyro_units(telemetry: &Telemetry, mag: &Vectors) -> Option<String> {
-    let mut predicted = Vec::new();
-    let mut observed = Vec::new();
-    for k in 1..telemetry.len() {
-        let dt = telemetry.t_s[k] - telemetry.t_s[k - 1];
-        let (Some(w), Some(b0), Some(b1)) = (telemetry.gyro_rad_s.get(k - 1), mag.get(k - 1), mag.get(k))
-        else {
-            continue;
-        };
-        let Some(b0_unit) = b0.try_normalize(0.0) else {
-            continue;
-        };
-        if !(dt > 0.0 && dt <= 2.0) || b1.norm() == 0.0 {
-            continue;
+    // One median at a time, each over its own pass: a long set holds one column of them.
+    let median_of = |part: fn((f64, f64)) -> f64| {
+        let mut v: Vec<f64> = turns_per_row(telemetry, mag).map(part).collect();
+        if v.len() < MIN_ROWS_FOR_STUCK {
+            return None;
         }
-        let across = w - b0_unit * w.dot(&b0_unit);
-        predicted.push(across.norm() * dt);
-        observed.push(b0.angle(&b1));
-    }
-    if predicted.len() < MIN_ROWS_FOR_STUCK {
-        return None;
-    }
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
+        let mid = v.len() / 2;
+        Some(*v.select_nth_unstable_by(mid, f64::total_cmp).1)
     };
-    let (p, o) = (median(&mut predicted), median(&mut observed));
+    let p = median_of(|(predicted, _)| predicted)?;
+    let o = median_of(|(_, observed)| observed)?;
     let ratio = p / o;
     (ratio > GYRO_OVER_FIELD_RATE_MAX).then(|| {
         format!(
