@@ -75,7 +75,10 @@ fn hand_written_dataset_reads() {
 
     let tm = &ds.telemetry;
     assert_eq!(tm.t_s, [0.0, 1.0, 2.5]);
-    assert_eq!(tm.gyro_rad_s.get(0), Some(Vector3::new(0.001, 0.002, 0.003)));
+    assert_eq!(
+        tm.gyro_rad_s.get(0),
+        Some(Vector3::new(0.001, 0.002, 0.003))
+    );
     assert_eq!(tm.gyro_rad_s.get(1), None);
     assert_eq!(tm.gyro_rad_s.get(2), Some(Vector3::new(0.0, 4.0, -0.03)));
     assert_eq!(tm.pd_v[0], [Some(3.1), Some(1e-3), None]);

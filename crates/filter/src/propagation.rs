@@ -368,7 +368,8 @@ mod tests {
         // curvature, 0.05 x 0.05^2 x 10^2 / 2 = 6.25e-3 rad/s across z, against a noise
         // variance of 1.5e-6 per axis: chi-square per dof (3.9e-5 / 1.5e-6 + 3) / 3 = 9.7.
         let s = sampled(10.0, 720, 1e-3, coning(0.05, 0.05));
-        let linear = rate_test(s.iter().copied(), GyroRateModel::Linear, noise(1e-3), 50.0).unwrap();
+        let linear =
+            rate_test(s.iter().copied(), GyroRateModel::Linear, noise(1e-3), 50.0).unwrap();
         assert!(linear.rate_changes(), "{linear:?}");
         assert!((linear.chi_square_per_dof - 9.7).abs() < 1.0, "{linear:?}");
     }
@@ -417,7 +418,8 @@ mod tests {
         for model in [GyroRateModel::Held, GyroRateModel::Linear] {
             let test = rate_test(s.iter().copied(), model, noise, 5.0).unwrap();
             assert!((test.chi_square_per_dof - 1.0).abs() < 0.05, "{test:?}");
-            let no_walk = rate_test(s.iter().copied(), model, super::tests::noise(sigma), 5.0).unwrap();
+            let no_walk =
+                rate_test(s.iter().copied(), model, super::tests::noise(sigma), 5.0).unwrap();
             assert!(no_walk.chi_square_per_dof > 1.1, "{no_walk:?}");
         }
     }

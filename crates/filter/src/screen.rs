@@ -211,12 +211,12 @@ pub fn remove_outliers(telemetry: &mut Telemetry, outliers: &[(Channel, usize)])
             Channel::Gyro => {
                 let (t, gyro) = (&telemetry.t_s, &telemetry.gyro_rad_s);
                 let bridge = match (k.checked_sub(1), gyro.get(k + 1)) {
-                    (Some(before), Some(b)) if good(before) && good(k + 1) => gyro
-                        .get(before)
-                        .map(|a| {
+                    (Some(before), Some(b)) if good(before) && good(k + 1) => {
+                        gyro.get(before).map(|a| {
                             let f = (t[k] - t[before]) / (t[k + 1] - t[before]);
                             a + (b - a) * f
-                        }),
+                        })
+                    }
                     _ => None,
                 };
                 telemetry.gyro_rad_s.set(k, bridge);
@@ -430,8 +430,10 @@ mod tests {
                 .collect(),
             ..Telemetry::default()
         };
-        tel.gyro_rad_s.set(4, Some(nalgebra::Vector3::new(1e300, 0.02, -0.03)));
-        tel.gyro_rad_s.set(7, Some(nalgebra::Vector3::new(0.07, 5.0, -0.03)));
+        tel.gyro_rad_s
+            .set(4, Some(nalgebra::Vector3::new(1e300, 0.02, -0.03)));
+        tel.gyro_rad_s
+            .set(7, Some(nalgebra::Vector3::new(0.07, 5.0, -0.03)));
         let tol = ScreenTolerances {
             gyro_rad_s: 0.007,
             angular_acceleration_rad_s2: 0.01,

@@ -184,7 +184,11 @@ fn turns_per_row<'a>(
 ) -> impl Iterator<Item = (f64, f64)> + 'a {
     (1..telemetry.len()).filter_map(move |k| {
         let dt = telemetry.t_s[k] - telemetry.t_s[k - 1];
-        let (w, b0, b1) = (telemetry.gyro_rad_s.get(k - 1)?, mag.get(k - 1)?, mag.get(k)?);
+        let (w, b0, b1) = (
+            telemetry.gyro_rad_s.get(k - 1)?,
+            mag.get(k - 1)?,
+            mag.get(k)?,
+        );
         let b0_unit = b0.try_normalize(0.0)?;
         if !(dt > 0.0 && dt <= 2.0) || b1.norm() == 0.0 {
             return None;

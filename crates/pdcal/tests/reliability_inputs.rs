@@ -141,7 +141,10 @@ fn positions_must_be_an_orbit() {
     );
     // A jump of 1000 km in one second.
     let mut jump = circular(6800.0);
-    jump.r_gcrf_km.as_mut().unwrap().set(10, Some(Vector3::new(7800.0, 0.0, 0.0)));
+    jump.r_gcrf_km
+        .as_mut()
+        .unwrap()
+        .set(10, Some(Vector3::new(7800.0, 0.0, 0.0)));
     let message = check_error(&jump);
     assert!(
         message.starts_with(

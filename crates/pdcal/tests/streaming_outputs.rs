@@ -46,7 +46,12 @@ fn streamed_equals_in_memory(smoother: bool, kept_in_files: bool) {
     );
     let read = read.unwrap();
     let telemetry = &read[0].2;
-    assert!(telemetry.pd_v.iter().all(|pd| pd.is_in_file() == kept_in_files));
+    assert!(
+        telemetry
+            .pd_v
+            .iter()
+            .all(|pd| pd.is_in_file() == kept_in_files)
+    );
     assert_eq!(telemetry.gyro_rad_s.is_in_file(), kept_in_files);
     let mag = telemetry.mag_nt.as_ref().unwrap();
     assert_eq!(mag.is_in_file(), kept_in_files);

@@ -123,7 +123,8 @@ pub fn full_dataset(rows: usize) -> Dataset {
             pd.push(v);
         }
     }
-    tm.gyro_rad_s.set(1, Some(Vector3::new(AWKWARD[0], AWKWARD[1], AWKWARD[2])));
+    tm.gyro_rad_s
+        .set(1, Some(Vector3::new(AWKWARD[0], AWKWARD[1], AWKWARD[2])));
     Dataset {
         meta,
         telemetry: tm,
