@@ -174,14 +174,6 @@ impl<T: Cell> Column<T> {
     ) -> impl DoubleEndedIterator<Item = Option<T>> + ExactSizeIterator + Clone + '_ {
         (0..self.len()).map(|k| self.get(k))
     }
-
-    /// The rows `range`, in order.
-    pub fn range(
-        &self,
-        range: std::ops::Range<usize>,
-    ) -> impl DoubleEndedIterator<Item = Option<T>> + ExactSizeIterator + Clone + '_ {
-        range.map(|k| self.get(k))
-    }
 }
 
 /// The `WIDTH` cells of `value`, a blank marked in the first.
