@@ -113,7 +113,7 @@ pub fn build() -> Result<Fixture> {
 
     let mut direct = Telemetry {
         pd_v: vec![pdcal_dataset::Samples::new(); n_pd],
-        mag_nt: tm.mag_nt.as_ref().map(|_| Vec::new()),
+        mag_nt: tm.mag_nt.as_ref().map(|_| Default::default()),
         ..Telemetry::default()
     };
     for k in 0..tm.len() {
@@ -147,7 +147,7 @@ pub fn build() -> Result<Fixture> {
                 format!("{count}")
             };
         }
-        let mag = tm.mag_nt.as_ref().and_then(|m| m[k]);
+        let mag = tm.mag_nt.as_ref().and_then(|m| m.get(k));
         let mag_cells = match mag {
             Some(b) => {
                 let x = if mag_sentinel(k) {
@@ -163,7 +163,7 @@ pub fn build() -> Result<Fixture> {
             }
             None => Default::default(),
         };
-        let gyro_cells = match tm.gyro_rad_s[k] {
+        let gyro_cells = match tm.gyro_rad_s.get(k) {
             Some(w) => [w.z, w.x, w.y].map(|v| format!("{:.5}", v.to_degrees())),
             None => Default::default(),
         };
@@ -183,7 +183,7 @@ pub fn build() -> Result<Fixture> {
             continue;
         }
         direct.t_s.push(t);
-        direct.gyro_rad_s.push(tm.gyro_rad_s[k]);
+        direct.gyro_rad_s.push(tm.gyro_rad_s.get(k));
         if let Some(m) = direct.mag_nt.as_mut() {
             m.push(mag.filter(|_| !mag_sentinel(k)));
         }

@@ -55,6 +55,7 @@
 //! hand-made ([`publish`]) because `tempfile` creates it with mode 0700.
 
 pub mod bounded;
+mod column;
 mod current;
 mod error;
 mod files;
@@ -71,6 +72,7 @@ mod telemetry;
 mod temperature;
 mod truth;
 
+pub use column::{Cell, Column, Vectors};
 pub use current::{CURRENT_RANGE_A, CurrentColumn, current_column, is_current_name};
 pub use error::{DatasetError, ErrorKind, FileFaultKind, TextFault, decode_text};
 pub use files::{

@@ -8,13 +8,13 @@ use crate::spill::SpillColumn;
 /// The bits that mark a blank (not sampled) cell: a quiet NaN with a payload no arithmetic
 /// produces, so that a NaN sample put in by a program (which the filter's screening
 /// rejects and counts) stays a value and is not mistaken for a blank.
-const BLANK_BITS: u64 = 0x7ff8_0000_dead_b1a7;
+pub(crate) const BLANK_BITS: u64 = 0x7ff8_0000_dead_b1a7;
 
-fn blank() -> f64 {
+pub(crate) fn blank() -> f64 {
     f64::from_bits(BLANK_BITS)
 }
 
-fn is_blank(x: f64) -> bool {
+pub(crate) fn is_blank(x: f64) -> bool {
     x.to_bits() == BLANK_BITS
 }
 

@@ -1,12 +1,13 @@
-//! A column of `f64` rows kept in a file and read through a small cache of blocks, so that
-//! a data set of millions of rows does not take its size in memory.
+//! A column of rows of `width` `f64`s each (1 for a photodiode, 3 for a gyro,
+//! magnetometer or position vector) kept in a file and read through a small cache of
+//! blocks, so that a data set of millions of rows does not take its size in memory.
 //!
 //! # Why this shape
-//! The photodiode columns are most of a long data set (17 of 24 numbers a row in the
-//! rax2-like layout), and every reader of them already goes through [`crate::Samples`]'
-//! by-value `get(k)` and `iter()`, never a slice: the file can stand behind that API alone,
-//! and the filter, the checks, the metrics and the figures read the same bits from either
-//! storage. The file is made in a directory the caller names (the output's staging
+//! The photodiode, gyro and magnetometer columns are all but the time of a long data set
+//! (23 of 24 numbers a row in the rax2-like layout), and every reader of them goes through
+//! the by-value `get(k)` and `iter()` of [`crate::Samples`] and [`crate::Column`], never a
+//! slice: the file can stand behind that API alone, and the filter, the checks, the
+//! metrics and the figures read the same bits from either storage. The file is made in a directory the caller names (the output's staging
 //! directory) and unlinked at once, so it never appears in a published output and vanishes
 //! with the process however that ends. Rows are read by `pread` a block at a time
 //! ([`BLOCK_ROWS`]); the last [`CACHED_BLOCKS`] blocks read stay cached, enough for a
@@ -15,9 +16,9 @@
 //! the last whole block are held in memory until the block fills.
 //!
 //! A failure to read or write the file (a disk error, not a data error) is kept and
-//! reported by [`SpillColumn::error`] (through `Samples::storage_error` and
-//! `Telemetry::storage_error`); the rows it concerns read as blank, so a caller checks
-//! before trusting a result.
+//! reported by [`SpillColumn::error`] (through `Samples::storage_error`,
+//! `Column::storage_error` and `Telemetry::storage_error`); the rows it concerns read as
+//! blank, so a caller checks before trusting a result.
 
 use std::fs::File;
 use std::os::unix::fs::FileExt;
@@ -34,27 +35,35 @@ const ROW_BYTES: usize = std::mem::size_of::<f64>();
 
 static NEXT_FILE: AtomicU64 = AtomicU64::new(0);
 
-/// One column of `f64` rows in a file.
+/// One column of rows of `width` `f64`s in a file (1 for a photodiode, 3 for a vector).
 pub(crate) struct SpillColumn {
     file: File,
     dir: PathBuf,
+    /// `f64`s a row.
+    width: usize,
     /// Rows written to the file: a multiple of [`BLOCK_ROWS`].
     flushed: usize,
-    /// Rows after `flushed`, fewer than a block.
+    /// Rows after `flushed`, fewer than a block, `width` cells each.
     tail: Vec<f64>,
     cache: Mutex<Cache>,
 }
 
 #[derive(Default)]
 struct Cache {
-    /// The cached blocks, most recently used first: (block index, rows).
+    /// The cached blocks, most recently used first: (block index, cells).
     blocks: Vec<(usize, Vec<f64>)>,
     error: Option<String>,
 }
 
 impl SpillColumn {
-    /// An empty column in a new file in `dir`, unlinked at once.
+    /// An empty column of one `f64` a row in a new file in `dir`, unlinked at once.
     pub(crate) fn create(dir: &Path) -> std::io::Result<Self> {
+        Self::create_wide(dir, 1)
+    }
+
+    /// An empty column of `width` `f64`s a row in a new file in `dir`, unlinked at once.
+    pub(crate) fn create_wide(dir: &Path, width: usize) -> std::io::Result<Self> {
+        let width = width.max(1);
         let id = NEXT_FILE.fetch_add(1, Ordering::Relaxed);
         let path = dir.join(format!(".column-{}-{id}.spill", std::process::id()));
         let file = std::fs::OpenOptions::new()
@@ -66,8 +75,9 @@ impl SpillColumn {
         Ok(SpillColumn {
             file,
             dir: dir.to_path_buf(),
+            width,
             flushed: 0,
-            tail: Vec::with_capacity(BLOCK_ROWS),
+            tail: Vec::with_capacity(BLOCK_ROWS * width),
             cache: Mutex::new(Cache::default()),
         })
     }
@@ -91,14 +101,31 @@ impl SpillColumn {
     }
 
     pub(crate) fn len(&self) -> usize {
-        self.flushed + self.tail.len()
+        self.flushed + self.tail.len() / self.width
     }
 
-    /// Row `k`, `None` past the last row (or after a read error, [`SpillColumn::error`]).
+    /// Row `k` of a column one `f64` wide, `None` past the last row (or after a read
+    /// error, [`SpillColumn::error`]).
     #[inline]
     pub(crate) fn get(&self, k: usize) -> Option<f64> {
+        let mut x = [0.0];
+        self.get_row(k, &mut x).then_some(x[0])
+    }
+
+    /// Copies row `k` into `out` (`width` cells); false past the last row (or after a read
+    /// error, [`SpillColumn::error`]).
+    pub(crate) fn get_row(&self, k: usize, out: &mut [f64]) -> bool {
+        let w = self.width;
+        let copy = |cells: &[f64], at: usize, out: &mut [f64]| match cells.get(at * w..(at + 1) * w)
+        {
+            Some(row) => {
+                out.copy_from_slice(row);
+                true
+            }
+            None => false,
+        };
         if k >= self.flushed {
-            return self.tail.get(k - self.flushed).copied();
+            return copy(&self.tail, k - self.flushed, out);
         }
         let (block, at) = (k / BLOCK_ROWS, k % BLOCK_ROWS);
         let mut cache = self.cache();
@@ -107,31 +134,32 @@ impl SpillColumn {
                 let hit = cache.blocks.remove(i);
                 cache.blocks.insert(0, hit);
             }
-            return cache.blocks[0].1.get(at).copied();
+            return copy(&cache.blocks[0].1, at, out);
         }
         let mut rows = if cache.blocks.len() >= CACHED_BLOCKS {
             cache.blocks.pop().map(|(_, rows)| rows).unwrap_or_default()
         } else {
-            Vec::with_capacity(BLOCK_ROWS)
+            Vec::with_capacity(BLOCK_ROWS * w)
         };
         drop(cache);
         match self.read_block(block, &mut rows) {
             Ok(()) => {
-                let x = rows.get(at).copied();
+                let found = copy(&rows, at, out);
                 self.cache().blocks.insert(0, (block, rows));
-                x
+                found
             }
             Err(e) => {
                 self.failed("read", &e);
-                None
+                false
             }
         }
     }
 
     fn read_block(&self, block: usize, rows: &mut Vec<f64>) -> std::io::Result<()> {
-        let mut bytes = vec![0_u8; BLOCK_ROWS * ROW_BYTES];
+        let cells = BLOCK_ROWS * self.width;
+        let mut bytes = vec![0_u8; cells * ROW_BYTES];
         self.file
-            .read_exact_at(&mut bytes, (block * BLOCK_ROWS * ROW_BYTES) as u64)?;
+            .read_exact_at(&mut bytes, (block * cells * ROW_BYTES) as u64)?;
         rows.clear();
         rows.extend(
             bytes
@@ -141,36 +169,48 @@ impl SpillColumn {
         Ok(())
     }
 
-    /// Sets row `k`; ignored past the last row.
+    /// Sets row `k` of a column one `f64` wide; ignored past the last row.
     pub(crate) fn set(&mut self, k: usize, x: f64) {
+        self.set_row(k, &[x]);
+    }
+
+    /// Sets row `k` to `row` (`width` cells); ignored past the last row.
+    pub(crate) fn set_row(&mut self, k: usize, row: &[f64]) {
+        let w = self.width;
         if k >= self.flushed {
-            if let Some(cell) = self.tail.get_mut(k - self.flushed) {
-                *cell = x;
+            let at = (k - self.flushed) * w;
+            if let Some(cells) = self.tail.get_mut(at..at + w) {
+                cells.copy_from_slice(row);
             }
             return;
         }
-        let written = self
-            .file
-            .write_all_at(&x.to_le_bytes(), (k * ROW_BYTES) as u64);
+        let bytes: Vec<u8> = row.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let written = self.file.write_all_at(&bytes, (k * w * ROW_BYTES) as u64);
         if let Err(e) = written {
             self.failed("write", &e);
         }
         let (block, at) = (k / BLOCK_ROWS, k % BLOCK_ROWS);
         let cache = self.cache.get_mut().unwrap_or_else(|e| e.into_inner());
         if let Some((_, rows)) = cache.blocks.iter_mut().find(|(b, _)| *b == block)
-            && let Some(cell) = rows.get_mut(at)
+            && let Some(cells) = rows.get_mut(at * w..(at + 1) * w)
         {
-            *cell = x;
+            cells.copy_from_slice(row);
         }
     }
 
-    /// Appends a row; the tail goes to the file when it makes a whole block.
+    /// Appends a row of a column one `f64` wide; the tail goes to the file when it makes a
+    /// whole block.
     pub(crate) fn try_push(&mut self, x: f64) -> std::io::Result<()> {
-        self.tail.push(x);
-        if self.tail.len() == BLOCK_ROWS {
+        self.try_push_row(&[x])
+    }
+
+    /// Appends a row (`width` cells); the tail goes to the file when it makes a whole block.
+    pub(crate) fn try_push_row(&mut self, row: &[f64]) -> std::io::Result<()> {
+        self.tail.extend_from_slice(row);
+        if self.tail.len() == BLOCK_ROWS * self.width {
             let bytes: Vec<u8> = self.tail.iter().flat_map(|x| x.to_le_bytes()).collect();
             self.file
-                .write_all_at(&bytes, (self.flushed * ROW_BYTES) as u64)?;
+                .write_all_at(&bytes, (self.flushed * self.width * ROW_BYTES) as u64)?;
             self.flushed += BLOCK_ROWS;
             self.tail.clear();
         }
@@ -179,40 +219,59 @@ impl SpillColumn {
 
     /// [`SpillColumn::try_push`], a failure kept for [`SpillColumn::error`].
     pub(crate) fn push(&mut self, x: f64) {
-        if let Err(e) = self.try_push(x) {
+        self.push_row(&[x]);
+    }
+
+    /// [`SpillColumn::try_push_row`], a failure kept for [`SpillColumn::error`].
+    pub(crate) fn push_row(&mut self, row: &[f64]) {
+        if let Err(e) = self.try_push_row(row) {
             self.failed("write", &e);
         }
     }
 
-    /// Removes the last row.
+    /// Removes the last row of a column one `f64` wide.
     pub(crate) fn pop(&mut self) -> Option<f64> {
+        let mut x = [0.0];
+        self.pop_row(&mut x).then_some(x[0])
+    }
+
+    /// Moves the last row into `out` and removes it; false without rows.
+    pub(crate) fn pop_row(&mut self, out: &mut [f64]) -> bool {
+        let w = self.width;
         if self.tail.is_empty() && self.flushed > 0 {
             let block = self.flushed / BLOCK_ROWS - 1;
             let mut rows = Vec::new();
             if let Err(e) = self.read_block(block, &mut rows) {
                 self.failed("read", &e);
-                rows = vec![f64::NAN; BLOCK_ROWS];
+                rows = vec![f64::NAN; BLOCK_ROWS * w];
             }
             self.flushed -= BLOCK_ROWS;
             self.tail = rows;
             let cache = self.cache.get_mut().unwrap_or_else(|e| e.into_inner());
             cache.blocks.retain(|(b, _)| *b != block);
         }
-        self.tail.pop()
+        if self.tail.len() < w {
+            return false;
+        }
+        let at = self.tail.len() - w;
+        out.copy_from_slice(&self.tail[at..]);
+        self.tail.truncate(at);
+        true
     }
 
     /// A copy in a new file of the same directory.
     pub(crate) fn try_clone(&self) -> std::io::Result<Self> {
-        let mut copy = Self::create(&self.dir)?;
+        let w = self.width;
+        let mut copy = Self::create_wide(&self.dir, w)?;
         let mut rows = Vec::new();
         for block in 0..self.flushed / BLOCK_ROWS {
             self.read_block(block, &mut rows)?;
-            for &x in &rows {
-                copy.try_push(x)?;
+            for row in rows.chunks_exact(w) {
+                copy.try_push_row(row)?;
             }
         }
-        for &x in &self.tail {
-            copy.try_push(x)?;
+        for row in self.tail.chunks_exact(w) {
+            copy.try_push_row(row)?;
         }
         Ok(copy)
     }

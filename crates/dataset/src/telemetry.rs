@@ -5,6 +5,7 @@ use std::path::Path;
 
 use nalgebra::Vector3;
 
+use crate::column::Vectors;
 use crate::current::{CURRENT_RANGE_A, CurrentColumn, current_key};
 use crate::error::{DatasetError, ErrorKind};
 use crate::meta::{DatasetMeta, OrbitSpec};
@@ -42,14 +43,14 @@ pub struct Telemetry {
     /// Sample times, s since `epoch_utc`, strictly increasing.
     pub t_s: Vec<f64>,
     /// Gyro rate, body frame, rad/s.
-    pub gyro_rad_s: Vec<Option<Vector3<f64>>>,
+    pub gyro_rad_s: Vectors,
     /// Magnetometer, body frame, nT; `None` when the file has no `mag_*` columns
     /// (photodiode-only mode).
-    pub mag_nt: Option<Vec<Option<Vector3<f64>>>>,
+    pub mag_nt: Option<Vectors>,
     /// Photodiode outputs, V: `pd_v[i].get(k)` is photodiode `i + 1` at sample `k`.
     pub pd_v: Vec<Samples>,
     /// Position, GCRF, km; present exactly when the orbit is `PositionColumns`.
-    pub r_gcrf_km: Option<Vec<Option<Vector3<f64>>>>,
+    pub r_gcrf_km: Option<Vectors>,
     /// The `temp_*_C` columns in file order, degrees Celsius; empty when there are none.
     /// [`Telemetry::photodiode_temperatures`] says which photodiode reads which.
     pub temperature_c: Vec<TemperatureColumn>,
@@ -72,7 +73,10 @@ impl Telemetry {
     /// ([`TelemetryStorage::Files`]), if any: the rows it concerns read as blank, so a
     /// result computed from this telemetry stands only when this is `None`.
     pub fn storage_error(&self) -> Option<String> {
-        self.pd_v.iter().find_map(Samples::storage_error)
+        (self.pd_v.iter().find_map(Samples::storage_error))
+            .or_else(|| self.gyro_rad_s.storage_error())
+            .or_else(|| self.mag_nt.as_ref().and_then(Vectors::storage_error))
+            .or_else(|| self.r_gcrf_km.as_ref().and_then(Vectors::storage_error))
     }
 
     /// The rows `k` for which `keep(k)` holds, in order (a pass-by-pass downlink cut from
@@ -80,14 +84,13 @@ impl Telemetry {
     pub fn select_rows(&self, keep: impl Fn(usize) -> bool) -> Telemetry {
         let rows: Vec<usize> = (0..self.len()).filter(|&k| keep(k)).collect();
         let pick = |column: &Samples| rows.iter().map(|&k| column.get(k)).collect();
-        let pick3 =
-            |column: &[Option<Vector3<f64>>]| rows.iter().map(|&k| column[k]).collect::<Vec<_>>();
+        let pick3 = |column: &Vectors| rows.iter().map(|&k| column.get(k)).collect::<Vectors>();
         Telemetry {
             t_s: rows.iter().map(|&k| self.t_s[k]).collect(),
             gyro_rad_s: pick3(&self.gyro_rad_s),
-            mag_nt: self.mag_nt.as_deref().map(pick3),
+            mag_nt: self.mag_nt.as_ref().map(pick3),
             pd_v: self.pd_v.iter().map(pick).collect(),
-            r_gcrf_km: self.r_gcrf_km.as_deref().map(pick3),
+            r_gcrf_km: self.r_gcrf_km.as_ref().map(pick3),
             temperature_c: self
                 .temperature_c
                 .iter()
@@ -383,9 +386,9 @@ pub enum TelemetryStorage {
     /// In memory (`Vec`s).
     #[default]
     Memory,
-    /// The photodiode columns (17 of 24 numbers a row in the rax2-like layout) in files of
-    /// this directory, read through a small cache of blocks ([`Samples::in_file`]); the
-    /// other columns in memory. The files are unlinked when made, so nothing is left in the
+    /// The photodiode, gyro, magnetometer and position columns in files of this
+    /// directory, read through a small cache of blocks ([`Samples::in_file`],
+    /// [`crate::Column::in_file`]); the times, temperatures and currents in memory. The files are unlinked when made, so nothing is left in the
     /// directory.
     Files(std::path::PathBuf),
 }
@@ -395,6 +398,13 @@ impl TelemetryStorage {
         match self {
             TelemetryStorage::Memory => Ok(Samples::new()),
             TelemetryStorage::Files(dir) => Samples::in_file(dir),
+        }
+    }
+
+    fn vectors(&self) -> std::io::Result<Vectors> {
+        match self {
+            TelemetryStorage::Memory => Ok(Vectors::new()),
+            TelemetryStorage::Files(dir) => Vectors::in_file(dir),
         }
     }
 
@@ -450,8 +460,9 @@ fn empty_telemetry<R: Read>(
         pd_v: (0..lay.pd.len())
             .map(|_| storage.samples())
             .collect::<Result<_, _>>()?,
-        mag_nt: lay.mag.map(|_| Vec::new()),
-        r_gcrf_km: lay.r.map(|_| Vec::new()),
+        gyro_rad_s: storage.vectors()?,
+        mag_nt: lay.mag.map(|_| storage.vectors()).transpose()?,
+        r_gcrf_km: lay.r.map(|_| storage.vectors()).transpose()?,
         temperature_c: (lay.temperature.iter())
             .map(|&col| TemperatureColumn {
                 name: rows.header[col].clone(),
@@ -471,15 +482,15 @@ fn empty_telemetry<R: Read>(
 /// Appends one row to every column of `tm`.
 fn push_telemetry(tm: &mut Telemetry, row: &TelemetryRow) -> std::io::Result<()> {
     tm.t_s.push(row.t_s);
-    tm.gyro_rad_s.push(row.gyro_rad_s);
+    tm.gyro_rad_s.try_push(row.gyro_rad_s)?;
     if let Some(mag) = tm.mag_nt.as_mut() {
-        mag.push(row.mag_nt);
+        mag.try_push(row.mag_nt)?;
     }
     for (value, pd) in row.pd_v.iter().zip(tm.pd_v.iter_mut()) {
         pd.try_push(*value)?;
     }
     if let Some(r) = tm.r_gcrf_km.as_mut() {
-        r.push(row.r_gcrf_km);
+        r.try_push(row.r_gcrf_km)?;
     }
     for (value, temp) in row.temperature_c.iter().zip(tm.temperature_c.iter_mut()) {
         temp.values.push(*value);
@@ -701,11 +712,11 @@ pub(crate) fn render_telemetry(tm: &Telemetry) -> String {
     let mut row = TelemetryRow::default();
     for k in 0..tm.len() {
         row.t_s = tm.t_s[k];
-        row.gyro_rad_s = tm.gyro_rad_s.get(k).copied().flatten();
-        row.mag_nt = (tm.mag_nt.as_ref()).and_then(|c| c.get(k).copied().flatten());
+        row.gyro_rad_s = tm.gyro_rad_s.get(k);
+        row.mag_nt = (tm.mag_nt.as_ref()).and_then(|c| c.get(k));
         row.pd_v.clear();
         row.pd_v.extend(tm.pd_v.iter().map(|pd| pd.get(k)));
-        row.r_gcrf_km = (tm.r_gcrf_km.as_ref()).and_then(|c| c.get(k).copied().flatten());
+        row.r_gcrf_km = (tm.r_gcrf_km.as_ref()).and_then(|c| c.get(k));
         row.temperature_c.clear();
         row.temperature_c.extend(
             tm.temperature_c

@@ -75,9 +75,12 @@ fn hand_written_dataset_reads() {
 
     let tm = &ds.telemetry;
     assert_eq!(tm.t_s, [0.0, 1.0, 2.5]);
-    assert_eq!(tm.gyro_rad_s[0], Some(Vector3::new(0.001, 0.002, 0.003)));
-    assert_eq!(tm.gyro_rad_s[1], None);
-    assert_eq!(tm.gyro_rad_s[2], Some(Vector3::new(0.0, 4.0, -0.03)));
+    assert_eq!(
+        tm.gyro_rad_s.get(0),
+        Some(Vector3::new(0.001, 0.002, 0.003))
+    );
+    assert_eq!(tm.gyro_rad_s.get(1), None);
+    assert_eq!(tm.gyro_rad_s.get(2), Some(Vector3::new(0.0, 4.0, -0.03)));
     assert_eq!(tm.pd_v[0], [Some(3.1), Some(1e-3), None]);
     assert_eq!(tm.pd_v[1], [Some(0.5), None, Some(0.25)]);
     assert!(tm.mag_nt.is_none() && tm.r_gcrf_km.is_none());
@@ -115,11 +118,11 @@ fn contract_example_shape_with_position_columns_reads() {
     assert_eq!(ds.meta.noise, None);
     assert_eq!(
         ds.telemetry.mag_nt,
-        Some(vec![Some(Vector3::new(1.0, 2.0, 3.0))])
+        Some(vec![Some(Vector3::new(1.0, 2.0, 3.0))].into())
     );
     assert_eq!(
         ds.telemetry.r_gcrf_km,
-        Some(vec![Some(Vector3::new(7000.0, 0.0, 0.0))])
+        Some(vec![Some(Vector3::new(7000.0, 0.0, 0.0))].into())
     );
     assert!(ds.truth.is_none());
 }

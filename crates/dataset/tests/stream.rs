@@ -75,7 +75,7 @@ fn streamed_rows_give_the_files_of_the_whole_dataset_writer() {
         );
     }
     assert_eq!(read.telemetry.pd_v[1].get(3), None);
-    assert_eq!(read.telemetry.gyro_rad_s[2], None);
+    assert_eq!(read.telemetry.gyro_rad_s.get(2), None);
 }
 
 #[test]

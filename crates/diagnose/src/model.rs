@@ -165,14 +165,9 @@ impl ModelSpec {
         let mut out = telemetry.clone();
         for effect in &self.added {
             if let Some(mag) = out.mag_nt.as_mut() {
-                mag.iter_mut()
-                    .flatten()
-                    .for_each(|m| *m = effect.correct_mag(*m));
+                mag.map_in_place(|m| effect.correct_mag(m));
             }
-            out.gyro_rad_s
-                .iter_mut()
-                .flatten()
-                .for_each(|w| *w = effect.correct_gyro(*w));
+            out.gyro_rad_s.map_in_place(|w| effect.correct_gyro(w));
         }
         out
     }

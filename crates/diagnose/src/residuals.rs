@@ -266,7 +266,7 @@ pub fn residuals(
 
 /// The rate at row `k`: the gyro sample there, else the nearest earlier one.
 fn gyro_at(tel: &Telemetry, k: usize) -> Option<Vector3<f64>> {
-    tel.gyro_rad_s[..=k].iter().rev().find_map(|g| *g)
+    (0..=k).rev().find_map(|j| tel.gyro_rad_s.get(j))
 }
 
 /// The illuminated fraction at `t_s - offset_s`, linear between rows: photodiodes sampled
@@ -365,7 +365,7 @@ fn row_samples(
     let bias = Vector3::from(estimate.calibration.gyro_bias_rad_s);
     let rate = gyro_at(tel, k).map_or(Vector3::zeros(), |g| g - bias);
     let t_s = tel.t_s[k];
-    let mag = match tel.mag_nt.as_ref().and_then(|m| m[k]) {
+    let mag = match tel.mag_nt.as_ref().and_then(|m| m.get(k)) {
         Some(m) => {
             let b_body = attitude * reference.b_gcrf_nt;
             Some(MagSample {
@@ -510,13 +510,13 @@ fn gyro_samples(tel: &Telemetry, track: &[StepEstimate]) -> Vec<GyroSample> {
             }
             let nearby: Vec<Vector3<f64>> = (a.index.saturating_sub(NEARBY)..a.index)
                 .chain((b.index + 1..b.index + 1 + NEARBY).filter(|&k| k < n))
-                .filter_map(|k| tel.gyro_rad_s[k])
+                .filter_map(|k| tel.gyro_rad_s.get(k))
                 .collect();
             if nearby.is_empty() {
                 return None;
             }
             let mean_nearby = nearby.iter().sum::<Vector3<f64>>() / nearby.len() as f64;
-            let (ga, gb) = (tel.gyro_rad_s[a.index]?, tel.gyro_rad_s[b.index]?);
+            let (ga, gb) = (tel.gyro_rad_s.get(a.index)?, tel.gyro_rad_s.get(b.index)?);
             let dt_s = b.t_s - a.t_s;
             if dt_s <= 0.0 {
                 return None;

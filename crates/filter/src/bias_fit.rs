@@ -433,7 +433,7 @@ fn window(inputs: &FitInputs<'_>, rows: Range<usize>) -> Option<Window> {
         );
     let gyro: Vec<(f64, Vector3<f64>)> = rows
         .clone()
-        .filter_map(|k| tel.gyro_rad_s[k].map(|w| (tel.t_s[k], w)))
+        .filter_map(|k| tel.gyro_rad_s.get(k).map(|w| (tel.t_s[k], w)))
         .collect();
     let mut t_s = Vec::new();
     let mut rates = Vec::new();
@@ -483,7 +483,7 @@ fn samples(inputs: &FitInputs<'_>, first: usize, steps: usize) -> Result<Vec<Sam
                 sigma_rad: inputs.sun_sigma_rad,
             });
         }
-        let field = tel.mag_nt.as_ref().and_then(|m| m[k]);
+        let field = tel.mag_nt.as_ref().and_then(|m| m.get(k));
         if inputs.use_mag
             && let Some(b) = field
             && b.norm() > 0.0

@@ -186,7 +186,7 @@ impl<'a> ForwardPass<'a> {
             rules,
             use_mag,
             average_gyro: config.average_gyro,
-            has_gyro: telemetry.gyro_rad_s.iter().any(Option::is_some),
+            has_gyro: telemetry.gyro_rad_s.iter().any(|v| v.is_some()),
             min_sun_fraction: config.min_sun_fraction,
             mode_used,
             start: 0,
@@ -635,7 +635,7 @@ impl<'a> ForwardPass<'a> {
     fn propagate_to(&mut self, k: usize, reference: &Reference) -> Result<(), FilterError> {
         let tel: &Telemetry = self.telemetry;
         let t_s = tel.t_s[k];
-        let gyro = tel.gyro_rad_s[k];
+        let gyro = tel.gyro_rad_s.get(k);
         self.at.propagated = !self.at.fresh;
         self.at.fresh = false;
         if self.at.propagated && self.filter.has_dynamics() {
@@ -647,7 +647,7 @@ impl<'a> ForwardPass<'a> {
             self.at.prior_q = self.filter.q();
         } else if self.at.propagated {
             let t0 = tel.t_s[k - 1];
-            let before = match tel.gyro_rad_s[k - 1] {
+            let before = match tel.gyro_rad_s.get(k - 1) {
                 Some(g) => Some((t0, g)),
                 None => self.at.last_gyro.map(|g| (self.at.last_gyro_t_s, g)),
             };
@@ -677,7 +677,7 @@ impl<'a> ForwardPass<'a> {
         let tel: &Telemetry = self.telemetry;
         let t_s = tel.t_s[k];
         let mag_nt = if self.use_mag {
-            tel.mag_nt.as_ref().and_then(|col| col[k])
+            tel.mag_nt.as_ref().and_then(|col| col.get(k))
         } else {
             None
         };
@@ -937,7 +937,7 @@ impl<'a> ForwardPass<'a> {
         let limit = self.at.last_gyro_t_s + self.rules.gyro_hold_s;
         (k + 1..tel.len())
             .take_while(|&j| tel.t_s[j] <= limit)
-            .find_map(|j| tel.gyro_rad_s[j].map(|g| (tel.t_s[j], g)))
+            .find_map(|j| tel.gyro_rad_s.get(j).map(|g| (tel.t_s[j], g)))
     }
 
     /// Holds each photodiode's temperature sample of row `k`, if it has one.
@@ -1288,7 +1288,7 @@ fn dynamics_model(
     config: &FilterConfig,
     choice: &PropagationChoice,
 ) -> Result<Option<RateModel>, FilterError> {
-    let has_gyro = tel.gyro_rad_s.iter().any(Option::is_some);
+    let has_gyro = tel.gyro_rad_s.iter().any(|v| v.is_some());
     let carried = choice.dynamics() && meta.inertia_kg_m2.is_some();
     if !has_gyro && !carried {
         let why = if meta.inertia_kg_m2.is_none() {

@@ -549,8 +549,8 @@ fn paired_field(
     let mag = tel.mag_nt.as_ref()?;
     let t_k = tel.t_s[k];
     let tolerance = inputs.rules.pairing_tolerance_s;
-    let j = nearest_row(tel, rows, k, tolerance, |j| mag[j].is_some())?;
-    let b = mag[j]?;
+    let j = nearest_row(tel, rows, k, tolerance, |j| mag.get(j).is_some())?;
+    let b = mag.get(j)?;
     let dt = t_k - tel.t_s[j];
     let rate = gyro_rad_s - inputs.bias_rad_s;
     // The body rotation from t_j to t_k, A(t_k) = R A(t_j).
@@ -571,8 +571,8 @@ fn nearest_gyro(
     k: usize,
     hold_s: f64,
 ) -> Option<(f64, Vector3<f64>)> {
-    let j = nearest_row(tel, rows, k, hold_s, |j| tel.gyro_rad_s[j].is_some())?;
-    Some((tel.t_s[j], tel.gyro_rad_s[j]?))
+    let j = nearest_row(tel, rows, k, hold_s, |j| tel.gyro_rad_s.get(j).is_some())?;
+    Some((tel.t_s[j], tel.gyro_rad_s.get(j)?))
 }
 
 /// The row of `rows` nearest in time to row `k` (itself first) within `tolerance_s` that

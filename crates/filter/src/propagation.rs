@@ -184,8 +184,7 @@ pub fn choose(
     if meta.inertia_kg_m2.is_none() {
         return choice(PropagationKind::Gyro, PropagationReason::NoInertia, None);
     }
-    let samples = gyro_samples(telemetry);
-    if samples.is_empty() {
+    if gyro_samples(telemetry).next().is_none() {
         return choice(PropagationKind::Dynamics, PropagationReason::NoGyro, None);
     }
     let model = if config.average_gyro {
@@ -197,7 +196,7 @@ pub fn choose(
         sigma_rad_s: gyro_sigma_rad_s,
         walk_var_per_s: config.gyro_bias_walk_rad_s_sqrt_s.powi(2),
     };
-    match rate_test(&samples, model, noise, gyro_hold_s) {
+    match rate_test(gyro_samples(telemetry), model, noise, gyro_hold_s) {
         None => choice(
             PropagationKind::Dynamics,
             PropagationReason::GyroUntested,
@@ -226,19 +225,21 @@ struct GyroNoise {
     walk_var_per_s: f64,
 }
 
-fn gyro_samples(telemetry: &Telemetry) -> Vec<Sample> {
+/// The gyro's samples in row order, read as they are reached (a long set's gyro column is
+/// not copied).
+fn gyro_samples(telemetry: &Telemetry) -> impl Iterator<Item = Sample> + '_ {
     telemetry
         .t_s
         .iter()
         .zip(&telemetry.gyro_rad_s)
         .filter_map(|(&t, g)| g.map(|w| (t, [w.x, w.y, w.z])))
-        .collect()
 }
 
 /// The chi-square test of the residuals of `model` (module docs) over disjoint runs of
 /// consecutive samples no further apart than `max_spacing_s`; `None` without one residual.
+/// The samples are read once, in order, holding one run.
 fn rate_test(
-    samples: &[Sample],
+    samples: impl Iterator<Item = Sample>,
     model: GyroRateModel,
     noise: GyroNoise,
     max_spacing_s: f64,
@@ -249,17 +250,22 @@ fn rate_test(
     };
     let mut sum = 0.0;
     let mut residuals = 0;
-    let mut i = 0;
-    while i + span <= samples.len() {
-        let run = &samples[i..i + span];
-        if run.windows(2).any(|w| w[1].0 - w[0].0 > max_spacing_s) {
-            i += 1;
+    // The run starting at the next untested sample: a run with a gap moves on by one
+    // sample, a tested run by all of its own.
+    let mut run: Vec<Sample> = Vec::with_capacity(span);
+    for sample in samples {
+        run.push(sample);
+        if run.len() < span {
             continue;
         }
-        let (r, var) = residual(run, noise);
+        if run.windows(2).any(|w| w[1].0 - w[0].0 > max_spacing_s) {
+            run.remove(0);
+            continue;
+        }
+        let (r, var) = residual(&run, noise);
         sum += r.iter().map(|x| x * x).sum::<f64>() / var;
         residuals += 1;
-        i += span;
+        run.clear();
     }
     if residuals == 0 {
         return None;
@@ -337,7 +343,7 @@ mod tests {
     fn noise_alone_is_a_chi_square_of_mean_one() {
         for model in [GyroRateModel::Held, GyroRateModel::Linear] {
             let s = sampled(1.0, 30_000, 1e-3, |_| [0.1, 0.0, -0.05]);
-            let test = rate_test(&s, model, noise(1e-3), 5.0).unwrap();
+            let test = rate_test(s.iter().copied(), model, noise(1e-3), 5.0).unwrap();
             // 3e4 samples: the mean's sigma is sqrt(2 / dof) < 0.02.
             assert!((test.chi_square_per_dof - 1.0).abs() < 0.05, "{test:?}");
             assert!(!test.rate_changes(), "{test:?}");
@@ -350,8 +356,8 @@ mod tests {
         // 0.05 rad/s turning at 0.05 rad/s: a change of 2.5e-3 rad/s per second, 2.5 times
         // the noise; its curvature over a second is 1.25e-4 rad/s, a tenth of the noise.
         let s = sampled(1.0, 7200, 1e-3, coning(0.05, 0.05));
-        let linear = rate_test(&s, GyroRateModel::Linear, noise(1e-3), 5.0).unwrap();
-        let held = rate_test(&s, GyroRateModel::Held, noise(1e-3), 5.0).unwrap();
+        let linear = rate_test(s.iter().copied(), GyroRateModel::Linear, noise(1e-3), 5.0).unwrap();
+        let held = rate_test(s.iter().copied(), GyroRateModel::Held, noise(1e-3), 5.0).unwrap();
         assert!(!linear.rate_changes(), "{linear:?}");
         assert!(held.rate_changes(), "{held:?}");
     }
@@ -362,7 +368,8 @@ mod tests {
         // curvature, 0.05 x 0.05^2 x 10^2 / 2 = 6.25e-3 rad/s across z, against a noise
         // variance of 1.5e-6 per axis: chi-square per dof (3.9e-5 / 1.5e-6 + 3) / 3 = 9.7.
         let s = sampled(10.0, 720, 1e-3, coning(0.05, 0.05));
-        let linear = rate_test(&s, GyroRateModel::Linear, noise(1e-3), 50.0).unwrap();
+        let linear =
+            rate_test(s.iter().copied(), GyroRateModel::Linear, noise(1e-3), 50.0).unwrap();
         assert!(linear.rate_changes(), "{linear:?}");
         assert!((linear.chi_square_per_dof - 9.7).abs() < 1.0, "{linear:?}");
     }
@@ -377,10 +384,10 @@ mod tests {
         s[3].1[0] += 1.0;
         // Held: (0, 1) and (2, 3), not the jump between them; linear: no three samples
         // within 5 s of each other.
-        let held = rate_test(&s, GyroRateModel::Held, noise(1e-3), 5.0).unwrap();
+        let held = rate_test(s.iter().copied(), GyroRateModel::Held, noise(1e-3), 5.0).unwrap();
         assert_eq!(held.residuals, 2);
         assert!(!held.rate_changes(), "{held:?}");
-        assert!(rate_test(&s, GyroRateModel::Linear, noise(1e-3), 5.0).is_none());
+        assert!(rate_test(s.iter().copied(), GyroRateModel::Linear, noise(1e-3), 5.0).is_none());
     }
 
     #[test]
@@ -409,9 +416,10 @@ mod tests {
             walk_var_per_s,
         };
         for model in [GyroRateModel::Held, GyroRateModel::Linear] {
-            let test = rate_test(&s, model, noise, 5.0).unwrap();
+            let test = rate_test(s.iter().copied(), model, noise, 5.0).unwrap();
             assert!((test.chi_square_per_dof - 1.0).abs() < 0.05, "{test:?}");
-            let no_walk = rate_test(&s, model, super::tests::noise(sigma), 5.0).unwrap();
+            let no_walk =
+                rate_test(s.iter().copied(), model, super::tests::noise(sigma), 5.0).unwrap();
             assert!(no_walk.chi_square_per_dof > 1.1, "{no_walk:?}");
         }
     }

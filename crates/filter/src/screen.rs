@@ -211,20 +211,19 @@ pub fn remove_outliers(telemetry: &mut Telemetry, outliers: &[(Channel, usize)])
             Channel::Gyro => {
                 let (t, gyro) = (&telemetry.t_s, &telemetry.gyro_rad_s);
                 let bridge = match (k.checked_sub(1), gyro.get(k + 1)) {
-                    (Some(before), Some(Some(b))) if good(before) && good(k + 1) => gyro[before]
-                        .map(|a| {
+                    (Some(before), Some(b)) if good(before) && good(k + 1) => {
+                        gyro.get(before).map(|a| {
                             let f = (t[k] - t[before]) / (t[k + 1] - t[before]);
                             a + (b - a) * f
-                        }),
+                        })
+                    }
                     _ => None,
                 };
-                if let Some(cell) = telemetry.gyro_rad_s.get_mut(k) {
-                    *cell = bridge;
-                }
+                telemetry.gyro_rad_s.set(k, bridge);
             }
             Channel::Magnetometer => {
-                if let Some(cell) = telemetry.mag_nt.as_mut().and_then(|m| m.get_mut(k)) {
-                    *cell = None;
+                if let Some(mag) = telemetry.mag_nt.as_mut() {
+                    mag.set(k, None);
                 }
             }
             Channel::Photodiode(i) => {
@@ -239,7 +238,7 @@ pub fn remove_outliers(telemetry: &mut Telemetry, outliers: &[(Channel, usize)])
 /// Rows of a 3-axis column rejected on any axis, into `flags` (increasing).
 fn flag_vectors(
     t: &[f64],
-    column: &[Option<nalgebra::Vector3<f64>>],
+    column: &pdcal_dataset::Vectors,
     tol: impl Fn(f64) -> f64 + Copy,
     flags: &mut Vec<usize>,
 ) {
@@ -249,7 +248,7 @@ fn flag_vectors(
         flag_scalars(
             t,
             column.len(),
-            |k| column[k].map(|v| v[axis]),
+            |k| column.get(k).map(|v| v[axis]),
             tol,
             &mut axis_flags,
         );
@@ -431,8 +430,10 @@ mod tests {
                 .collect(),
             ..Telemetry::default()
         };
-        tel.gyro_rad_s[4] = Some(nalgebra::Vector3::new(1e300, 0.02, -0.03));
-        tel.gyro_rad_s[7] = Some(nalgebra::Vector3::new(0.07, 5.0, -0.03));
+        tel.gyro_rad_s
+            .set(4, Some(nalgebra::Vector3::new(1e300, 0.02, -0.03)));
+        tel.gyro_rad_s
+            .set(7, Some(nalgebra::Vector3::new(0.07, 5.0, -0.03)));
         let tol = ScreenTolerances {
             gyro_rad_s: 0.007,
             angular_acceleration_rad_s2: 0.01,
@@ -442,9 +443,9 @@ mod tests {
         let outliers = find_outliers(&tel, &tol);
         assert_eq!(outliers, vec![(Channel::Gyro, 4), (Channel::Gyro, 7)]);
         remove_outliers(&mut tel, &outliers);
-        let bridged = tel.gyro_rad_s[4].unwrap();
+        let bridged = tel.gyro_rad_s.get(4).unwrap();
         assert!((bridged - nalgebra::Vector3::new(0.04, 0.02, -0.03)).norm() < 1e-15);
         // The last row has no later neighbour: emptied, the filter holds the rate.
-        assert_eq!(tel.gyro_rad_s[7], None);
+        assert_eq!(tel.gyro_rad_s.get(7), None);
     }
 }

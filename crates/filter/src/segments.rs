@@ -178,8 +178,11 @@ pub fn median_spacing(times: impl Iterator<Item = f64>) -> Option<f64> {
 /// The `q` quantile (0..1, lower value at a tie) of the spacings of consecutive times,
 /// `None` with fewer than two.
 pub fn spacing_quantile(times: impl Iterator<Item = f64>, q: f64) -> Option<f64> {
-    let times: Vec<f64> = times.collect();
-    let mut dts: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).collect();
+    let mut times = times.peekable();
+    let mut dts: Vec<f64> = Vec::new();
+    while let (Some(t0), Some(&t1)) = (times.next(), times.peek()) {
+        dts.push(t1 - t0);
+    }
     if dts.is_empty() {
         return None;
     }

@@ -31,7 +31,7 @@ const RAX2_INERTIA: Inertia = Inertia {
 #[test]
 fn without_gyro_and_inertia_the_error_names_both() {
     let (meta, mut tel, refs, _) = Case::rax2(3, 120).build();
-    tel.gyro_rad_s.iter_mut().for_each(|g| *g = None);
+    tel.gyro_rad_s = std::iter::repeat_n(None, tel.len()).collect();
     let inputs = RunInputs {
         meta: &meta,
         telemetry: &tel,

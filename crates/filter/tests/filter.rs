@@ -88,9 +88,12 @@ fn filter_with(
 fn drive(case: &Case, filter: &mut Filter, steps: usize, mut check: impl FnMut(usize, &Filter)) {
     let (_, tel, refs, _) = case.build();
     let mut row = vec![None; tel.pd_v.len()];
-    for k in 0..steps {
+    for (k, reference) in refs.iter().enumerate().take(steps) {
         if k > 0 {
-            let (a, b) = (tel.gyro_rad_s[k - 1].unwrap(), tel.gyro_rad_s[k].unwrap());
+            let (a, b) = (
+                tel.gyro_rad_s.get(k - 1).unwrap(),
+                tel.gyro_rad_s.get(k).unwrap(),
+            );
             filter.propagate(
                 &(0.5 * (a + b)),
                 (b - a).norm(),
@@ -100,7 +103,7 @@ fn drive(case: &Case, filter: &mut Filter, steps: usize, mut check: impl FnMut(u
         for (i, slot) in row.iter_mut().enumerate() {
             *slot = tel.pd_v[i].get(k);
         }
-        let mag_nt = tel.mag_nt.as_ref().and_then(|m| m[k]);
+        let mag_nt = tel.mag_nt.as_ref().and_then(|m| m.get(k));
         filter
             .update(
                 tel.t_s[k],
@@ -109,7 +112,7 @@ fn drive(case: &Case, filter: &mut Filter, steps: usize, mut check: impl FnMut(u
                     pd_v: &row,
                     temperature_c: &[],
                 },
-                &refs[k],
+                reference,
                 None,
             )
             .unwrap();

@@ -158,14 +158,17 @@ fn with_spike(channel: Channel, spike: Spike, row: usize) -> Telemetry {
     };
     match channel {
         Channel::Gyro => {
-            let cell = tel.gyro_rad_s[row].as_mut().unwrap();
+            let mut cell = tel.gyro_rad_s.get(row).unwrap();
             // 5 deg/s on one axis: a rate the tumble could have.
             cell.x = wild(cell.x, 5f64.to_radians());
+            tel.gyro_rad_s.set(row, Some(cell));
         }
         Channel::Magnetometer => {
-            let cell = tel.mag_nt.as_mut().unwrap()[row].as_mut().unwrap();
+            let mag = tel.mag_nt.as_mut().unwrap();
+            let mut cell = mag.get(row).unwrap();
             // 20 uT on one axis: the field stays inside 10-70 uT.
             cell.y = wild(cell.y, 20_000.0);
+            mag.set(row, Some(cell));
         }
         Channel::Photodiode(i) => {
             let cell = tel.pd_v[i].get_mut(row).unwrap();
@@ -267,8 +270,8 @@ fn spikes_in_every_sensor_leave_the_smoothed_run_as_it_was() {
     let f = fixture();
     let (row, pd) = spike_row_and_photodiode();
     let mut tel = f.telemetry.clone();
-    tel.gyro_rad_s[row] = Some(Vector3::new(1e300, 0.0, 0.0));
-    tel.mag_nt.as_mut().unwrap()[row + 1] = Some(Vector3::new(0.0, 1e300, 0.0));
+    tel.gyro_rad_s.set(row, Some(Vector3::new(1e300, 0.0, 0.0)));
+    (tel.mag_nt.as_mut().unwrap()).set(row + 1, Some(Vector3::new(0.0, 1e300, 0.0)));
     tel.pd_v[pd].set(row + 2, Some(1e300));
     let run = |telemetry: &Telemetry| {
         let inputs = RunInputs {

@@ -239,7 +239,7 @@ fn magnetometer_in_other_rows_is_paired_with_the_gyro() {
     let mut split = f.telemetry.clone();
     for k in 0..split.len() {
         if k % 2 == 0 {
-            split.mag_nt.as_mut().unwrap()[k] = None;
+            split.mag_nt.as_mut().unwrap().set(k, None);
         } else {
             split.pd_v.iter_mut().for_each(|c| c.set(k, None));
         }
@@ -317,7 +317,7 @@ fn a_silent_gyro_ends_its_segment() {
     // the 10 s hold the attitude cannot be propagated.
     let mut silent = f.telemetry.clone();
     for k in 3000..3060 {
-        silent.gyro_rad_s[k] = None;
+        silent.gyro_rad_s.set(k, None);
     }
     let run = run_checked(&silent, &|_| true, &forward_only(), |_, _| {});
     let ended: Vec<&SegmentReport> = run
@@ -359,7 +359,7 @@ fn sparse_flight_frames_calibrate_honestly() {
     let mut tel = sim.telemetry.select_rows(keep);
     for k in 0..tel.len() {
         if in_frame(tel.t_s[k]) == Some(0.0) {
-            tel.mag_nt.as_mut().unwrap()[k] = None;
+            tel.mag_nt.as_mut().unwrap().set(k, None);
         } else {
             tel.pd_v.iter_mut().for_each(|c| c.set(k, None));
         }
@@ -436,10 +436,10 @@ fn irregular_random_cuts_and_blank_cells_stay_honest() {
     let mut blanked = f.telemetry.clone();
     for k in 0..blanked.len() {
         if uniform() < 0.1 {
-            blanked.gyro_rad_s[k] = None;
+            blanked.gyro_rad_s.set(k, None);
         }
         if uniform() < 0.3 {
-            blanked.mag_nt.as_mut().unwrap()[k] = None;
+            blanked.mag_nt.as_mut().unwrap().set(k, None);
         }
         if uniform() < 0.05 {
             blanked.pd_v.iter_mut().for_each(|c| c.set(k, None));

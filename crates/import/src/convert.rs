@@ -111,8 +111,8 @@ pub fn convert(map: &ImportMap, csv_file: &Path, bytes: &[u8]) -> Result<Importe
     let lay = layout(map);
     let mut telemetry = Telemetry {
         pd_v: vec![Default::default(); lay.photodiodes],
-        mag_nt: lay.magnetometer.then(Vec::new),
-        r_gcrf_km: lay.positions.then(Vec::new),
+        mag_nt: lay.magnetometer.then(Default::default),
+        r_gcrf_km: lay.positions.then(Default::default),
         temperature_c: (lay.temperatures.iter())
             .map(|name| pdcal_dataset::TemperatureColumn {
                 name: name.clone(),

@@ -83,7 +83,7 @@ fn any_numeric_column_may_be_a_combination() {
         r#"z: (columns: [("wz", 0.5), ("wx", 0.5)], unit: "deg/s"),"#,
     );
     let imported = import(&map, CSV).unwrap();
-    let g = imported.dataset.telemetry.gyro_rad_s[0].unwrap();
+    let g = imported.dataset.telemetry.gyro_rad_s.get(0).unwrap();
     assert!((g.z - 2.0_f64.to_radians()).abs() < 1e-15, "{g:?}");
 }
 
@@ -237,7 +237,7 @@ fn average_merges_the_rows_of_a_time_cell_by_cell() {
     assert_eq!(tm.t_s, [0.0, 1.0, 2.0]);
     let deg = 1.0_f64.to_radians();
     // Gyro: the rows where the vector is whole (1,2,3) and (5,6,7); the partial one is not.
-    let g = tm.gyro_rad_s[1].unwrap();
+    let g = tm.gyro_rad_s.get(1).unwrap();
     assert!(
         (g - nalgebra::Vector3::new(3.0, 4.0, 5.0) * deg).norm() < 1e-15,
         "{g:?}"

@@ -295,12 +295,13 @@ pub fn run_dirs_forced(
 }
 
 /// A telemetry.csv of at least this many bytes (about 140 000 rows of the rax2-like
-/// layout) keeps its photodiode columns in files of the output's staging directory, read
+/// layout) keeps its photodiode, gyro, magnetometer and position columns in files of the
+/// output's staging directory, read
 /// by blocks ([`pdcal_dataset::TelemetryStorage::Files`]); a smaller one is held in memory,
 /// where it costs at most about 20 MB and is read without the cache's lookups.
 pub const FILE_TELEMETRY_BYTES: u64 = 64 << 20;
 
-/// [`run_dirs_forced`] with the size from which a set's photodiode columns are kept in
+/// [`run_dirs_forced`] with the size from which a set's columns are kept in
 /// files instead of [`FILE_TELEMETRY_BYTES`] (0: always; the same outputs either way).
 pub fn run_dirs_kept(
     datasets: &[PathBuf],

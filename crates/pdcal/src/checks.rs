@@ -12,7 +12,7 @@
 
 use anyhow::{Result, bail};
 use nalgebra::Vector3;
-use pdcal_dataset::{TELEMETRY_CSV, Telemetry, photodiode_column};
+use pdcal_dataset::{TELEMETRY_CSV, Telemetry, Vectors, photodiode_column};
 
 /// Sampled rows below which a constant column is not called stuck.
 pub const MIN_ROWS_FOR_STUCK: usize = 10;
@@ -49,7 +49,7 @@ fn stuck_value(values: impl Iterator<Item = f64>) -> Option<(f64, usize)> {
     first.filter(|_| n >= MIN_ROWS_FOR_STUCK).map(|f| (f, n))
 }
 
-fn axis<'a>(column: &'a [Option<Vector3<f64>>], i: usize) -> impl Iterator<Item = f64> + 'a {
+fn axis(column: &Vectors, i: usize) -> impl Iterator<Item = f64> + '_ {
     column.iter().flatten().map(move |v| v[i])
 }
 
@@ -60,7 +60,7 @@ pub fn check_telemetry(telemetry: &Telemetry) -> Result<Vec<String>> {
     let mut warnings = Vec::new();
     let gyro = &telemetry.gyro_rad_s;
     let sampled = gyro.iter().flatten().count();
-    if sampled >= MIN_ROWS_FOR_STUCK && gyro.iter().flatten().all(|w| *w == Vector3::zeros()) {
+    if sampled >= MIN_ROWS_FOR_STUCK && gyro.iter().flatten().all(|w| w == Vector3::zeros()) {
         bail!(
             "{f} (gyro_x_rad_s, gyro_y_rad_s, gyro_z_rad_s): the gyro reads exactly 0 on all \
              {sampled} sampled rows; a dead or disconnected gyro makes the attitude, and so the \
@@ -165,48 +165,55 @@ fn check_positions(telemetry: &Telemetry) -> Result<()> {
     let mut previous = None;
     for (k, (t, p)) in telemetry.t_s.iter().zip(r).enumerate() {
         let Some(p) = p else { continue };
-        if let Err(why) = pdcal_dataset::rules::orbit_position(previous, *t, p) {
+        if let Err(why) = pdcal_dataset::rules::orbit_position(previous, *t, &p) {
             bail!(
                 "{TELEMETRY_CSV} (r_x_km, r_y_km, r_z_km), row {k} (t_s = {t:?}): {why}; \
                  these positions are not an orbit"
             );
         }
-        previous = Some((*t, *p));
+        previous = Some((*t, p));
     }
     Ok(())
+}
+
+/// Over consecutive rows at most 2 s apart with both sensors sampled: the gyro's rate
+/// across the field times the step, and the field direction's angle between the rows.
+fn turns_per_row<'a>(
+    telemetry: &'a Telemetry,
+    mag: &'a Vectors,
+) -> impl Iterator<Item = (f64, f64)> + 'a {
+    (1..telemetry.len()).filter_map(move |k| {
+        let dt = telemetry.t_s[k] - telemetry.t_s[k - 1];
+        let (w, b0, b1) = (
+            telemetry.gyro_rad_s.get(k - 1)?,
+            mag.get(k - 1)?,
+            mag.get(k)?,
+        );
+        let b0_unit = b0.try_normalize(0.0)?;
+        if !(dt > 0.0 && dt <= 2.0) || b1.norm() == 0.0 {
+            return None;
+        }
+        let across = w - b0_unit * w.dot(&b0_unit);
+        Some((across.norm() * dt, b0.angle(&b1)))
+    })
 }
 
 /// A warning when the gyro says the body turns far faster than the magnetometer's field
 /// turns in the body frame ([`GYRO_OVER_FIELD_RATE_MAX`]): the medians, over consecutive rows
 /// at most 2 s apart with both sensors sampled, of the gyro's rate across the field times
 /// the step and of the field direction's angle between the rows.
-fn gyro_units(telemetry: &Telemetry, mag: &[Option<Vector3<f64>>]) -> Option<String> {
-    let mut predicted = Vec::new();
-    let mut observed = Vec::new();
-    for k in 1..telemetry.len() {
-        let dt = telemetry.t_s[k] - telemetry.t_s[k - 1];
-        let (Some(w), Some(b0), Some(b1)) = (telemetry.gyro_rad_s[k - 1], mag[k - 1], mag[k])
-        else {
-            continue;
-        };
-        let Some(b0_unit) = b0.try_normalize(0.0) else {
-            continue;
-        };
-        if !(dt > 0.0 && dt <= 2.0) || b1.norm() == 0.0 {
-            continue;
+fn gyro_units(telemetry: &Telemetry, mag: &Vectors) -> Option<String> {
+    // One median at a time, each over its own pass: a long set holds one column of them.
+    let median_of = |part: fn((f64, f64)) -> f64| {
+        let mut v: Vec<f64> = turns_per_row(telemetry, mag).map(part).collect();
+        if v.len() < MIN_ROWS_FOR_STUCK {
+            return None;
         }
-        let across = w - b0_unit * w.dot(&b0_unit);
-        predicted.push(across.norm() * dt);
-        observed.push(b0.angle(&b1));
-    }
-    if predicted.len() < MIN_ROWS_FOR_STUCK {
-        return None;
-    }
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
+        let mid = v.len() / 2;
+        Some(*v.select_nth_unstable_by(mid, f64::total_cmp).1)
     };
-    let (p, o) = (median(&mut predicted), median(&mut observed));
+    let p = median_of(|(predicted, _)| predicted)?;
+    let o = median_of(|(_, observed)| observed)?;
     let ratio = p / o;
     (ratio > GYRO_OVER_FIELD_RATE_MAX).then(|| {
         format!(

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use pdcal_dataset::{
     CurrentColumn, DatasetMeta, OrbitSpec, Samples, Telemetry, TelemetryStorage, TemperatureColumn,
+    Vectors,
 };
 use pdcal_ephem::Reference;
 use serde::Serialize;
@@ -283,10 +284,10 @@ fn concat(parts: impl Iterator<Item = (f64, Telemetry)>) -> Telemetry {
     }
     let mut out = Telemetry {
         t_s: Vec::new(),
-        gyro_rad_s: Vec::new(),
-        mag_nt: any_mag.then(Vec::new),
+        gyro_rad_s: Vectors::new(),
+        mag_nt: any_mag.then(Vectors::new),
         pd_v: vec![Samples::new(); m],
-        r_gcrf_km: all_positions.then(Vec::new),
+        r_gcrf_km: all_positions.then(Vectors::new),
         temperature_c: names
             .iter()
             .map(|name| TemperatureColumn {
@@ -307,10 +308,10 @@ fn concat(parts: impl Iterator<Item = (f64, Telemetry)>) -> Telemetry {
     for (offset_s, t) in parts {
         let rows = t.len();
         out.t_s.extend(t.t_s.iter().map(|x| x + offset_s));
-        out.gyro_rad_s.extend_from_slice(&t.gyro_rad_s);
+        out.gyro_rad_s.extend(t.gyro_rad_s.iter());
         if let Some(mag) = out.mag_nt.as_mut() {
             match &t.mag_nt {
-                Some(m) => mag.extend_from_slice(m),
+                Some(m) => mag.extend(m.iter()),
                 None => mag.extend(std::iter::repeat_n(None, rows)),
             }
         }
@@ -318,7 +319,7 @@ fn concat(parts: impl Iterator<Item = (f64, Telemetry)>) -> Telemetry {
             theirs.iter().for_each(|v| column.push(v));
         }
         if let (Some(r), Some(theirs)) = (out.r_gcrf_km.as_mut(), &t.r_gcrf_km) {
-            r.extend_from_slice(theirs);
+            r.extend(theirs.iter());
         }
         for column in &mut out.temperature_c {
             match t.temperature_c.iter().find(|c| c.name == column.name) {

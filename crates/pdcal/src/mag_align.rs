@@ -44,7 +44,7 @@ pub fn samples(
         .iter()
         .filter_map(|e| {
             let reference = references.get(e.index)?;
-            let measured_nt = (*mag.get(e.index)?)?;
+            let measured_nt = mag.get(e.index)?;
             if !sunlit(reference) {
                 return None;
             }
@@ -71,8 +71,8 @@ pub fn estimate(
 
 /// Rotates every magnetometer reading into the body frame, `Q^T m`.
 pub fn apply(telemetry: &mut Telemetry, misalignment: &Misalignment) {
-    for m in telemetry.mag_nt.iter_mut().flatten().flatten() {
-        *m = misalignment.to_body(m);
+    if let Some(mag) = telemetry.mag_nt.as_mut() {
+        mag.map_in_place(|m| misalignment.to_body(&m));
     }
 }
 

@@ -173,7 +173,7 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry) -> Result<MagCalOutcome> {
             continue;
         };
         let t_s = telemetry.t_s[row];
-        samples.push(pdcal_magcal::sample_along_orbit(&model, row, t_s, *m, u)?);
+        samples.push(pdcal_magcal::sample_along_orbit(&model, row, t_s, m, u)?);
     }
     let calibration = pdcal_magcal::calibrate(&samples, &names, &MagCalConfig::default())?;
     let mean_field_nt =
@@ -310,13 +310,13 @@ pub fn apply(telemetry: &mut Telemetry, cal: &MagCalibration) -> Result<f64> {
         bail!("the dataset has no magnetometer columns to correct");
     };
     let (mut var_sum, mut n) = (0.0, 0usize);
-    for (m, u) in mag.iter_mut().zip(held) {
-        let Some(raw) = *m else { continue };
+    for (k, u) in held.into_iter().enumerate().take(mag.len()) {
+        let Some(raw) = mag.get(k) else { continue };
         let Some(u) = u.map(|u| columns.iter().map(|&j| u[j]).collect::<Vec<f64>>()) else {
-            *m = None;
+            mag.set(k, None);
             continue;
         };
-        *m = Some(cal.correct(&raw, &u));
+        mag.set(k, Some(cal.correct(&raw, &u)));
         var_sum += cal.correction_covariance(&raw, &u).trace() / 3.0;
         n += 1;
     }

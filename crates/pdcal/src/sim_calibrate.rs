@@ -218,12 +218,13 @@ impl Cut {
     /// The gyro thinned or dropped and the inertia changed as asked.
     fn apply_sensors(&self, sim: &mut pdcal_sim::SimOutput) {
         if self.no_gyro {
-            sim.telemetry.gyro_rad_s.iter_mut().for_each(|g| *g = None);
+            let rows = sim.telemetry.len();
+            (0..rows).for_each(|k| sim.telemetry.gyro_rad_s.set(k, None));
         } else if let Some(s) = self.gyro_every_s {
             let t = &sim.telemetry.t_s;
-            for (g, &t) in sim.telemetry.gyro_rad_s.iter_mut().zip(t) {
+            for (k, &t) in t.iter().enumerate() {
                 if !on_grid(t, s) {
-                    *g = None;
+                    sim.telemetry.gyro_rad_s.set(k, None);
                 }
             }
         }

@@ -41,9 +41,7 @@ fn the_simulated_set_passes_without_warnings() {
 #[test]
 fn a_gyro_of_exact_zero_is_an_error_even_through_calibrate() {
     let mut telemetry = sim().telemetry.clone();
-    for w in telemetry.gyro_rad_s.iter_mut().flatten() {
-        *w = Vector3::zeros();
-    }
+    telemetry.gyro_rad_s.map_in_place(|_| Vector3::zeros());
     let err = pdcal::calibrate::run(
         &sim().meta,
         &telemetry,
@@ -66,9 +64,7 @@ fn a_gyro_of_exact_zero_is_an_error_even_through_calibrate() {
 #[test]
 fn stuck_sensors_are_errors_and_a_dead_photodiode_a_warning() {
     let err = check(|t| {
-        for w in t.gyro_rad_s.iter_mut().flatten() {
-            w.y = 0.01;
-        }
+        t.gyro_rad_s.map_in_place(|w| Vector3::new(w.x, 0.01, w.z));
     })
     .unwrap_err();
     assert_eq!(
@@ -80,9 +76,7 @@ fn stuck_sensors_are_errors_and_a_dead_photodiode_a_warning() {
         )
     );
     let err = check(|t| {
-        for b in t.mag_nt.as_mut().unwrap().iter_mut().flatten() {
-            b.z = 25000.0;
-        }
+        (t.mag_nt.as_mut().unwrap()).map_in_place(|b| Vector3::new(b.x, b.y, 25000.0));
     })
     .unwrap_err();
     assert!(
@@ -146,9 +140,7 @@ fn a_field_magnitude_out_of_range_is_a_warning_on_stderr_and_in_summary() {
     let tmp = tempfile::tempdir().unwrap();
     let (set, out) = (tmp.path().join("set"), tmp.path().join("out"));
     let mut ds = sim().to_dataset();
-    for b in ds.telemetry.mag_nt.as_mut().unwrap().iter_mut().flatten() {
-        *b *= 10.0;
-    }
+    (ds.telemetry.mag_nt.as_mut().unwrap()).map_in_place(|b| b * 10.0);
     let samples = ds
         .telemetry
         .mag_nt

@@ -96,7 +96,7 @@ fn many_rejected_rows_are_counted_listed_short_and_written_whole() {
     let spiked: Vec<usize> = (0..120).map(|k| 100 + 25 * k).collect();
     let mag = sim.telemetry.mag_nt.as_mut().unwrap();
     for &row in &spiked {
-        mag[row] = mag[row].map(|m| m * 1.5);
+        mag.set(row, mag.get(row).map(|m| m * 1.5));
     }
     let dataset = pdcal_dataset::Dataset {
         meta: sim.meta.clone(),

@@ -59,7 +59,7 @@ fn the_skcube_frames_import_to_a_photodiode_only_dataset() {
         );
     }
     let mdeg_s = 8.75e-3_f64.to_radians();
-    let g = tm.gyro_rad_s[0].unwrap();
+    let g = tm.gyro_rad_s.get(0).unwrap();
     for (got, counts) in [(g.x, -96.0), (g.y, -153.0), (g.z, 64.0)] {
         assert!(
             (got - counts * mdeg_s).abs() < 1e-15,
@@ -71,7 +71,7 @@ fn the_skcube_frames_import_to_a_photodiode_only_dataset() {
     assert_eq!(tm.t_s[1], 42.0);
     assert_eq!(tm.t_s[314], f64::from(1_498_683_657 - 1_498_201_375));
     assert!((tm.pd_v[4].get(314).unwrap() - 0.51).abs() < 1e-15);
-    assert!((tm.gyro_rad_s[314].unwrap().z - 138.0 * mdeg_s).abs() < 1e-15);
+    assert!((tm.gyro_rad_s.get(314).unwrap().z - 138.0 * mdeg_s).abs() < 1e-15);
 
     // Every output within 8 bits' 0 ..= 2.55 V as written, where calibrate's check of
     // outputs against a photodiode's full scale lets them through.

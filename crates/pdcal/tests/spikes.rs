@@ -21,11 +21,13 @@ fn wild_cells_are_listed_with_their_rows_in_the_summary() {
         })
         .unwrap();
     ds.telemetry.pd_v[pd].set(row, Some(1e300));
-    ds.telemetry.gyro_rad_s[row + 10].as_mut().unwrap().z = 1e300;
-    ds.telemetry.mag_nt.as_mut().unwrap()[row + 20]
-        .as_mut()
-        .unwrap()
-        .x = -1e6;
+    let mut gyro = ds.telemetry.gyro_rad_s.get(row + 10).unwrap();
+    gyro.z = 1e300;
+    ds.telemetry.gyro_rad_s.set(row + 10, Some(gyro));
+    let mag = ds.telemetry.mag_nt.as_mut().unwrap();
+    let mut field = mag.get(row + 20).unwrap();
+    field.x = -1e6;
+    mag.set(row + 20, Some(field));
     std::fs::remove_dir_all(&dataset).unwrap();
     pdcal_dataset::write_dataset(&dataset, &ds).unwrap();
 

@@ -8,8 +8,10 @@ fn streamed_files_equal_the_in_memory_files() {
     streamed_equals_in_memory(true, false);
 }
 
-/// The photodiode columns kept in files of the staging directory (as a long set's are,
-/// `calibrate::FILE_TELEMETRY_BYTES`) give the same files, and leave none of theirs.
+/// The photodiode, gyro and magnetometer columns kept in files of the staging directory
+/// (as a long set's are, `calibrate::FILE_TELEMETRY_BYTES`) give the same files, and leave
+/// none of theirs. The set is longer than two of the files' blocks of 4096 rows,
+/// so rows are read back from the files.
 #[test]
 fn telemetry_kept_in_files_gives_the_in_memory_files() {
     streamed_equals_in_memory(true, true);
@@ -30,9 +32,10 @@ fn streamed_equals_in_memory(smoother: bool, kept_in_files: bool) {
         tmp.path().join("memory"),
     );
     let mut scenario = Scenario::rax2_like().unwrap();
-    // 3901 rows, the filter starting in sunlight near row 1440: more than two smoother
-    // segments of 1024 rows, so the backward pass crosses segment boundaries.
-    scenario.duration_s = 3900.0;
+    // 3901 rows (9001 kept in files), the filter starting in sunlight near row 1440: more
+    // than two smoother segments of 1024 rows, so the backward pass crosses segment
+    // boundaries.
+    scenario.duration_s = if kept_in_files { 9000.0 } else { 3900.0 };
     pdcal::simulate::run_to_dir(&scenario, 4, &dataset).unwrap();
     let mut config = pdcal::calibrate::RunConfig::default();
     config.filter.smoother = smoother;
@@ -42,13 +45,16 @@ fn streamed_equals_in_memory(smoother: bool, kept_in_files: bool) {
         Some((tmp.path(), file_bytes)),
     );
     let read = read.unwrap();
+    let telemetry = &read[0].2;
     assert!(
-        read[0]
-            .2
+        telemetry
             .pd_v
             .iter()
             .all(|pd| pd.is_in_file() == kept_in_files)
     );
+    assert_eq!(telemetry.gyro_rad_s.is_in_file(), kept_in_files);
+    let mag = telemetry.mag_nt.as_ref().unwrap();
+    assert_eq!(mag.is_in_file(), kept_in_files);
     drop(read);
     pdcal::calibrate::run_dirs_kept(
         std::slice::from_ref(&dataset),

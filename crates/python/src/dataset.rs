@@ -52,7 +52,7 @@ pub struct Dataset {
 }
 
 /// Three columns of a vector sensor, NaN where the row has no sample.
-fn vec3_columns(column: &[Option<Vector3<f64>>]) -> Vec<Vec<f64>> {
+fn vec3_columns(column: &pdcal_dataset::Vectors) -> Vec<Vec<f64>> {
     (0..3)
         .map(|a| {
             column
@@ -431,7 +431,7 @@ impl Dataset {
     #[allow(non_snake_case)]
     fn mag_nT<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, numpy::PyArray2<f64>>>> {
         let tm = self.telemetry();
-        (tm.mag_nt.as_deref())
+        (tm.mag_nt.as_ref())
             .map(|m| from_columns(py, &vec3_columns(m), tm.len()))
             .transpose()
     }
@@ -454,7 +454,7 @@ impl Dataset {
         py: Python<'py>,
     ) -> PyResult<Option<Bound<'py, numpy::PyArray2<f64>>>> {
         let tm = self.telemetry();
-        (tm.r_gcrf_km.as_deref())
+        (tm.r_gcrf_km.as_ref())
             .map(|r| from_columns(py, &vec3_columns(r), tm.len()))
             .transpose()
     }

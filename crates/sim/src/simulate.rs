@@ -6,7 +6,7 @@ use pdcal_attitude::Quat;
 use pdcal_dataset::{
     CurrentColumn, Dataset, DatasetMeta, Effect, EpochUtc, FORMAT_VERSION, Inertia, NoiseHints,
     OrbitSpec, Samples, Telemetry, TemperatureColumn, TrueMagnetometer, TruePd, TruthConstants,
-    TruthSeries, current_column, photodiode_temperature_column,
+    TruthSeries, Vectors, current_column, photodiode_temperature_column,
 };
 use pdcal_ephem::igrf::IgrfError;
 use pdcal_ephem::{OrbitError, Reference, ReferenceError, ReferenceModel, TimeError, TleOrbit};
@@ -368,8 +368,8 @@ impl Series {
         Series {
             telemetry: Telemetry {
                 t_s: Vec::with_capacity(rows),
-                gyro_rad_s: Vec::with_capacity(rows),
-                mag_nt: Some(Vec::with_capacity(rows)),
+                gyro_rad_s: Vectors::with_capacity(rows),
+                mag_nt: Some(Vectors::with_capacity(rows)),
                 pd_v: vec![Samples::with_capacity(rows); n_pd],
                 r_gcrf_km: None,
                 temperature_c: Vec::new(),

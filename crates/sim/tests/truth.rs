@@ -188,11 +188,11 @@ fn noise_has_the_configured_statistics() {
     let mut gyro_res = Vec::new();
     let mut mag_res = Vec::new();
     for k in 0..out.truth.len() {
-        let g = out.telemetry.gyro_rad_s[k].unwrap()
+        let g = out.telemetry.gyro_rad_s.get(k).unwrap()
             - out.truth.w_body_rad_s[k]
             - out.truth.gyro_bias_rad_s[k];
         gyro_res.extend(g.iter());
-        let m = out.telemetry.mag_nt.as_ref().unwrap()[k].unwrap() - out.truth.mag_body_nt[k];
+        let m = out.telemetry.mag_nt.as_ref().unwrap().get(k).unwrap() - out.truth.mag_body_nt[k];
         mag_res.extend(m.iter());
     }
     // N samples: the sample sigma has relative sd 1/sqrt(2N) (0.6 % for 17 x 901, 1.4 %
@@ -376,7 +376,7 @@ fn changing_one_sensor_rate_leaves_the_other_sensors_noise_alone() {
     let mag_noise = |out: &SimOutput| -> Vec<Vector3<f64>> {
         let mag = out.telemetry.mag_nt.as_ref().unwrap();
         (0..out.truth.len())
-            .filter_map(|k| Some(mag[k]? - out.truth.mag_body_nt[k]))
+            .filter_map(|k| Some(mag.get(k)? - out.truth.mag_body_nt[k]))
             .collect()
     };
     let (ma, mb) = (mag_noise(&a), mag_noise(&b));
@@ -394,9 +394,9 @@ fn sensors_sample_on_their_own_grids() {
     let mag = out.telemetry.mag_nt.as_ref().unwrap();
     for (k, t) in out.telemetry.t_s.iter().enumerate() {
         assert_eq!(*t, k as f64 * 0.5);
-        assert!(out.telemetry.gyro_rad_s[k].is_some());
+        assert!(out.telemetry.gyro_rad_s.get(k).is_some());
         assert!(out.telemetry.pd_v.iter().all(|c| c.get(k).is_some()));
-        assert_eq!(mag[k].is_some(), k % 2 == 0, "row {k}");
+        assert_eq!(mag.get(k).is_some(), k % 2 == 0, "row {k}");
     }
 }
 
@@ -438,7 +438,7 @@ fn gyro_scale_and_mag_bias_appear_exactly() {
     for (k, mag_k) in mag.iter().enumerate() {
         let w = out.truth.w_body_rad_s[k];
         let expected = w + w.component_mul(&Vector3::from(e)) + bias0;
-        assert!((out.telemetry.gyro_rad_s[k].unwrap() - expected).norm() < 1e-15);
+        assert!((out.telemetry.gyro_rad_s.get(k).unwrap() - expected).norm() < 1e-15);
         assert_eq!(out.truth.gyro_bias_rad_s[k], bias0, "no walk configured");
         let m = mag_k.unwrap() - out.truth.mag_body_nt[k];
         // 1e-9 nT: round-off of a 40 000 nT field.
@@ -555,7 +555,7 @@ fn downlinks_of_a_seed_fly_the_same_hardware_with_their_own_noise_and_start() {
         differs(&plain.truth.q, &later.truth.q),
         "its own initial attitude"
     );
-    let gyro = |s: &SimOutput| s.telemetry.gyro_rad_s[10].unwrap();
+    let gyro = |s: &SimOutput| s.telemetry.gyro_rad_s.get(10).unwrap();
     assert_ne!(gyro(&plain), gyro(&later), "its own gyro noise");
     let again = pdcal_sim::simulate_downlink(&scenario, 5, 1).unwrap();
     assert_eq!(again.telemetry, later.telemetry, "seeded");

@@ -103,7 +103,7 @@ pub fn full_dataset(rows: usize) -> Dataset {
     };
     let mut s = Stream::new(7);
     let mut tm = Telemetry {
-        mag_nt: Some(Vec::new()),
+        mag_nt: Some(Default::default()),
         pd_v: vec![Samples::new(); n],
         ..Telemetry::default()
     };
@@ -123,7 +123,8 @@ pub fn full_dataset(rows: usize) -> Dataset {
             pd.push(v);
         }
     }
-    tm.gyro_rad_s[1] = Some(Vector3::new(AWKWARD[0], AWKWARD[1], AWKWARD[2]));
+    tm.gyro_rad_s
+        .set(1, Some(Vector3::new(AWKWARD[0], AWKWARD[1], AWKWARD[2])));
     Dataset {
         meta,
         telemetry: tm,
@@ -203,7 +204,7 @@ pub fn minimal_dataset(rows: usize) -> Dataset {
     };
     let mut tm = Telemetry {
         pd_v: vec![Samples::new(); 3],
-        r_gcrf_km: Some(Vec::new()),
+        r_gcrf_km: Some(Default::default()),
         ..Telemetry::default()
     };
     for k in 0..rows {
@@ -244,13 +245,13 @@ pub fn bits(ds: &Dataset) -> Vec<Option<u64>> {
     let tm = &ds.telemetry;
     tm.t_s.iter().for_each(|&x| f(x));
     let mut out2 = Vec::new();
-    let mut g = |v: &Option<Vector3<f64>>| match v {
+    let mut g = |v: Option<Vector3<f64>>| match v {
         Some(v) => out2.extend(v.iter().map(|x| Some(x.to_bits()))),
         None => out2.push(None),
     };
     tm.gyro_rad_s.iter().for_each(&mut g);
-    tm.mag_nt.iter().flatten().for_each(&mut g);
-    tm.r_gcrf_km.iter().flatten().for_each(&mut g);
+    tm.mag_nt.iter().flat_map(|c| c.iter()).for_each(&mut g);
+    tm.r_gcrf_km.iter().flat_map(|c| c.iter()).for_each(&mut g);
     for pd in &tm.pd_v {
         out2.extend(pd.iter().map(|x| x.map(f64::to_bits)));
     }

@@ -129,7 +129,7 @@ impl Case {
         let std = Normal::new(0.0, 1.0).unwrap();
         let m = self.nominal.len();
         let mut tel = Telemetry {
-            mag_nt: self.with_mag.then(Vec::new),
+            mag_nt: self.with_mag.then(Default::default),
             pd_v: vec![pdcal_dataset::Samples::with_capacity(self.steps); m],
             ..Telemetry::default()
         };
