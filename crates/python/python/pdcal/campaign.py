@@ -96,6 +96,7 @@ FIGURES = [
     "not_determined_outside_3sigma",
     "attitude_about_sun_inside",
     "attitude_across_sun_inside",
+    "gyro_bias_inside",
     "repeatability",
     "repeat_differing",
     "bias_change_warnings",
@@ -461,6 +462,8 @@ def _flatten(result: dict) -> dict:
         "not_determined_outside_3sigma": int(result["by_status"]["not_determined_outside_3sigma"]),
         "attitude_about_sun_inside": result["attitude_about_sun_inside"],
         "attitude_across_sun_inside": result["attitude_across_sun_inside"],
+        # Running gyro-bias errors inside their 3 sigma, per axis.
+        "gyro_bias_inside": result["gyro_bias_inside"],
         # With several sets: the repeatability verdict, the parameters whose sets differ
         # (joined by ";"), the gyro-bias change warnings, and the single tests beyond 3
         # sigma, their count and the RMS of their z.
