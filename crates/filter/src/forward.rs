@@ -596,13 +596,7 @@ impl<'a> ForwardPass<'a> {
         let start = self.probe_point();
         self.gyro_log = Some(Vec::new());
         let mut last = None;
-        while !self.at.acquiring
-            && self
-                .telemetry
-                .t_s
-                .get(self.at.next)
-                .is_some_and(|&t| t <= until_t_s)
-        {
+        while self.steps_before(until_t_s) {
             match self.step()? {
                 Some(k) => last = Some(k),
                 None => break,
@@ -770,17 +764,22 @@ impl<'a> ForwardPass<'a> {
         Ok(())
     }
 
-    /// Steps on until `until_t_s` or the segment's end: every scalar update's term of the
-    /// predictive likelihood.
-    fn probe(&mut self, until_t_s: f64) -> Result<Vec<crate::sun_line::ProbeTerm>, FilterError> {
-        let mut terms = Vec::new();
-        while !self.at.acquiring
+    /// Whether the next row is in this segment (no new acquisition due) and at or before
+    /// `until_t_s`.
+    fn steps_before(&self, until_t_s: f64) -> bool {
+        !self.at.acquiring
             && self
                 .telemetry
                 .t_s
                 .get(self.at.next)
                 .is_some_and(|&t| t <= until_t_s)
-        {
+    }
+
+    /// Steps on until `until_t_s` or the segment's end: every scalar update's term of the
+    /// predictive likelihood.
+    fn probe(&mut self, until_t_s: f64) -> Result<Vec<crate::sun_line::ProbeTerm>, FilterError> {
+        let mut terms = Vec::new();
+        while self.steps_before(until_t_s) {
             let Some(k) = self.step()? else { break };
             terms.extend(
                 self.filter
