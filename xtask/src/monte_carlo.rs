@@ -137,12 +137,26 @@ pub fn run(
     Ok(())
 }
 
+/// Mean, least and largest of the finite values: a seed whose figure is not defined (no
+/// photodiode lit 5 minutes, no sunlit sample after 10 minutes) gives NaN and is left out,
+/// and [`defined`] says how many seeds the figure is over.
 fn stats(values: impl Iterator<Item = f64> + Clone) -> (f64, f64, f64) {
+    let values = values.filter(|x| x.is_finite());
     let n = values.clone().count().max(1) as f64;
     let mean = values.clone().sum::<f64>() / n;
     let max = values.clone().fold(f64::NEG_INFINITY, f64::max);
     let min = values.fold(f64::INFINITY, f64::min);
     (mean, min, max)
+}
+
+/// ` (seeds where defined: n of N)` when `figure` is not defined for every seed.
+fn defined(r: &[SeedResult], figure: impl Fn(&SeedResult) -> f64) -> String {
+    let n = r.iter().filter(|x| figure(x).is_finite()).count();
+    if n < r.len() {
+        format!(" (seeds where defined: {n} of {})", r.len())
+    } else {
+        String::new()
+    }
 }
 
 /// The Markdown accuracy table: mean and worst over seeds against the acceptance bounds.
@@ -158,24 +172,28 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
     let _ = writeln!(s, "| figure of merit | mean | worst | bound |");
     let _ = writeln!(s, "|---|---|---|---|");
     let (m, _, w) = stats(r.iter().map(|x| x.worst_normal_deg));
+    let d = defined(r, |x| x.worst_normal_deg);
     let _ = writeln!(
         s,
-        "| normal error, worst photodiode lit >= 5 min (deg) | {m:.3} | {w:.3} | <= 0.5 |"
+        "| normal error, worst photodiode lit >= 5 min (deg){d} | {m:.3} | {w:.3} | <= 0.5 |"
     );
     let (m, _, w) = stats(r.iter().map(|x| x.worst_scale_percent));
+    let d = defined(r, |x| x.worst_scale_percent);
     let _ = writeln!(
         s,
-        "| scale error, worst photodiode lit >= 5 min (%) | {m:.3} | {w:.3} | <= 1 |"
+        "| scale error, worst photodiode lit >= 5 min (%){d} | {m:.3} | {w:.3} | <= 1 |"
     );
     let (m, _, w) = stats(r.iter().map(|x| x.attitude_rms_deg));
+    let d = defined(r, |x| x.attitude_rms_deg);
     let _ = writeln!(
         s,
-        "| attitude error RMS, sunlit after 10 min (deg) | {m:.3} | {w:.3} | <= 0.5 |"
+        "| attitude error RMS, sunlit after 10 min (deg){d} | {m:.3} | {w:.3} | <= 0.5 |"
     );
     let (m, _, w) = stats(r.iter().map(|x| x.attitude_settled_rms_deg));
+    let d = defined(r, |x| x.attitude_settled_rms_deg);
     let _ = writeln!(
         s,
-        "| attitude error RMS, sunlit from 60 s after each acquisition (deg) | {m:.3} | {w:.3} | <= 1 |"
+        "| attitude error RMS, sunlit from 60 s after each acquisition (deg){d} | {m:.3} | {w:.3} | <= 1 |"
     );
     if r.iter().all(|x| x.best_single.is_some()) {
         let best = |f: fn(&(f64, f64)) -> f64| {
@@ -323,30 +341,34 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
         );
     }
     let (m, wi, _) = stats(r.iter().map(|x| x.attitude_about_sun_inside));
+    let d = defined(r, |x| x.attitude_about_sun_inside);
     let _ = writeln!(
         s,
-        "| attitude errors about the Sun line inside 3-sigma | {:.2} % | {:.2} % | 99.7 +- 0.5 % |",
+        "| attitude errors about the Sun line inside 3-sigma{d} | {:.2} % | {:.2} % | 99.7 +- 0.5 % |",
         100.0 * m,
         100.0 * wi
     );
     let (m, wi, _) = stats(r.iter().map(|x| x.attitude_across_sun_inside));
+    let d = defined(r, |x| x.attitude_across_sun_inside);
     let _ = writeln!(
         s,
-        "| attitude errors across the Sun line inside 3-sigma | {:.2} % | {:.2} % | 99.7 +- 0.5 % |",
+        "| attitude errors across the Sun line inside 3-sigma{d} | {:.2} % | {:.2} % | 99.7 +- 0.5 % |",
         100.0 * m,
         100.0 * wi
     );
     let (m, wi, _) = stats(r.iter().map(|x| x.gyro_bias_inside));
+    let d = defined(r, |x| x.gyro_bias_inside);
     let _ = writeln!(
         s,
-        "| gyro-bias errors inside 3-sigma (per axis, the running estimate) | {:.2} % | {:.2} % | 99.7 +- 0.5 % |",
+        "| gyro-bias errors inside 3-sigma (per axis, the running estimate){d} | {:.2} % | {:.2} % | 99.7 +- 0.5 % |",
         100.0 * m,
         100.0 * wi
     );
     let (m, wi, _) = stats(r.iter().map(|x| x.residual_inside));
+    let d = defined(r, |x| x.residual_inside);
     let _ = writeln!(
         s,
-        "| photodiode residuals inside 3-sigma | {:.2} % | {:.2} % | >= 95 % |",
+        "| photodiode residuals inside 3-sigma{d} | {:.2} % | {:.2} % | >= 95 % |",
         100.0 * m,
         100.0 * wi
     );
@@ -369,9 +391,10 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
         "| calibrated sun-vector magnitude std{of} | {m:.4} | {w:.4} | <= 0.02 |"
     );
     let (m, wi, _) = stats(r.iter().map(|x| x.converged));
+    let d = defined(r, |x| x.converged);
     let _ = writeln!(
         s,
-        "| estimates within 3-sigma of final after 10 sunlit min | {:.2} % | {:.2} % | all |",
+        "| estimates within 3-sigma of final after 10 sunlit min{d} | {:.2} % | {:.2} % | all |",
         100.0 * m,
         100.0 * wi
     );

@@ -45,10 +45,40 @@ pub(crate) struct PassCheckpoint {
 /// checkpoint and the run's records, which a probe's steps must not keep.
 struct ProbePoint {
     pass: PassCheckpoint,
-    photodiode_time_s: Vec<f64>,
+    use_times: UseTimes,
     temperatures_c: Vec<f64>,
     rejections: Rejections,
     repairs: RepairLog,
+}
+
+/// The time the data informed the calibration: per photodiode, the time its accepted
+/// updates stand for (the step's length for each row it updated the filter at), and the
+/// part of it with the attitude held; and the time the attitude was held since the gyro
+/// bias last started from its prior. A state learnt while the attitude was tens of degrees
+/// uncertain rests on linearisations at that attitude, and its sigma with them
+/// ([`crate::identifiability`]).
+#[derive(Debug, Clone)]
+struct UseTimes {
+    used_s: Vec<f64>,
+    held_s: Vec<f64>,
+    bias_held_s: f64,
+}
+
+impl UseTimes {
+    fn new(photodiodes: usize) -> Self {
+        UseTimes {
+            used_s: vec![0.0; photodiodes],
+            held_s: vec![0.0; photodiodes],
+            bias_held_s: 0.0,
+        }
+    }
+
+    fn add_photodiode(&mut self, i: usize, step_s: f64, held: bool) {
+        self.used_s[i] += step_s;
+        if held {
+            self.held_s[i] += step_s;
+        }
+    }
 }
 
 /// Where a [`ForwardPass`] stands between two steps, besides the filter and the segment
@@ -118,9 +148,9 @@ pub struct ForwardPass<'a> {
     sigmas: SensorSigmas,
     filter: Filter,
     at: Cursor,
-    /// Per photodiode, the time its accepted updates stand for, s: the step's length for
-    /// each row it updated the filter at.
-    photodiode_time_s: Vec<f64>,
+    /// How long each photodiode updated the filter, and for how much of it the attitude
+    /// was held.
+    use_times: UseTimes,
     /// Closed segments, and the open one.
     segments: Vec<SegmentReport>,
     current: SegmentReport,
@@ -195,7 +225,7 @@ impl<'a> ForwardPass<'a> {
             sigmas,
             at: Cursor::first(filter.q(), telemetry.t_s[0], config),
             filter,
-            photodiode_time_s: vec![0.0; m],
+            use_times: UseTimes::new(m),
             segments: Vec::new(),
             current: SegmentReport::open(0, telemetry.t_s[0]),
             row: vec![None; m],
@@ -356,6 +386,7 @@ impl<'a> ForwardPass<'a> {
         if entered && self.config.gyro_bias_across_sets == BiasAcrossSets::Restart {
             self.filter
                 .restart_bias(self.config.initial_bias_sigma_deg_s.to_radians());
+            self.use_times.bias_held_s = 0.0;
         }
     }
 
@@ -701,8 +732,8 @@ impl<'a> ForwardPass<'a> {
         }
     }
 
-    /// After row `k`'s updates: the gated samples recorded, the covariance guard, the
-    /// cursor moved past the row, and the test whether the attitude is lost or the next
+    /// After row `k`'s updates: the covariance guard, whether the attitude is held, the
+    /// gated samples and the times of use recorded, the cursor moved past the row, and the test whether the attitude is lost or the next
     /// row starts a segment.
     fn finish_step(&mut self, k: usize, reference: &Reference) -> Result<(), FilterError> {
         let tel: &Telemetry = self.telemetry;
@@ -712,10 +743,14 @@ impl<'a> ForwardPass<'a> {
         } else {
             0.0
         };
-        self.record_rejections(k, step_s);
         let full = self.at.steps.is_multiple_of(FULL_GUARD_ROWS);
         if let Some(repair) = self.filter.guard_covariance(k, t_s, full)? {
             self.repairs.push(repair);
+        }
+        self.at.held = self.attitude_sigma_deg(k) <= self.config.segments.held_attitude_sigma_deg;
+        self.record_rejections(k, step_s);
+        if self.at.held {
+            self.use_times.bias_held_s += step_s;
         }
         self.at.steps += 1;
         self.at.step_segment = self.segments.len();
@@ -724,7 +759,6 @@ impl<'a> ForwardPass<'a> {
         self.at.last_t_s = t_s;
         self.at.last_r_gcrf_km = reference.r_gcrf_km;
         self.at.last_b_gcrf_nt = reference.b_gcrf_nt;
-        self.at.held = self.attitude_sigma_deg(k) <= self.config.segments.held_attitude_sigma_deg;
         self.end_segment_if_due(k);
         Ok(())
     }
@@ -807,7 +841,7 @@ impl<'a> ForwardPass<'a> {
     fn probe_point(&self) -> ProbePoint {
         ProbePoint {
             pass: self.checkpoint(),
-            photodiode_time_s: self.photodiode_time_s.clone(),
+            use_times: self.use_times.clone(),
             temperatures_c: self.temperatures_c.clone(),
             rejections: self.rejections.clone(),
             repairs: self.repairs.clone(),
@@ -816,7 +850,7 @@ impl<'a> ForwardPass<'a> {
 
     fn back_to(&mut self, point: &ProbePoint) -> Result<(), FilterError> {
         self.restore(&point.pass)?;
-        self.photodiode_time_s.clone_from(&point.photodiode_time_s);
+        self.use_times.clone_from(&point.use_times);
         self.temperatures_c.clone_from(&point.temperatures_c);
         self.rejections.clone_from(&point.rejections);
         self.repairs.clone_from(&point.repairs);
@@ -831,7 +865,7 @@ impl<'a> ForwardPass<'a> {
             self.at.window.push(r.accepted);
             if r.accepted {
                 if let Sensor::Photodiode(i) = r.sensor {
-                    self.photodiode_time_s[i] += step_s;
+                    self.use_times.add_photodiode(i, step_s, self.at.held);
                 }
                 continue;
             }
@@ -1045,7 +1079,9 @@ impl<'a> ForwardPass<'a> {
             covariance_repairs: self.repairs.clone(),
             segments: self.segments(),
             segment_rules: self.rules,
-            photodiode_time_used_s: self.photodiode_time_s.clone(),
+            photodiode_time_used_s: self.use_times.used_s.clone(),
+            photodiode_time_held_s: self.use_times.held_s.clone(),
+            bias_time_held_s: self.use_times.bias_held_s,
             propagation: self.propagation,
         }
     }

@@ -1,7 +1,7 @@
 //! Which calibrated quantities the data determined: every photodiode's scale factor,
 //! azimuth and elevation and the gyro bias get a [`Status`] with its reason, judged from
 //! what the data did to the prior (the posterior sigma against the prior sigma), how long
-//! the photodiode was used, how strongly its states are correlated with another's, and
+//! the photodiode was used (and for how much of it the attitude was held), how strongly its states are correlated with another's, and
 //! whether the residuals were consistent with the model at all. A quantity the data did
 //! not determine is reported as its prior (nominal) value, never as a calibration
 //! ([`reported_calibration`]).
@@ -11,7 +11,7 @@
 //! information than the prior (less than three quarters of the variance removed) and the
 //! number is the prior's, not the data's; below a fifth (96 % of the variance removed from
 //! the data), it is the data's. Between the two it is weakly determined: the number
-//! moved, its sigma is honest, but a second data set should confirm it.
+//! moved, but a second data set should confirm it.
 
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
@@ -28,7 +28,12 @@ pub const NOT_DETERMINED_SIGMA_RATIO: f64 = 0.5;
 /// `weakly-determined` (the two are told apart by the prior, not the data).
 pub const MAX_CORRELATION: f64 = 0.98;
 /// A photodiode used for less than this is at most `weakly-determined`, min: a few
-/// minutes of one tumble cover a narrow band of incidence.
+/// minutes of one tumble cover a narrow band of incidence. The same bound applies to the
+/// part of that time with the attitude *held* (its sigma in the observed directions within
+/// `segments.held_attitude_sigma_deg`), and to the time the attitude was held since the
+/// gyro bias last started from its prior: the EKF linearises each update at its estimate,
+/// and a state learnt at an attitude tens of degrees uncertain gets a sigma from Jacobians
+/// taken that far from the truth (docs/validation.md, "Weak real data").
 pub const MIN_USED_MIN: f64 = 5.0;
 
 /// How well the data determined a quantity.
@@ -94,6 +99,10 @@ pub struct Evidence<'a> {
     pub used: &'a [bool],
     /// The time each photodiode's accepted updates cover, s.
     pub time_used_s: &'a [f64],
+    /// The part of it with the attitude held, s.
+    pub time_held_s: &'a [f64],
+    /// The time the attitude was held since the gyro bias last started from its prior, s.
+    pub bias_time_held_s: f64,
     /// The final covariance and its layout (for correlations).
     pub covariance: &'a DMatrix<f64>,
     /// Its layout.
@@ -113,6 +122,8 @@ impl<'a> Evidence<'a> {
             calibration: &run.calibration,
             used: &run.used_photodiodes,
             time_used_s: &run.photodiode_time_used_s,
+            time_held_s: &run.photodiode_time_held_s,
+            bias_time_held_s: run.bias_time_held_s,
             covariance: &run.final_covariance,
             layout: &run.layout,
             normals_estimated: !matches!(run.mode, crate::output::ModeUsed::ScaleOnly { .. }),
@@ -136,6 +147,16 @@ pub fn judge_gyro_bias(e: &Evidence<'_>) -> [Judged; 3] {
         let mut j = by_sigma_ratio(post, prior, "rad/s");
         let rho = max_correlation(e.covariance, BIAS + k, &[BIAS + k], e.layout);
         cap_by_correlation(&mut j, rho);
+        let held_min = e.bias_time_held_s / 60.0;
+        if held_min < MIN_USED_MIN {
+            demote(
+                &mut j,
+                Status::WeaklyDetermined,
+                format!(
+                    "the attitude was held {held_min:.1} min only since the bias started from its prior (under {MIN_USED_MIN} min)"
+                ),
+            );
+        }
         cap_by_consistency(&mut j, e.verdict);
         j
     })
@@ -170,6 +191,7 @@ fn judge_photodiode(e: &Evidence<'_>, i: usize) -> PdIdentifiability {
         .chain(e.layout.normal(i).into_iter().flat_map(|d| [d, d + 1]))
         .collect();
     let minutes = e.time_used_s.get(i).copied().unwrap_or(0.0) / 60.0;
+    let held_minutes = e.time_held_s.get(i).copied().unwrap_or(0.0) / 60.0;
     let scale_states = [e.layout.scale(i)];
     let normal_states: Vec<usize> = e
         .layout
@@ -194,6 +216,15 @@ fn judge_photodiode(e: &Evidence<'_>, i: usize) -> PdIdentifiability {
                 j,
                 Status::WeaklyDetermined,
                 format!("lit and used {minutes:.1} min only (under {MIN_USED_MIN} min)"),
+            );
+        } else if held_minutes < MIN_USED_MIN {
+            demote(
+                j,
+                Status::WeaklyDetermined,
+                format!(
+                    "lit and used {minutes:.1} min, {held_minutes:.1} of them with the \
+                     attitude held (under {MIN_USED_MIN} min)"
+                ),
             );
         }
         cap_by_consistency(j, e.verdict);

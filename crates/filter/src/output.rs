@@ -116,6 +116,11 @@ pub struct CalibrationRun {
     /// Per photodiode, the time its accepted updates cover, s (each update counts the
     /// length of the step to its row): the sunlit time the calibration used.
     pub photodiode_time_used_s: Vec<f64>,
+    /// Per photodiode, the part of that time with the attitude held (its sigma in the
+    /// observed directions within `segments.held_attitude_sigma_deg`), s.
+    pub photodiode_time_held_s: Vec<f64>,
+    /// The time the attitude was held since the gyro bias last started from its prior, s.
+    pub bias_time_held_s: f64,
     /// The propagation between samples (the gyro-driven MEKF or the rigid-body dynamics)
     /// and why ([`crate::propagation`]).
     pub propagation: PropagationChoice,

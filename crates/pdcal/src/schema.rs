@@ -123,6 +123,10 @@ pub struct PdSummary {
     pub scale_change_percent: f64,
     /// Sunlit time the calibration used: the time its accepted updates cover, min.
     pub time_used_min: f64,
+    /// The part of it with the attitude held (its sigma in the observed directions within
+    /// `segments.held_attitude_sigma_deg`), min: under 5 min a quantity is at most
+    /// `weakly-determined`.
+    pub time_held_min: f64,
     /// Why the result deserves a second look, when it does: `never lit`, `lit too little
     /// (N min)`, `change beyond 3 sigma of the prior`.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -407,6 +411,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
                 normal_change_deg,
                 scale_change_percent: 100.0 * (cal.scale_v - init.scale_v) / init.scale_v,
                 time_used_min,
+                time_held_min: run.photodiode_time_held_s.get(i).copied().unwrap_or(0.0) / 60.0,
                 flag: mounting_flag(i + 1, &outcome.mountings)
                     .or_else(|| photodiode_flag(*used, time_used_min, change, init)),
             }

@@ -1,5 +1,6 @@
 //! The result a user reads first: the photodiode table (calibrated values with 1 sigma, the
-//! nominal ones, the change, the sunlit time used and a flag) and the segments of the run,
+//! nominal ones, the change, the sunlit time used and the part of it with the attitude
+//! held, and a flag) and the segments of the run,
 //! as rows of text shared by index.html and the printed summary of `pdcal calibrate`.
 
 use std::fmt::Write as _;
@@ -23,7 +24,7 @@ pub fn photodiode_table(summary: &Summary) -> Table {
         "nominal az / el (deg)",
         "normal change (deg)",
         "C change (%)",
-        "sunlit used (min)",
+        "sunlit used / held (min)",
         "status",
         "flag",
     ];
@@ -54,7 +55,7 @@ pub fn photodiode_table(summary: &Summary) -> Table {
                 ),
                 format!("{:.2}", p.normal_change_deg),
                 format!("{:+.2}", p.scale_change_percent),
-                format!("{:.1}", p.time_used_min),
+                format!("{:.1} / {:.1}", p.time_used_min, p.time_held_min),
                 p.status.as_str().to_owned(),
                 p.flag.clone().unwrap_or_default(),
             ]
