@@ -64,7 +64,6 @@ mod meta;
 pub mod publish;
 mod ron_text;
 pub mod rules;
-mod samples;
 mod spill;
 mod stream;
 mod table;
@@ -72,7 +71,7 @@ mod telemetry;
 mod temperature;
 mod truth;
 
-pub use column::{Cell, Column, Vectors};
+pub use column::{Cell, Column, Samples, Vectors};
 pub use current::{CURRENT_RANGE_A, CurrentColumn, current_column, is_current_name};
 pub use error::{DatasetError, ErrorKind, FileFaultKind, TextFault, decode_text};
 pub use files::{
@@ -85,7 +84,6 @@ pub use meta::{
 };
 pub use pdcal_effects::{Effect, EffectId};
 pub use ron_text::{RonFault, RonFaultKind, parse_ron};
-pub use samples::Samples;
 pub use stream::{TelemetryLayout, TelemetryStream};
 pub use telemetry::{
     Telemetry, TelemetryRow, TelemetryStorage, columns, photodiode_column, telemetry_from_columns,

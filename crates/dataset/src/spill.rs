@@ -5,8 +5,8 @@
 //! # Why this shape
 //! The photodiode, gyro and magnetometer columns are all but the time of a long data set
 //! (23 of 24 numbers a row in the rax2-like layout), and every reader of them goes through
-//! the by-value `get(k)` and `iter()` of [`crate::Samples`] and [`crate::Column`], never a
-//! slice: the file can stand behind that API alone, and the filter, the checks, the
+//! the by-value `get(k)` and `iter()` of [`crate::Column`] (of which [`crate::Samples`] is
+//! the scalar one), never a slice: the file can stand behind that API alone, and the filter, the checks, the
 //! metrics and the figures read the same bits from either storage. The file is made in a directory the caller names (the output's staging
 //! directory) and unlinked at once, so it never appears in a published output and vanishes
 //! with the process however that ends. Rows are read by `pread` a block at a time
@@ -16,8 +16,8 @@
 //! the last whole block are held in memory until the block fills.
 //!
 //! A failure to read or write the file (a disk error, not a data error) is kept and
-//! reported by [`SpillColumn::error`] (through `Samples::storage_error`,
-//! `Column::storage_error` and `Telemetry::storage_error`); the rows it concerns read as
+//! reported by [`SpillColumn::error`] (through `Column::storage_error` and
+//! `Telemetry::storage_error`); the rows it concerns read as
 //! blank, so a caller checks before trusting a result.
 
 use std::fs::File;
@@ -56,11 +56,6 @@ struct Cache {
 }
 
 impl SpillColumn {
-    /// An empty column of one `f64` a row in a new file in `dir`, unlinked at once.
-    pub(crate) fn create(dir: &Path) -> std::io::Result<Self> {
-        Self::create_wide(dir, 1)
-    }
-
     /// An empty column of `width` `f64`s a row in a new file in `dir`, unlinked at once.
     pub(crate) fn create_wide(dir: &Path, width: usize) -> std::io::Result<Self> {
         let width = width.max(1);
@@ -102,14 +97,6 @@ impl SpillColumn {
 
     pub(crate) fn len(&self) -> usize {
         self.flushed + self.tail.len() / self.width
-    }
-
-    /// Row `k` of a column one `f64` wide, `None` past the last row (or after a read
-    /// error, [`SpillColumn::error`]).
-    #[inline]
-    pub(crate) fn get(&self, k: usize) -> Option<f64> {
-        let mut x = [0.0];
-        self.get_row(k, &mut x).then_some(x[0])
     }
 
     /// Copies row `k` into `out` (`width` cells); false past the last row (or after a read
@@ -169,11 +156,6 @@ impl SpillColumn {
         Ok(())
     }
 
-    /// Sets row `k` of a column one `f64` wide; ignored past the last row.
-    pub(crate) fn set(&mut self, k: usize, x: f64) {
-        self.set_row(k, &[x]);
-    }
-
     /// Sets row `k` to `row` (`width` cells); ignored past the last row.
     pub(crate) fn set_row(&mut self, k: usize, row: &[f64]) {
         let w = self.width;
@@ -198,12 +180,6 @@ impl SpillColumn {
         }
     }
 
-    /// Appends a row of a column one `f64` wide; the tail goes to the file when it makes a
-    /// whole block.
-    pub(crate) fn try_push(&mut self, x: f64) -> std::io::Result<()> {
-        self.try_push_row(&[x])
-    }
-
     /// Appends a row (`width` cells); the tail goes to the file when it makes a whole block.
     pub(crate) fn try_push_row(&mut self, row: &[f64]) -> std::io::Result<()> {
         self.tail.extend_from_slice(row);
@@ -217,22 +193,11 @@ impl SpillColumn {
         Ok(())
     }
 
-    /// [`SpillColumn::try_push`], a failure kept for [`SpillColumn::error`].
-    pub(crate) fn push(&mut self, x: f64) {
-        self.push_row(&[x]);
-    }
-
     /// [`SpillColumn::try_push_row`], a failure kept for [`SpillColumn::error`].
     pub(crate) fn push_row(&mut self, row: &[f64]) {
         if let Err(e) = self.try_push_row(row) {
             self.failed("write", &e);
         }
-    }
-
-    /// Removes the last row of a column one `f64` wide.
-    pub(crate) fn pop(&mut self) -> Option<f64> {
-        let mut x = [0.0];
-        self.pop_row(&mut x).then_some(x[0])
     }
 
     /// Moves the last row into `out` and removes it; false without rows.
@@ -281,14 +246,25 @@ impl SpillColumn {
 mod tests {
     use super::*;
 
+    impl SpillColumn {
+        fn get(&self, k: usize) -> Option<f64> {
+            let mut x = [0.0];
+            self.get_row(k, &mut x).then_some(x[0])
+        }
+        fn pop(&mut self) -> Option<f64> {
+            let mut x = [0.0];
+            self.pop_row(&mut x).then_some(x[0])
+        }
+    }
+
     #[test]
     fn a_file_column_reads_back_what_was_written_in_any_order() {
         let dir = tempfile::tempdir().unwrap();
-        let mut column = SpillColumn::create(dir.path()).unwrap();
+        let mut column = SpillColumn::create_wide(dir.path(), 1).unwrap();
         let n = 5 * BLOCK_ROWS + 17;
         let value = |k: usize| (k as f64).sqrt() - 3.0;
         for k in 0..n {
-            column.try_push(value(k)).unwrap();
+            column.try_push_row(&[value(k)]).unwrap();
         }
         assert_eq!(column.len(), n);
         // Backward, forward, jumping between blocks: more blocks than the cache holds.
@@ -297,9 +273,9 @@ mod tests {
         }
         assert_eq!(column.get(n), None);
         column.get(3);
-        column.set(3, -1.0);
-        column.set(n - 1, -2.0);
-        column.set(BLOCK_ROWS * 4 + 1, -3.0);
+        column.set_row(3, &[-1.0]);
+        column.set_row(n - 1, &[-2.0]);
+        column.set_row(BLOCK_ROWS * 4 + 1, &[-3.0]);
         let copy = column.try_clone().unwrap();
         for c in [&column, &copy] {
             assert_eq!(c.get(3), Some(-1.0));

@@ -5,11 +5,10 @@ use std::path::Path;
 
 use nalgebra::Vector3;
 
-use crate::column::Vectors;
+use crate::column::{Cell, Column, Samples, Vectors};
 use crate::current::{CURRENT_RANGE_A, CurrentColumn, current_key};
 use crate::error::{DatasetError, ErrorKind};
 use crate::meta::{DatasetMeta, OrbitSpec};
-use crate::samples::Samples;
 use crate::table::{CsvRows, find, push_row, require, require3};
 use crate::temperature::{
     HeldTemperatures, TEMPERATURE_RANGE_C, TemperatureColumn, TemperatureKey,
@@ -387,24 +386,17 @@ pub enum TelemetryStorage {
     #[default]
     Memory,
     /// The photodiode, gyro, magnetometer and position columns in files of this
-    /// directory, read through a small cache of blocks ([`Samples::in_file`],
-    /// [`crate::Column::in_file`]); the times, temperatures and currents in memory. The files are unlinked when made, so nothing is left in the
-    /// directory.
+    /// directory, read through a small cache of blocks ([`Column::in_file`]); the times,
+    /// temperatures and currents in memory. The files are unlinked when made, so nothing is
+    /// left in the directory.
     Files(std::path::PathBuf),
 }
 
 impl TelemetryStorage {
-    fn samples(&self) -> std::io::Result<Samples> {
+    fn column<T: Cell>(&self) -> std::io::Result<Column<T>> {
         match self {
-            TelemetryStorage::Memory => Ok(Samples::new()),
-            TelemetryStorage::Files(dir) => Samples::in_file(dir),
-        }
-    }
-
-    fn vectors(&self) -> std::io::Result<Vectors> {
-        match self {
-            TelemetryStorage::Memory => Ok(Vectors::new()),
-            TelemetryStorage::Files(dir) => Vectors::in_file(dir),
+            TelemetryStorage::Memory => Ok(Column::new()),
+            TelemetryStorage::Files(dir) => Column::in_file(dir),
         }
     }
 
@@ -458,11 +450,11 @@ fn empty_telemetry<R: Read>(
 ) -> std::io::Result<Telemetry> {
     Ok(Telemetry {
         pd_v: (0..lay.pd.len())
-            .map(|_| storage.samples())
+            .map(|_| storage.column())
             .collect::<Result<_, _>>()?,
-        gyro_rad_s: storage.vectors()?,
-        mag_nt: lay.mag.map(|_| storage.vectors()).transpose()?,
-        r_gcrf_km: lay.r.map(|_| storage.vectors()).transpose()?,
+        gyro_rad_s: storage.column()?,
+        mag_nt: lay.mag.map(|_| storage.column()).transpose()?,
+        r_gcrf_km: lay.r.map(|_| storage.column()).transpose()?,
         temperature_c: (lay.temperature.iter())
             .map(|&col| TemperatureColumn {
                 name: rows.header[col].clone(),
