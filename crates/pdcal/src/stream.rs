@@ -8,7 +8,8 @@
 //!
 //! The smoothed rows arrive in segments, last segment first: each is appended to a spill
 //! file in the staging directory with its byte range, and [`StreamSink::finish`] copies
-//! the ranges in row order into `estimates_smoothed.csv` and removes the spill.
+//! the ranges in row order into `estimates_smoothed.csv`, shortening the spill behind each
+//! range it copied (the last range appended is the first in row order), and removes it.
 
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom, Write};
@@ -252,14 +253,24 @@ impl StreamSink {
             let mut out = out
                 .into_inner()
                 .map_err(|e| anyhow::anyhow!("{}: {e}", self.smoothed_path.display()))?;
-            let mut spill = File::open(&self.spill_path)
+            let mut spill = std::fs::OpenOptions::new()
+                .read(true)
+                .write(true)
+                .open(&self.spill_path)
                 .with_context(|| format!("cannot read {}", self.spill_path.display()))?;
+            // Row order is the reverse of arrival, so each block copied is the spill's last:
+            // cut off once copied, the spill and the CSV together never hold much more than
+            // the smoothed rows once.
             for &(start, end) in self.segments.iter().rev() {
                 spill
                     .seek(SeekFrom::Start(start))
                     .with_context(|| format!("cannot read {}", self.spill_path.display()))?;
                 std::io::copy(&mut (&mut spill).take(end - start), &mut out)
                     .with_context(|| format!("cannot write {}", self.smoothed_path.display()))?;
+                out.flush().with_context(writing(&self.smoothed_path))?;
+                spill
+                    .set_len(start)
+                    .with_context(|| format!("cannot shorten {}", self.spill_path.display()))?;
             }
             out.flush().with_context(writing(&self.smoothed_path))?;
         }
