@@ -733,8 +733,8 @@ impl<'a> ForwardPass<'a> {
     }
 
     /// After row `k`'s updates: the covariance guard, whether the attitude is held, the
-    /// gated samples and the times of use recorded, the cursor moved past the row, and the test whether the attitude is lost or the next
-    /// row starts a segment.
+    /// gated samples and the times of use recorded, the cursor moved past the row, and
+    /// the test whether the attitude is lost or the next row starts a segment.
     fn finish_step(&mut self, k: usize, reference: &Reference) -> Result<(), FilterError> {
         let tel: &Telemetry = self.telemetry;
         let t_s = tel.t_s[k];

@@ -1,8 +1,9 @@
 //! Which calibrated quantities the data determined: every photodiode's scale factor,
 //! azimuth and elevation and the gyro bias get a [`Status`] with its reason, judged from
 //! what the data did to the prior (the posterior sigma against the prior sigma), how long
-//! the photodiode was used (and for how much of it the attitude was held), how strongly its states are correlated with another's, and
-//! whether the residuals were consistent with the model at all. A quantity the data did
+//! the photodiode was used (and for how much of it the attitude was held), how strongly
+//! its states are correlated with another's, and whether the residuals were consistent
+//! with the model at all. A quantity the data did
 //! not determine is reported as its prior (nominal) value, never as a calibration
 //! ([`reported_calibration`]).
 //!

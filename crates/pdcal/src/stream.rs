@@ -267,7 +267,6 @@ impl StreamSink {
                     .with_context(|| format!("cannot read {}", self.spill_path.display()))?;
                 std::io::copy(&mut (&mut spill).take(end - start), &mut out)
                     .with_context(|| format!("cannot write {}", self.smoothed_path.display()))?;
-                out.flush().with_context(writing(&self.smoothed_path))?;
                 spill
                     .set_len(start)
                     .with_context(|| format!("cannot shorten {}", self.spill_path.display()))?;

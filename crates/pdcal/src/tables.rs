@@ -1,7 +1,7 @@
 //! The result a user reads first: the photodiode table (calibrated values with 1 sigma, the
 //! nominal ones, the change, the sunlit time used and the part of it with the attitude
-//! held, and a flag) and the segments of the run,
-//! as rows of text shared by index.html and the printed summary of `pdcal calibrate`.
+//! held, and a flag) and the segments of the run, as rows of text shared by index.html
+//! and the printed summary of `pdcal calibrate`.
 
 use std::fmt::Write as _;
 
