@@ -313,6 +313,46 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
             r.len()
         );
     }
+    let fitted: Vec<&pdcal_filter::CommonRotation> = r
+        .iter()
+        .filter_map(|x| x.normals_rotation.as_ref())
+        .collect();
+    if !fitted.is_empty() {
+        let found: Vec<f64> = fitted
+            .iter()
+            .filter(|f| f.finding)
+            .map(|f| f.angle_deg)
+            .collect();
+        let angles = if found.is_empty() {
+            "-".to_owned()
+        } else {
+            format!(
+                "{:.1} .. {:.1} deg",
+                found.iter().copied().fold(f64::INFINITY, f64::min),
+                found.iter().copied().fold(0.0, f64::max)
+            )
+        };
+        let _ = writeln!(
+            s,
+            "| runs whose normals are found turned together from the nominal mounting (fitted: {}; angles found: {angles}) | {} / {} | - | - |",
+            fitted.len(),
+            found.len(),
+            r.len()
+        );
+    }
+    let silent = r
+        .iter()
+        .filter(|x| {
+            x.verdict == "consistent"
+                && x.repeatability != "not-repeatable"
+                && !x.normals_rotation.as_ref().is_some_and(|f| f.finding)
+        })
+        .count();
+    let _ = writeln!(
+        s,
+        "| runs that say nothing (`consistent`, not `not-repeatable`, no turned normals) | {silent} / {} | - | - |",
+        r.len()
+    );
     let with_dynamics = r.iter().filter(|x| x.dynamics.0).count();
     let tested: Vec<f64> = r.iter().filter_map(|x| x.dynamics.1).collect();
     let chi = if tested.is_empty() {

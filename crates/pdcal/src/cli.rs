@@ -194,7 +194,7 @@ pub fn run(cli: Cli) -> Result<()> {
             config.mag_align = mag_align;
             let (outcome, summary) =
                 crate::calibrate::run_dirs_forced(&datasets, &out, &config, force)?;
-            print_warnings(&outcome.warnings);
+            print_warnings(&summary.warnings);
             print!("{}", crate::tables::console_summary(&summary));
             eprintln!(
                 "calibrated in {:.2} s -> {}",

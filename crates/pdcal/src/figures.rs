@@ -471,6 +471,12 @@ pub fn write_index(
     if let Some(extra) = evaluation {
         rows.extend(extra.iter().cloned());
     }
+    rows.extend(
+        summary
+            .warnings
+            .iter()
+            .map(|w| ("warning".to_owned(), w.clone())),
+    );
     let tables: Vec<pdcal_report::Table> = [
         Some(crate::tables::photodiode_table(summary)),
         Some(crate::tables::consistency_table(&summary.consistency)),

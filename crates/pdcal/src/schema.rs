@@ -88,6 +88,10 @@ pub struct Summary {
     /// Photodiodes whose data contradict their nominal mounting or polarity: what dataset.ron
     /// says, what the data support, and what the calibration did (`crate::mounting`).
     pub mounting_findings: Vec<pdcal_filter::mounting::MountingFinding>,
+    /// The one rotation that carries the nominal normals onto the calibrated ones, fitted
+    /// to the photodiodes whose normals the data moved, with its sigma and whether it is a
+    /// finding (`pdcal_filter::common_rotation`); null when fewer than 4 were.
+    pub normals_rotation: Option<pdcal_filter::CommonRotation>,
     /// The calibration as reported (`calibration.ron`): every quantity the data did not
     /// determine at its prior value, the statuses listed.
     #[serde(skip)]
@@ -385,6 +389,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         &bias_status,
     );
     reported.status = status_lines(&determination, &bias_status);
+    let normals_rotation = normals_rotation(run, &determination);
     let photodiodes = reported
         .photodiodes
         .iter()
@@ -460,6 +465,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
                     .and_then(|b| bias_beyond_fit(b, &run.calibration)),
             )
             .chain(about_sun_line_undecided(&run.segments))
+            .chain(normals_rotation.as_ref().and_then(|r| r.warning()))
             .collect(),
         segment_rules: run.segment_rules,
         propagation: run.propagation,
@@ -467,8 +473,33 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         datasets: outcome.datasets.clone(),
         repeatability: outcome.repeatability.clone(),
         mounting_findings: outcome.mountings.clone(),
+        normals_rotation,
         reported,
     }
+}
+
+/// The common rotation of the normals the data moved (used, estimated, neither angle
+/// `not-determined`) from the nominal mounting.
+fn normals_rotation(
+    run: &pdcal_filter::CalibrationRun,
+    determination: &[pdcal_filter::identifiability::PdIdentifiability],
+) -> Option<pdcal_filter::CommonRotation> {
+    let moved: Vec<bool> = determination
+        .iter()
+        .zip(&run.used_photodiodes)
+        .map(|(d, used)| {
+            *used
+                && d.azimuth.status != Status::NotDetermined
+                && d.elevation.status != Status::NotDetermined
+        })
+        .collect();
+    pdcal_filter::common_rotation::common_rotation(
+        &run.initial,
+        &run.calibration,
+        &run.final_covariance,
+        &run.layout,
+        &moved,
+    )
 }
 
 /// A warning naming the Sun-only segments whose attitude the data did not tell from its

@@ -70,6 +70,9 @@ pub struct SeedResult {
     /// chi-square per dof of the gyro's rate test when `dynamics: Auto` ran it
     /// (`summary.json` `propagation`).
     pub dynamics: (bool, Option<f64>),
+    /// The common rotation of the normals from the nominal mounting (`summary.json`
+    /// `normals_rotation`); `None` when not fitted.
+    pub normals_rotation: Option<pdcal_filter::CommonRotation>,
 }
 
 /// What a downlink keeps and what the filter is told, comma-separated parts:
@@ -500,6 +503,7 @@ pub fn run_seed(
             s.propagation.dynamics(),
             s.propagation.gyro_rate_test.map(|t| t.chi_square_per_dof),
         ),
+        normals_rotation: s.normals_rotation.clone(),
     };
     Ok(SeedRun {
         result,
