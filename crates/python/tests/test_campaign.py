@@ -134,7 +134,24 @@ def test_equals_xtask_sim_calibrate(client, tmp_path):
             ],
             "dynamics": [row["dynamics"], row["gyro_rate_chi_square_per_dof"]],
         }
-        want = {k: v for k, v in want.items() if k not in ("seed", "runtime_s")}
+        rotation = want["normals_rotation"]
+        assert [
+            row["normals_rotation_deg"],
+            row["normals_rotation_chi_square"],
+            row["normals_rotation_explained"],
+            row["normals_turned"],
+        ] == (
+            [None] * 4
+            if rotation is None
+            else [
+                rotation["angle_deg"],
+                rotation["chi_square"],
+                rotation["explained"],
+                rotation["finding"],
+            ]
+        ), row["run_id"]
+        skipped = ("seed", "runtime_s", "normals_rotation")
+        want = {k: v for k, v in want.items() if k not in skipped}
         assert got == want, row["run_id"]
         # The worst photodiode of the per-photodiode errors is the worst of the table.
         lit = [

@@ -108,6 +108,10 @@ FIGURES = [
     "about_sun_undecided",
     "dynamics",
     "gyro_rate_chi_square_per_dof",
+    "normals_rotation_deg",
+    "normals_rotation_chi_square",
+    "normals_rotation_explained",
+    "normals_turned",
 ]
 
 _DEG = math.pi / 180.0
@@ -433,6 +437,7 @@ def _run_options(spec: dict, params: dict) -> tuple:
 
 
 def _flatten(result: dict) -> dict:
+    rotation = result.get("normals_rotation")
     row = {
         "worst_normal_deg": result["worst_normal_deg"],
         "worst_scale_percent": result["worst_scale_percent"],
@@ -482,6 +487,13 @@ def _flatten(result: dict) -> dict:
         # chi-square per degree of freedom of the gyro's rate test (None when not run).
         "dynamics": bool(result["dynamics"][0]),
         "gyro_rate_chi_square_per_dof": result["dynamics"][1],
+        # The one rotation from the nominal to the calibrated normals (summary.json
+        # normals_rotation): its angle, its chi-square, the part of the normals' changes it
+        # explains, and whether it is a finding; None when it was not fitted.
+        "normals_rotation_deg": None if rotation is None else rotation["angle_deg"],
+        "normals_rotation_chi_square": None if rotation is None else rotation["chi_square"],
+        "normals_rotation_explained": None if rotation is None else rotation["explained"],
+        "normals_turned": None if rotation is None else bool(rotation["finding"]),
     }
     for pd in result["photodiodes"]:
         p = f"pd{pd['index']:02d}"
