@@ -34,6 +34,13 @@ fn the_skcube_frames_are_judged_alike_and_nothing_undetermined_is_a_result() {
     // Frames 42 s apart while the spacecraft turns about 1 deg/s: the residuals are many
     // times the count-level noise, and the verdict says so.
     assert_eq!(verdict, "inconsistent", "{}", summary["consistency"]);
+    // No normal the frames moved, so no common rotation of them is fitted (a rotation of
+    // undetermined normals would be a result the data did not give).
+    assert!(
+        summary["normals_rotation"].is_null(),
+        "{}",
+        summary["normals_rotation"]
+    );
     assert!(outcome.diagnosis.verdict().contains("unexplained"));
 
     let cal = pdcal_filter::Calibration::from_ron_str(
