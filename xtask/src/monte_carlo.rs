@@ -326,11 +326,8 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
         let angles = if found.is_empty() {
             "-".to_owned()
         } else {
-            format!(
-                "{:.1} .. {:.1} deg",
-                found.iter().copied().fold(f64::INFINITY, f64::min),
-                found.iter().copied().fold(0.0, f64::max)
-            )
+            let (_, least, largest) = stats(found.iter().copied());
+            format!("{least:.1} .. {largest:.1} deg")
         };
         let _ = writeln!(
             s,

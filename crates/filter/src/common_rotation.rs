@@ -120,15 +120,14 @@ pub fn common_rotation(
     let fit = Fit::new(initial, calibration, covariance, layout, &chosen)?;
     let none = fit.chi_square(&Rotation3::identity());
     let mut rotation = Rotation3::identity();
-    let mut information = Matrix3::zeros();
     for _ in 0..ITERATIONS {
-        let (step, info) = fit.step(&rotation)?;
+        let (step, _) = fit.step(&rotation)?;
         rotation = Rotation3::new(step) * rotation;
-        information = info;
         if step.norm() < 1e-12 {
             break;
         }
     }
+    let (_, information) = fit.step(&rotation)?;
     let covariance_rad2 = information.try_inverse()?;
     let vector = rotation.scaled_axis();
     let chi_square = vector.dot(&(information * vector));
