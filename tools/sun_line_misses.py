@@ -101,6 +101,16 @@ def true_normals(truth_ron):
     return [normal(float(az), float(el)) for _, az, el in found]
 
 
+def about_inside(a_true, a_est, s_true, p_deg2):
+    """`pdcal_evaluate::sun_line_inside`'s test about the Sun line."""
+    turn = a_true @ a_est.T  # body vectors of the estimate to the truth's
+    angle = math.acos(max(-1.0, min(1.0, (np.trace(turn) - 1) / 2)))
+    axis = np.array([turn[2, 1] - turn[1, 2], turn[0, 2] - turn[2, 0], turn[1, 0] - turn[0, 1]])
+    n = np.linalg.norm(axis)
+    err = axis / n * math.degrees(angle) if n > 1e-12 else 0 * axis
+    return abs(err @ s_true) <= 3 * math.sqrt(max(s_true @ p_deg2 @ s_true, 0.0))
+
+
 def across_inside(s_true, s_est, p_deg2):
     """`pdcal_evaluate::sun_line_inside`'s across-line test."""
     cross = np.cross(s_est, s_true)
@@ -161,8 +171,26 @@ def rows_of(sets, cal):
                 common=math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(turn) - 1) / 2)))),
                 sigma=sigma,
                 inside=across_inside(s_true, s_est, p),
+                about=about_inside(a_true, a_est, s_true, p),
+                segment=int(r["segment"]),
             )
         )
+    return out
+
+
+def about_by_probe(cal, rows):
+    """About-line misses in segments whose half-turn probe was decided / not decided."""
+    import json
+
+    segments = json.load(open(cal + "/summary.json"))["segments"]
+    decided = {
+        i: (s.get("about_sun_line") or {}).get("decided")
+        for i, s in enumerate(segments)
+    }
+    out = {}
+    for label, want in (("decided", True), ("not decided", False), ("not probed", None)):
+        sel = [x for x in rows if decided.get(x["segment"]) is want]
+        out[label] = (sum(not x["about"] for x in sel), len(sel))
     return out
 
 
@@ -194,7 +222,9 @@ def main():
     text = open(args.scenario).read()
     for seed in args.seeds:
         sets, cal = run_seed(args.pdcal, text, seed, args.work)
-        report(seed, rows_of(sets, cal))
+        rows = rows_of(sets, cal)
+        report(seed, rows)
+        print("  about the Sun line outside, by the segment's half-turn probe:", about_by_probe(cal, rows))
 
 
 if __name__ == "__main__":
