@@ -159,6 +159,35 @@ fn defined(r: &[SeedResult], figure: impl Fn(&SeedResult) -> f64) -> String {
     }
 }
 
+/// The attitude errors about and across the Sun line of the runs that end `consistent`
+/// alone: whether a run that does not warn can be taken at its sigmas (the misses of the
+/// runs that do warn are said by their verdict).
+fn sun_line_of_consistent_runs(s: &mut String, r: &[SeedResult]) {
+    let quiet: Vec<&SeedResult> = r.iter().filter(|x| x.verdict == "consistent").collect();
+    if quiet.is_empty() || quiet.len() == r.len() {
+        return;
+    }
+    let with_figure = quiet
+        .iter()
+        .filter(|x| x.attitude_across_sun_inside.is_finite())
+        .count();
+    let defined = match with_figure < quiet.len() {
+        true => format!(" ({with_figure} of them with sunlit converged rows)"),
+        false => String::new(),
+    };
+    let (about, about_worst, _) = stats(quiet.iter().map(|x| x.attitude_about_sun_inside));
+    let (across, across_worst, _) = stats(quiet.iter().map(|x| x.attitude_across_sun_inside));
+    let _ = writeln!(
+        s,
+        "| attitude errors about / across the Sun line inside 3-sigma, the {} runs that end `consistent`{defined} | {:.2} / {:.2} % | {:.2} / {:.2} % | 99.7 +- 0.5 % |",
+        quiet.len(),
+        100.0 * about,
+        100.0 * across,
+        100.0 * about_worst,
+        100.0 * across_worst
+    );
+}
+
 /// The Markdown accuracy table: mean and worst over seeds against the acceptance bounds.
 pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
     let mut s = String::new();
@@ -393,6 +422,7 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
         100.0 * m,
         100.0 * wi
     );
+    sun_line_of_consistent_runs(&mut s, r);
     let (m, wi, _) = stats(r.iter().map(|x| x.gyro_bias_inside));
     let d = defined(r, |x| x.gyro_bias_inside);
     let _ = writeln!(
