@@ -23,6 +23,8 @@ docs/validation.md ("Where the across-line misses are") holds what it printed.
 
 import argparse
 import csv
+import datetime
+import json
 import math
 import os
 import re
@@ -54,8 +56,6 @@ def shifted_scenario(text, k):
     if k == 0:
         return text
     m = re.search(r'epoch_utc: "(\d{4})-(\d{2})-(\d{2})T([^"]*)"', text)
-    import datetime
-
     day = datetime.date(int(m[1]), int(m[2]), int(m[3])) + datetime.timedelta(
         days=SET_SHIFT_DAYS * k
     )
@@ -180,8 +180,6 @@ def rows_of(sets, cal):
 
 def about_by_probe(cal, rows):
     """About-line misses in segments whose half-turn probe was decided / not decided."""
-    import json
-
     segments = json.load(open(cal + "/summary.json"))["segments"]
     decided = {
         i: (s.get("about_sun_line") or {}).get("decided")
@@ -221,7 +219,11 @@ def main():
     os.makedirs(args.work, exist_ok=True)
     text = open(args.scenario).read()
     for seed in args.seeds:
-        sets, cal = run_seed(args.pdcal, text, seed, args.work)
+        try:
+            sets, cal = run_seed(args.pdcal, text, seed, args.work)
+        except subprocess.CalledProcessError as e:
+            print(f"seed {seed}: {' '.join(e.cmd[:2])} failed: {e.stderr.decode().strip()}")
+            continue
         rows = rows_of(sets, cal)
         report(seed, rows)
         print("  about the Sun line outside, by the segment's half-turn probe:", about_by_probe(cal, rows))
