@@ -150,10 +150,17 @@ fn stats(values: impl Iterator<Item = f64> + Clone) -> (f64, f64, f64) {
 }
 
 /// ` (seeds where defined: n of N)` when `figure` is not defined for every seed.
-fn defined(r: &[SeedResult], figure: impl Fn(&SeedResult) -> f64) -> String {
-    let n = r.iter().filter(|x| figure(x).is_finite()).count();
-    if n < r.len() {
-        format!(" (seeds where defined: {n} of {})", r.len())
+fn defined<'a>(
+    r: impl IntoIterator<Item = &'a SeedResult>,
+    figure: impl Fn(&SeedResult) -> f64,
+) -> String {
+    let (mut n, mut all) = (0, 0);
+    for x in r {
+        all += 1;
+        n += usize::from(figure(x).is_finite());
+    }
+    if n < all {
+        format!(" (seeds where defined: {n} of {all})")
     } else {
         String::new()
     }
@@ -167,14 +174,7 @@ fn sun_line_of_consistent_runs(s: &mut String, r: &[SeedResult]) {
     if quiet.is_empty() || quiet.len() == r.len() {
         return;
     }
-    let with_figure = quiet
-        .iter()
-        .filter(|x| x.attitude_across_sun_inside.is_finite())
-        .count();
-    let defined = match with_figure < quiet.len() {
-        true => format!(" ({with_figure} of them with sunlit converged rows)"),
-        false => String::new(),
-    };
+    let defined = defined(quiet.iter().copied(), |x| x.attitude_across_sun_inside);
     let (about, about_worst, _) = stats(quiet.iter().map(|x| x.attitude_about_sun_inside));
     let (across, across_worst, _) = stats(quiet.iter().map(|x| x.attitude_across_sun_inside));
     let _ = writeln!(

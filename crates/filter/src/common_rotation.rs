@@ -197,15 +197,10 @@ impl Fit {
     /// rotated nominal one (the log map: along the great circle, by the angle).
     fn residual(&self, rotation: &Rotation3<f64>) -> DVector<f64> {
         let mut r = DVector::zeros(2 * self.normals.len());
-        for (j, (n, (e1, e2), nominal)) in self.normals.iter().enumerate() {
-            let m = rotation * nominal;
-            let across = m - n * n.dot(&m);
-            let sin = across.norm();
-            if sin > 0.0 {
-                let v = across * (sin.atan2(n.dot(&m)) / sin);
-                r[2 * j] = e1.dot(&v);
-                r[2 * j + 1] = e2.dot(&v);
-            }
+        for (j, (n, basis, nominal)) in self.normals.iter().enumerate() {
+            let (d1, d2) = crate::smoother::tangent_log_in(n, &(rotation * nominal), basis);
+            r[2 * j] = d1;
+            r[2 * j + 1] = d2;
         }
         r
     }
