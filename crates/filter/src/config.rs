@@ -217,6 +217,26 @@ pub struct FilterConfig {
     /// ([`crate::rate`], "Uncertain inertia"). Default 0.1 (a CAD inertia's typical
     /// error); `0` trusts the inertia.
     pub inertia_sigma_fraction: f64,
+    /// The multi-start ensemble that widens the reported covariances by what the data do
+    /// not decide between ([`crate::ensemble`]). Default `Auto`: on when the Sun is the
+    /// only vector (no magnetometer used).
+    pub ensemble: EnsembleRuns,
+    /// Seed of the ensemble's starts (ChaCha8): the same seed, the same numbers.
+    pub ensemble_seed: u64,
+}
+
+/// How many extra forward passes, each from a start drawn from the calibration's prior,
+/// the run makes to widen its covariances ([`crate::ensemble`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum EnsembleRuns {
+    /// [`crate::ensemble::AUTO_RUNS`] when the run uses no magnetometer (the Sun the only
+    /// vector: the posterior is not one Gaussian), none otherwise.
+    #[default]
+    Auto,
+    /// None: the covariances are the filter's own.
+    Off,
+    /// This many, whatever the sensors.
+    Runs(usize),
 }
 
 /// The gyro bias at the first acquisition of a data set after the first, in a joint run.
@@ -303,6 +323,8 @@ impl Default for FilterConfig {
             dipole_sigma_a_m2: 1.0,
             dipole_walk_a_m2_sqrt_s: 1e-4,
             inertia_sigma_fraction: 0.1,
+            ensemble: EnsembleRuns::Auto,
+            ensemble_seed: 1,
         }
     }
 }
@@ -444,6 +466,15 @@ impl FilterConfig {
                     "must be non-negative and finite",
                 ));
             }
+        }
+        if let EnsembleRuns::Runs(n) = self.ensemble
+            && n > crate::ensemble::MAX_RUNS
+        {
+            return Err(bad(
+                "ensemble",
+                n as f64,
+                "Runs(n) must be at most 64 (each run is one more forward pass)",
+            ));
         }
         Ok(())
     }

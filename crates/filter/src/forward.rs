@@ -12,6 +12,7 @@ use pdcal_photodiode::{MeasurementModel, Photodiode};
 use crate::bias_fit::{BiasSource, FitInputs, FitPrior, InitialBias, fit_bias};
 use crate::calibration::Calibration;
 use crate::config::{E_AM0_W_M2, FilterConfig, Mode, SensorSigmas};
+use crate::ensemble::StartDraw;
 use crate::error::check_len;
 use crate::filter::{
     AlbedoGainNoise, Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements,
@@ -185,6 +186,19 @@ impl<'a> ForwardPass<'a> {
         model: MeasurementModel,
         algebra: Algebra,
     ) -> Result<Self, FilterError> {
+        Self::new_from(inputs, prepared, mode, model, algebra, None)
+    }
+
+    /// [`ForwardPass::new`] with the calibration's start moved by `draw` (an ensemble
+    /// member's, [`crate::ensemble`]); the prior's sigmas are unchanged.
+    pub fn new_from(
+        inputs: &RunInputs<'a>,
+        prepared: &'a Prepared<'a>,
+        mode: &'a Mode,
+        model: MeasurementModel,
+        algebra: Algebra,
+        draw: Option<&StartDraw>,
+    ) -> Result<Self, FilterError> {
         let telemetry = prepared_telemetry(inputs, prepared)?;
         let config = prepared.config();
         let m = inputs.meta.photodiodes.len();
@@ -201,8 +215,16 @@ impl<'a> ForwardPass<'a> {
         let used = initial.used.clone();
         let rules = prepared.rules();
         let layout = StateLayout::new(&model, prior.is_none());
-        let (init, noise) =
+        let (mut init, noise) =
             initial_state(inputs, &initial, prior, (config, sigmas, &rules), &layout);
+        if let Some(draw) = draw {
+            draw.apply(
+                &mut init.scale_v,
+                &init.scale_sigma_v,
+                &mut init.n_body,
+                init.normal_sigma_rad,
+            );
+        }
         let mut filter = Filter::new(model, layout, init, noise, algebra)?;
         filter.set_sun_only(!use_mag);
         let propagation =
@@ -526,6 +548,11 @@ impl<'a> ForwardPass<'a> {
     /// The row the filter starts at (rows before it are skipped).
     pub fn start_index(&self) -> usize {
         self.start
+    }
+
+    /// Whether the run uses the magnetometer (else the Sun is its only vector).
+    pub fn uses_magnetometer(&self) -> bool {
+        self.use_mag
     }
 
     /// The filter, after the last step.
@@ -1083,6 +1110,7 @@ impl<'a> ForwardPass<'a> {
             photodiode_time_held_s: self.use_times.held_s.clone(),
             bias_time_held_s: self.use_times.bias_held_s,
             propagation: self.propagation,
+            ensemble: None,
         }
     }
 }

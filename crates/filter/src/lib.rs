@@ -96,6 +96,7 @@ pub mod common_rotation;
 pub mod config;
 pub mod consistency;
 pub mod dense;
+pub mod ensemble;
 mod error;
 pub mod filter;
 pub mod forward;
@@ -122,7 +123,9 @@ pub use bias_fit::{BiasSource, InitialBias};
 pub use bounded::{Bounded, LISTED_ROWS};
 pub use calibration::{Calibration, ParameterEstimate, PdCalibration};
 pub use common_rotation::CommonRotation;
-pub use config::{BiasAcrossSets, Dynamics, FilterConfig, Mode, ParameterSigma, SensorSigmas};
+pub use config::{
+    BiasAcrossSets, Dynamics, EnsembleRuns, FilterConfig, Mode, ParameterSigma, SensorSigmas,
+};
 pub use consistency::{Consistency, ConsistencyAccumulator, Verdict};
 pub use error::FilterError;
 pub use filter::{

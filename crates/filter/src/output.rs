@@ -124,6 +124,9 @@ pub struct CalibrationRun {
     /// The propagation between samples (the gyro-driven MEKF or the rigid-body dynamics)
     /// and why ([`crate::propagation`]).
     pub propagation: PropagationChoice,
+    /// The multi-start ensemble that widened the covariances, when one ran
+    /// ([`crate::ensemble`]).
+    pub ensemble: Option<crate::ensemble::EnsembleReport>,
 }
 
 /// The estimate at one row from a state and its covariance (the forward filter's or the

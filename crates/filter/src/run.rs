@@ -7,6 +7,7 @@ use pdcal_photodiode::{Albedo, DirectSun, MeasurementModel, Photodiode};
 
 use crate::FilterError;
 use crate::config::{FilterConfig, Mode};
+use crate::ensemble::Ensemble;
 use crate::filter::Algebra;
 use crate::forward::{ForwardPass, PassCheckpoint};
 use crate::output::{CalibrationRun, ResidualRecord, StepEstimate};
@@ -33,15 +34,18 @@ pub fn calibrate(
     mode: &Mode,
 ) -> Result<CalibrationRun, FilterError> {
     let prepared = Prepared::of(inputs, config)?;
-    let photodiodes = nominal_photodiodes(inputs.meta);
-    calibrate_with_model(
+    let model = || paper_model(nominal_photodiodes(inputs.meta), config);
+    calibrate_in_memory(
         &prepared.inputs(inputs),
         &prepared,
         mode,
-        paper_model(photodiodes, config),
+        (model(), Some(&model)),
         Algebra::Structured,
     )
 }
+
+/// A model for each member of the ensemble ([`crate::ensemble`]); `None`: no ensemble.
+pub type MemberModels<'m> = Option<&'m dyn Fn() -> MeasurementModel>;
 
 /// The dataset's nominal photodiodes (unit scale, `dataset.ron` normals and fields of view),
 /// for [`paper_model`].
@@ -66,8 +70,22 @@ pub fn calibrate_with_model(
     model: MeasurementModel,
     algebra: Algebra,
 ) -> Result<CalibrationRun, FilterError> {
+    calibrate_in_memory(inputs, prepared, mode, (model, None), algebra)
+}
+
+/// [`calibrate_with_model`] with the ensemble's members made by `members`, when given and
+/// the configuration asks for them ([`crate::ensemble`]).
+fn calibrate_in_memory(
+    inputs: &RunInputs<'_>,
+    prepared: &Prepared<'_>,
+    mode: &Mode,
+    (model, members): (MeasurementModel, MemberModels<'_>),
+    algebra: Algebra,
+) -> Result<CalibrationRun, FilterError> {
     let config = prepared.config();
     let mut pass = ForwardPass::new(inputs, prepared, mode, model, algebra)?;
+    let mut ensemble =
+        members.and_then(|m| Ensemble::start(&pass, (inputs, prepared, mode), m, algebra));
     let steps = pass.remaining();
     let mut store = config
         .smoother
@@ -86,8 +104,13 @@ pub fn calibrate_with_model(
         if pass.step()?.is_none() {
             break;
         }
+        let first = residuals.len();
         residuals.extend(pass.residual_records());
-        forward.push(pass.estimate());
+        let mut estimate = pass.estimate();
+        if let Some(e) = ensemble.as_mut() {
+            e.widen(&mut estimate, &residuals[first..]);
+        }
+        forward.push(estimate);
         if let Some(store) = store.as_mut() {
             pass.record_for_smoother(store);
         }
@@ -95,7 +118,14 @@ pub fn calibrate_with_model(
     if let (Some(store), Some(out)) = (store.as_ref(), smoothed.as_mut()) {
         out.extend(store.smooth(pass.filter().layout(), pass.prior)?);
     }
-    Ok(pass.result(forward, smoothed, residuals))
+    if let (Some(e), Some(out)) = (ensemble.as_ref(), smoothed.as_mut()) {
+        out.iter_mut().for_each(|s| e.widen_smoothed(s));
+    }
+    let mut run = pass.result(forward, smoothed, residuals);
+    if let Some(e) = ensemble {
+        e.widen_final(&mut run);
+    }
+    Ok(run)
 }
 
 /// Receives a streaming run's per-row results as they are produced
@@ -177,14 +207,14 @@ pub fn calibrate_streaming(
     inputs: &RunInputs<'_>,
     prepared: &Prepared<'_>,
     mode: &Mode,
-    model: MeasurementModel,
+    models: (MeasurementModel, MemberModels<'_>),
     algebra: Algebra,
     block_rows: usize,
     sink: &mut dyn RunSink,
 ) -> Result<CalibrationRun, FilterError> {
     let every = kept_every(prepared.telemetry().len(), block_rows);
     calibrate_streaming_kept(
-        inputs, prepared, mode, model, algebra, block_rows, every, sink,
+        inputs, prepared, mode, models, algebra, block_rows, every, sink,
     )
 }
 
@@ -198,7 +228,7 @@ pub fn calibrate_streaming_kept(
     inputs: &RunInputs<'_>,
     prepared: &Prepared<'_>,
     mode: &Mode,
-    model: MeasurementModel,
+    (model, members): (MeasurementModel, MemberModels<'_>),
     algebra: Algebra,
     block_rows: usize,
     every: usize,
@@ -208,6 +238,8 @@ pub fn calibrate_streaming_kept(
     let every = every.max(1);
     let config = prepared.config();
     let mut pass = ForwardPass::new(inputs, prepared, mode, model, algebra)?;
+    let mut ensemble =
+        members.and_then(|m| Ensemble::start(&pass, (inputs, prepared, mode), m, algebra));
     let mut kept: Vec<Kept> = Vec::new();
     let mut residuals = Vec::new();
     let mut starts = BlockStarts::new(block_rows);
@@ -227,10 +259,19 @@ pub fn calibrate_streaming_kept(
         starts.in_block += 1;
         residuals.clear();
         residuals.extend(pass.residual_records());
-        sink.forward(&pass.estimate(), &residuals);
+        let mut estimate = pass.estimate();
+        if let Some(e) = ensemble.as_mut() {
+            e.widen(&mut estimate, &residuals);
+        }
+        sink.forward(&estimate, &residuals);
     }
     // The forward results, before the replays below move the filter.
     let mut run = pass.result(Vec::new(), None, Vec::new());
+    let mut widening = WideningSink {
+        inner: sink,
+        ensemble: ensemble.as_ref(),
+    };
+    let sink: &mut dyn RunSink = &mut widening;
     if config.smoother {
         let mut smoother = Backward {
             layout: run.layout.clone(),
@@ -250,7 +291,37 @@ pub fn calibrate_streaming_kept(
         }
         run.smoothed = Some(Vec::new());
     }
+    if let Some(e) = ensemble {
+        e.widen_final(&mut run);
+    }
     Ok(run)
+}
+
+/// A sink that widens the smoothed rows by the ensemble's spread before passing them on.
+struct WideningSink<'s, 'e> {
+    inner: &'s mut dyn RunSink,
+    ensemble: Option<&'s Ensemble<'e>>,
+}
+
+impl RunSink for WideningSink<'_, '_> {
+    fn forward(&mut self, estimate: &StepEstimate, residuals: &[ResidualRecord]) {
+        self.inner.forward(estimate, residuals);
+    }
+
+    fn smoothed(&mut self, segment: &[StepEstimate]) {
+        match self.ensemble {
+            Some(e) => {
+                let mut widened = segment.to_vec();
+                widened.iter_mut().for_each(|s| e.widen_smoothed(s));
+                self.inner.smoothed(&widened);
+            }
+            None => self.inner.smoothed(segment),
+        }
+    }
+
+    fn cancelled(&mut self) -> bool {
+        self.inner.cancelled()
+    }
 }
 
 /// The states at the `every` block starts from `first` on (fewer at the end of the data),

@@ -506,12 +506,13 @@ pub fn run_sets(
     .with_sets(&set_starts)
     .with_cancel(cancel);
     let start = Instant::now();
-    let model = pdcal_filter::paper_model(pdcal_filter::nominal_photodiodes(&meta), &config.filter);
+    let model =
+        || pdcal_filter::paper_model(pdcal_filter::nominal_photodiodes(&meta), &config.filter);
     let mut run = pdcal_filter::calibrate_streaming(
         &inputs,
         &prepared,
         &config.mode,
-        model,
+        (model(), Some(&model)),
         Algebra::Structured,
         smoother_block_rows(meta.photodiodes.len()),
         &mut sink,

@@ -397,7 +397,7 @@ fn own_estimate(
         &inputs,
         &prepared,
         mode,
-        model,
+        (model, None),
         pdcal_filter::Algebra::Structured,
         pdcal_filter::SMOOTHER_BLOCK_ROWS,
         &mut sink,

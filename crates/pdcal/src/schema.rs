@@ -2,7 +2,9 @@
 //! calibration's [`Outcome`]), and the [`Outcome`] itself, what a calibration produced.
 
 use pdcal_dataset::DatasetMeta;
-use pdcal_filter::identifiability::{Evidence, Judged, PdIdentifiability, Status};
+use pdcal_filter::identifiability::{
+    Evidence, Judged, NOT_DETERMINED_SIGMA_RATIO, PdIdentifiability, Status,
+};
 use pdcal_filter::{
     Calibration, CalibrationRun, GapRules, ModeUsed, PdCalibration, RepairKind, ResidualRecord,
     SegmentReport, Sensor,
@@ -74,6 +76,10 @@ pub struct Summary {
     /// `rate-changes`, `rate-carried`) and, with `dynamics: Auto`, the test of the gyro's
     /// samples against its noise ([`pdcal_filter::propagation`]).
     pub propagation: pdcal_filter::PropagationChoice,
+    /// The multi-start ensemble that widened the reported sigmas, when one ran
+    /// ([`pdcal_filter::ensemble`]); absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ensemble: Option<pdcal_filter::ensemble::EnsembleReport>,
     /// The segments: rows between gaps, silent gyros and lost attitudes, how each one's
     /// attitude was acquired, or why it was skipped.
     pub segments: Vec<SegmentReport>,
@@ -389,7 +395,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         &bias_status,
     );
     reported.status = status_lines(&determination, &bias_status);
-    let normals_rotation = normals_rotation(run, &determination);
+    let normals_rotation = normals_rotation(run);
     let photodiodes = reported
         .photodiodes
         .iter()
@@ -469,6 +475,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
             .collect(),
         segment_rules: run.segment_rules,
         propagation: run.propagation,
+        ensemble: run.ensemble.clone(),
         segments: run.segments.clone(),
         datasets: outcome.datasets.clone(),
         repeatability: outcome.repeatability.clone(),
@@ -478,28 +485,36 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
     }
 }
 
-/// The common rotation of the normals the data moved (used, estimated, neither angle
-/// `not-determined`) from the nominal mounting.
-fn normals_rotation(
-    run: &pdcal_filter::CalibrationRun,
-    determination: &[pdcal_filter::identifiability::PdIdentifiability],
-) -> Option<pdcal_filter::CommonRotation> {
-    let moved: Vec<bool> = determination
+/// The common rotation of the used photodiodes' estimated normals from the nominal
+/// mounting, when the data determined it. Every used normal takes part, a `not-determined`
+/// one too: the fit weighs each by the joint final covariance, so a normal the data hardly
+/// moved counts for little, and the normals' common turn can be determined while no single
+/// normal is (with the ensemble's widened covariances, [`pdcal_filter::ensemble`], most
+/// normals of an uncalibrated Sun-only head are `not-determined` one by one). A rotation
+/// whose sigma about any axis is above [`NOT_DETERMINED_SIGMA_RATIO`] of the normals'
+/// prior sigma is the prior's, not the data's, and is not reported, by the rule of
+/// [`pdcal_filter::identifiability`].
+fn normals_rotation(run: &pdcal_filter::CalibrationRun) -> Option<pdcal_filter::CommonRotation> {
+    let prior_deg = run
+        .initial
+        .photodiodes
         .iter()
         .zip(&run.used_photodiodes)
-        .map(|(d, used)| {
-            *used
-                && d.azimuth.status != Status::NotDetermined
-                && d.elevation.status != Status::NotDetermined
-        })
-        .collect();
+        .filter(|(_, used)| **used)
+        .map(|(p, _)| p.elevation_sigma_deg)
+        .fold(0.0, f64::max);
     pdcal_filter::common_rotation::common_rotation(
         &run.initial,
         &run.calibration,
         &run.final_covariance,
         &run.layout,
-        &moved,
+        &run.used_photodiodes,
     )
+    .filter(|r| {
+        r.sigma_body_deg
+            .iter()
+            .all(|s| *s <= NOT_DETERMINED_SIGMA_RATIO * prior_deg)
+    })
 }
 
 /// A warning naming the Sun-only segments whose attitude the data did not tell from its

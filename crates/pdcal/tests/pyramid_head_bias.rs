@@ -13,14 +13,22 @@
 //! Sun line within 5 deg) for under a minute, so no state it learnt may be reported
 //! `calibrated`: the states outside 3 sigma of the truth are all `weakly-determined` or
 //! `not-determined`.
+//!
+//! The multi-start ensemble (`FilterConfig::ensemble`, on by default without a
+//! magnetometer) widens what is reported by the spread of the solutions the data allow: in
+//! seed 17 the filter alone settles 20-45 deg across the Sun line from the truth with a
+//! sigma of a few degrees; widened, the attitude is inside its 3 sigma. The tests of the
+//! filter's own behaviour run without it.
 
 use pdcal::calibrate::{RunConfig, albedo_model};
 use pdcal::sim_calibrate::run_seed;
-use pdcal_filter::{FilterConfig, Mode};
+use pdcal_filter::{EnsembleRuns, FilterConfig, Mode};
 
+/// The filter alone (no ensemble), with `relinearise_window_s`.
 fn run(seed: u64, relinearise_window_s: f64) -> pdcal::sim_calibrate::SeedResult {
     let filter = FilterConfig {
         relinearise_window_s,
+        ensemble: EnsembleRuns::Off,
         ..FilterConfig::default()
     };
     run_sets(seed, 3, filter)
@@ -83,4 +91,23 @@ fn states_learnt_while_the_attitude_was_not_held_are_not_called_calibrated() {
         r.by_status.weakly_determined_outside_3sigma + r.by_status.not_determined_outside_3sigma;
     assert!(wrong >= 3, "{r:?}");
     assert_eq!(r.by_status.calibrated, 0, "{r:?}");
+}
+
+#[test]
+fn the_ensemble_widens_a_confidently_wrong_attitude_to_cover_the_truth() {
+    let alone = run(17, FilterConfig::default().relinearise_window_s);
+    let widened = run_sets(17, 3, FilterConfig::default());
+    eprintln!(
+        "seed 17, across the Sun line inside: alone {:.3}, widened {:.3}; final states {:?} -> {:?}",
+        alone.attitude_across_sun_inside,
+        widened.attitude_across_sun_inside,
+        alone.final_inside,
+        widened.final_inside
+    );
+    assert!(alone.attitude_across_sun_inside < 0.5, "{alone:?}");
+    assert!(widened.attitude_across_sun_inside > 0.95, "{widened:?}");
+    // The estimate is the filter's own: the same segments, the same residuals' verdict.
+    assert_eq!(alone.segments, widened.segments);
+    assert_eq!(alone.verdict, widened.verdict);
+    assert!(widened.final_inside.0 > alone.final_inside.0, "{widened:?}");
 }
