@@ -1,7 +1,10 @@
 //! The whole 2 h rax2-like data set (7201 rows, 17 photodiodes, TOMS albedo): `calibrate`
 //! forward filter only (`calibrate_rax2_2h`) and with the RTS smoother
 //! (`calibrate_rax2_2h_smoothed`), and the forward filter with the rigid-body dynamics on
-//! (`calibrate_rax2_2h_dynamics`: the rate and dipole states, the gyro a measurement). Simulation, references and the albedo map are built once
+//! (`calibrate_rax2_2h_dynamics`: the rate and dipole states, the gyro a measurement), and
+//! photodiode-only forward filters without and with the multi-start ensemble
+//! (`calibrate_rax2_2h_photodiode_only`, `..._ensemble`: eight more forward passes).
+//! Simulation, references and the albedo map are built once
 //! outside the timed loop; albedo evaluation per row is inside it (as in the driver).
 #![allow(missing_docs)]
 
@@ -9,7 +12,9 @@ use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use pdcal_albedo::{AlbedoModel, MapChoice};
-use pdcal_filter::{Dynamics, FilterConfig, Mode, RunInputs, calibrate, step_references};
+use pdcal_filter::{
+    Dynamics, EnsembleRuns, FilterConfig, Mode, RunInputs, calibrate, step_references,
+};
 
 fn bench(c: &mut Criterion) {
     let scenario = pdcal_sim::Scenario::rax2_like().unwrap();
@@ -41,6 +46,16 @@ fn bench(c: &mut Criterion) {
     };
     group.bench_function("calibrate_rax2_2h_dynamics", |b| {
         b.iter(|| calibrate(&inputs, &dynamics, &Mode::Full).unwrap())
+    });
+    let alone = FilterConfig {
+        ensemble: EnsembleRuns::Off,
+        ..forward.clone()
+    };
+    group.bench_function("calibrate_rax2_2h_photodiode_only", |b| {
+        b.iter(|| calibrate(&inputs, &alone, &Mode::PhotodiodeOnly).unwrap())
+    });
+    group.bench_function("calibrate_rax2_2h_photodiode_only_ensemble", |b| {
+        b.iter(|| calibrate(&inputs, &forward, &Mode::PhotodiodeOnly).unwrap())
     });
     group.bench_function("calibrate_rax2_2h_smoothed", |b| {
         b.iter(|| calibrate(&inputs, &FilterConfig::default(), &Mode::Full).unwrap())
