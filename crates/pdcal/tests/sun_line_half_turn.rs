@@ -5,11 +5,13 @@
 //! the filter follows both starts over a probe window and keeps the one the data favour.
 //! Seeds 8 and 14 of the rax2-like scenario are two whose acquisition lands in the wrong
 //! basin for one of the two ways the acquisition can pick its rotation about the Sun line;
-//! against the truth, with and without the probe.
+//! against the truth, with and without the probe. The filter's own choice is tested: no
+//! multi-start ensemble (its members, some in the other basin, would widen the attitude
+//! about the Sun line where the probe is off).
 
 use pdcal::calibrate::{RunConfig, albedo_model};
 use pdcal::sim_calibrate::run_seed;
-use pdcal_filter::{FilterConfig, Mode};
+use pdcal_filter::{EnsembleRuns, FilterConfig, Mode};
 
 fn run(seed: u64, probe_s: f64) -> pdcal::sim_calibrate::SeedResult {
     let scenario = pdcal_sim::Scenario::rax2_like().unwrap();
@@ -17,6 +19,7 @@ fn run(seed: u64, probe_s: f64) -> pdcal::sim_calibrate::SeedResult {
         mode: Mode::PhotodiodeOnly,
         filter: FilterConfig {
             about_sun_probe_s: probe_s,
+            ensemble: EnsembleRuns::Off,
             ..FilterConfig::default()
         },
         ..RunConfig::default()
