@@ -218,11 +218,17 @@ impl<'a> ForwardPass<'a> {
         let (mut init, noise) =
             initial_state(inputs, &initial, prior, (config, sigmas, &rules), &layout);
         if let Some(draw) = draw {
+            // A scale-only run holds the prior's normals fixed: a member moves its scales.
+            let normal_sigma_rad = if prior.is_none() {
+                init.normal_sigma_rad
+            } else {
+                0.0
+            };
             draw.apply(
                 &mut init.scale_v,
                 &init.scale_sigma_v,
                 &mut init.n_body,
-                init.normal_sigma_rad,
+                normal_sigma_rad,
             );
         }
         let mut filter = Filter::new(model, layout, init, noise, algebra)?;
