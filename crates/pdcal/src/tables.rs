@@ -61,10 +61,23 @@ pub fn photodiode_table(summary: &Summary) -> Table {
             ]
         })
         .collect();
+    let widened = summary
+        .ensemble
+        .as_ref()
+        .map(|e| {
+            format!(
+                "; sigmas widened by the spread of {} of {} ensemble runs from other starts",
+                e.started, e.runs
+            )
+        })
+        .unwrap_or_default();
     Table::new(
-        "Photodiodes (calibrated value +- 1 sigma; nominal: the dataset.ron mounting, and \
-         the maximum output as C; \"not determined\": the data did not determine it, \
-         summary.json and calibration.ron hold the nominal value and say why)",
+        &format!(
+            "Photodiodes (calibrated value +- 1 sigma{widened}; nominal: the dataset.ron \
+             mounting, and the maximum output as C; \"not determined\": the data did not \
+             determine it, summary.json and calibration.ron hold the nominal value and say \
+             why)"
+        ),
         &header,
         rows,
     )

@@ -42,6 +42,11 @@ fn the_skcube_frames_are_judged_alike_and_nothing_undetermined_is_a_result() {
         summary["normals_rotation"]
     );
     assert!(outcome.diagnosis.verdict().contains("unexplained"));
+    // Sun only (the map takes no magnetometer): the ensemble ran, and the photodiode table
+    // of index.html says its sigmas are widened.
+    assert_eq!(summary["ensemble"]["runs"], 8, "{}", summary["ensemble"]);
+    let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+    assert!(html.contains("ensemble runs from other starts"));
 
     let cal = pdcal_filter::Calibration::from_ron_str(
         &std::fs::read_to_string(out.join("calibration.ron")).unwrap(),
