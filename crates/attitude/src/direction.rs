@@ -31,6 +31,11 @@ pub fn normal_from_az_el(azimuth_rad: f64, elevation_rad: f64) -> Vector3<f64> {
     Vector3::new(ce * ca, ce * sa, se)
 }
 
+/// The difference of two azimuths (or any angles), deg, wrapped into [-180, 180).
+pub fn wrap_deg(d: f64) -> f64 {
+    (d + 180.0).rem_euclid(360.0) - 180.0
+}
+
 /// Azimuth and elevation (radians) of a direction; the inverse of Eq. (16).
 /// At the poles (`|el| = 90 deg`) the azimuth is undefined and 0 is returned.
 pub fn az_el_from_normal(n: &Vector3<f64>) -> (f64, f64) {

@@ -51,7 +51,7 @@ pub mod vector_pairs;
 pub use direction::{
     RAX2_TABLE1_AZ_EL_DEG, TANGENT_BASIS_SINGULAR_DIRECTION, TangentFrame, az_el_from_normal,
     normal_from_az_el, normal_partials, rotate_normal, rotate_normal_in, tangent_basis,
-    tangent_basis_about,
+    tangent_basis_about, wrap_deg,
 };
 pub use error::AttitudeError;
 pub use mekf::GyroNoise;

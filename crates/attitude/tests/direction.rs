@@ -222,3 +222,17 @@ fn rotate_normal_in_a_given_basis_has_the_basis_as_derivative() {
     // Central difference of a smooth unit-size function at h = 1e-6: error ~h^2 + eps/h.
     assert!((d1 - e1).norm() < 1e-8 && (d2 - e2).norm() < 1e-8);
 }
+
+#[test]
+fn angle_differences_wrap_into_the_half_open_turn() {
+    for (d, w) in [
+        (190.0, -170.0),
+        (-190.0, 170.0),
+        (180.0, -180.0),
+        (-180.0, -180.0),
+        (725.0, 5.0),
+    ] {
+        let got = pdcal_attitude::wrap_deg(d);
+        assert!((got - w).abs() < 1e-12, "{d} -> {got}");
+    }
+}

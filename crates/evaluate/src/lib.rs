@@ -5,7 +5,7 @@
 
 use anyhow::{Context, Result, bail};
 use nalgebra::Vector3;
-use pdcal_attitude::{Quat, mekf::error_vector, normal_from_az_el};
+use pdcal_attitude::{Quat, mekf::error_vector, normal_from_az_el, wrap_deg};
 use pdcal_dataset::{TruthConstants, TruthSeries};
 use pdcal_filter::{Calibration, StepEstimate};
 use serde::Serialize;
@@ -225,13 +225,6 @@ pub fn sun_line_inside(
     Some((about, across))
 }
 
-/// The attitude covariance of an estimate, deg^2.
-pub fn attitude_cov_deg2(e: &StepEstimate) -> nalgebra::Matrix3<f64> {
-    let [sx, sy, sz] = e.attitude_sigma_deg;
-    let [xy, xz, yz] = e.attitude_cov_offdiag_deg2;
-    nalgebra::Matrix3::new(sx * sx, xy, xz, xy, sy * sy, yz, xz, yz, sz * sz)
-}
-
 fn quat_of(v: &nalgebra::Vector4<f64>) -> Option<Quat> {
     Quat::new_normalized(v.x, v.y, v.z, v.w)
 }
@@ -246,10 +239,6 @@ pub fn quaternion_fault(q: &[f64; 4]) -> String {
     } else {
         format!("{q:?} (its norm overflows)")
     }
-}
-
-fn wrap_deg(a: f64) -> f64 {
-    (a + 180.0).rem_euclid(360.0) - 180.0
 }
 
 /// Evaluates estimates (forward or smoothed) and the final calibration against truth.
@@ -610,7 +599,7 @@ fn consistency(
         .filter_map(|&(k, row)| {
             let q_true = quat_of(&truth.q[row])?;
             let e = &estimates[k];
-            sun_line_inside(&q_true, &e.q, &truth.sun_body[row], &attitude_cov_deg2(e))
+            sun_line_inside(&q_true, &e.q, &truth.sun_body[row], &e.attitude_cov_deg2())
         })
         .collect();
     let about: Vec<bool> = sun_line.iter().map(|s| s.0).collect();

@@ -30,7 +30,7 @@
 
 use nalgebra::{DMatrix, Matrix3, Rotation3, Vector3};
 use pdcal_attitude::mekf::error_vector;
-use pdcal_attitude::{Quat, tangent_basis};
+use pdcal_attitude::{Quat, tangent_basis, wrap_deg};
 use pdcal_photodiode::MeasurementModel;
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
@@ -144,9 +144,14 @@ struct Member<'a> {
 }
 
 impl Member<'_> {
-    /// The member's estimate at row `index`, stepping it there; `None` where it has none
-    /// (its attitude not held there, or its pass ended or failed).
-    fn at(&mut self, index: usize) -> Option<&StepEstimate> {
+    /// Whether the member's latest estimate is of row `index`.
+    fn holds(&self, index: usize) -> bool {
+        self.last.as_ref().is_some_and(|e| e.index == index)
+    }
+
+    /// Steps the member to row `index`; whether it has an estimate there (not where its
+    /// attitude is not held, or its pass ended or failed).
+    fn at(&mut self, index: usize) -> bool {
         while !self.done && self.last.as_ref().is_none_or(|e| e.index < index) {
             match self.pass.step() {
                 Ok(Some(_)) => {
@@ -158,7 +163,7 @@ impl Member<'_> {
                 Ok(None) | Err(_) => self.done = true,
             }
         }
-        self.last.as_ref().filter(|e| e.index == index)
+        self.holds(index)
     }
 
     /// Steps the member to the end of the data; whether it got there.
@@ -296,9 +301,7 @@ impl Spread {
 
     /// Adds the spread to `e`'s attitude covariance and calibration sigmas.
     pub fn widen(&self, e: &mut StepEstimate) {
-        let p = attitude_cov_deg2(e) + self.attitude_rad2 * DEG2_PER_RAD2;
-        e.attitude_sigma_deg = [0, 1, 2].map(|k| p[(k, k)].max(0.0).sqrt());
-        e.attitude_cov_offdiag_deg2 = [(0, 1), (0, 2), (1, 2)].map(|(i, j)| p[(i, j)]);
+        e.set_attitude_cov_deg2(&(e.attitude_cov_deg2() + self.attitude_rad2 * DEG2_PER_RAD2));
         self.widen_calibration(&mut e.calibration);
     }
 
@@ -352,29 +355,6 @@ pub fn attitude_deviation(
 }
 
 const DEG2_PER_RAD2: f64 = (180.0 / std::f64::consts::PI) * (180.0 / std::f64::consts::PI);
-
-/// An estimate's attitude covariance, deg^2.
-fn attitude_cov_deg2(e: &StepEstimate) -> Matrix3<f64> {
-    let s = e.attitude_sigma_deg;
-    let [xy, xz, yz] = e.attitude_cov_offdiag_deg2;
-    Matrix3::new(
-        s[0] * s[0],
-        xy,
-        xz,
-        xy,
-        s[1] * s[1],
-        yz,
-        xz,
-        yz,
-        s[2] * s[2],
-    )
-}
-
-/// An angle difference in (-180, 180], deg.
-fn wrap_deg(d: f64) -> f64 {
-    let w = d.rem_euclid(360.0);
-    if w > 180.0 { w - 360.0 } else { w }
-}
 
 /// The members of a run and the spreads kept for its smoothed rows.
 pub struct Ensemble<'a> {
@@ -439,15 +419,11 @@ impl<'a> Ensemble<'a> {
         self.last_base = Some((e.index, e.q));
         let index = e.index;
         for m in &mut self.members {
-            if m.at(index).is_some() {
+            if m.at(index) {
                 m.score += row_evidence(records, &m.records, self.gate_sigmas);
             }
         }
-        let held: Vec<&Member> = self
-            .members
-            .iter()
-            .filter(|m| m.last.as_ref().is_some_and(|l| l.index == index))
-            .collect();
+        let held: Vec<&Member> = self.members.iter().filter(|m| m.holds(index)).collect();
         let scores: Vec<f64> = held.iter().map(|m| m.score).collect();
         let weights = mixture_weights(&scores);
         let present: Vec<(&StepEstimate, f64)> = held

@@ -4,7 +4,7 @@
 
 use std::f64::consts::PI;
 
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, Matrix3};
 use pdcal_attitude::Quat;
 
 use crate::calibration::Calibration;
@@ -35,6 +35,21 @@ pub struct StepEstimate {
     pub attitude_cov_offdiag_deg2: [f64; 3],
     /// Gyro bias, scales, normals (az/el) and parameters with their sigmas.
     pub calibration: Calibration,
+}
+
+impl StepEstimate {
+    /// The whole attitude covariance, deg^2 (the sigmas and the off-diagonal terms).
+    pub fn attitude_cov_deg2(&self) -> Matrix3<f64> {
+        let [sx, sy, sz] = self.attitude_sigma_deg;
+        let [xy, xz, yz] = self.attitude_cov_offdiag_deg2;
+        Matrix3::new(sx * sx, xy, xz, xy, sy * sy, yz, xz, yz, sz * sz)
+    }
+
+    /// Sets the sigmas and off-diagonal terms from a whole attitude covariance, deg^2.
+    pub fn set_attitude_cov_deg2(&mut self, p: &Matrix3<f64>) {
+        self.attitude_sigma_deg = [0, 1, 2].map(|k| p[(k, k)].max(0.0).sqrt());
+        self.attitude_cov_offdiag_deg2 = [(0, 1), (0, 2), (1, 2)].map(|(i, j)| p[(i, j)]);
+    }
 }
 
 /// One scalar update (one `residuals.csv` row).

@@ -288,7 +288,7 @@ impl Kind {
     /// `a - b`, azimuths wrapped into [-180, 180).
     fn difference(self, a: f64, b: f64) -> f64 {
         match self {
-            Kind::Azimuth => (a - b + 180.0).rem_euclid(360.0) - 180.0,
+            Kind::Azimuth => pdcal_attitude::wrap_deg(a - b),
             _ => a - b,
         }
     }
