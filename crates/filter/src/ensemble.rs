@@ -14,13 +14,16 @@
 //! sigma, [`StartDraw`]), the prior's sigmas unchanged. Where the data determine a state,
 //! every pass ends at the same value and nothing changes; where they do not, the passes end
 //! apart. At every row, the members' deviations from the base (the attitude as the filter's
-//! rotation-vector error, the gyro bias, each scale, azimuth and elevation, each estimated
-//! parameter) are averaged as outer products and added to the base's covariance: the
-//! reported estimate stays the base's, its sigma becomes that of the base's own Gaussian
-//! plus the spread of the solutions the data allow (the second moment of an equal-weight
-//! mixture about the base). The members are not weighted by their likelihood: with the
-//! model's errors in the residuals (albedo, a field of view's edge), the likelihood of
-//! hundreds of rows picks one member by margins the model does not support.
+//! rotation-vector error, split at the Sun line, [`attitude_deviation`]; the gyro bias,
+//! each scale, azimuth and elevation, each estimated parameter) are averaged as outer
+//! products and added to the base's covariance: the reported estimate stays the base's, its
+//! sigma becomes that of the base's own Gaussian plus the spread of the solutions the data
+//! allow (the second moment about the base of a mixture of the base and the members).
+//! Each member's weight in that mixture is its posterior under equal priors: its predictive
+//! likelihood over the base's, summed over the updates both made ([`row_evidence`], a gated
+//! update counted at the gate so that one outlier cannot decide). A member the data have
+//! ruled out adds nothing; members that fit as well as the base share the weight equally
+//! with it.
 //!
 //! What is widened: every forward row (`estimates.csv`), the smoothed rows (with the spread
 //! of the nearest stored forward row before them: conservative, as a smoothed estimate
