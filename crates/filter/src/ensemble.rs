@@ -393,7 +393,8 @@ impl<'a> Ensemble<'a> {
         let members = StartDraw::draws(config.ensemble_seed, photodiodes, runs)
             .iter()
             .filter_map(|draw| {
-                ForwardPass::new_from(inputs, prepared, mode, model(), algebra, Some(draw)).ok()
+                let member = Some((draw, base.shared_rows()));
+                ForwardPass::new_from(inputs, prepared, mode, model(), algebra, member).ok()
             })
             .map(|pass| Member {
                 pass,

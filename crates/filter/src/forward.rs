@@ -3,8 +3,10 @@
 //! segment's attitude; what the smoother ([`crate::smoother`]) needs of each step it records
 //! there.
 
+use std::sync::Arc;
+
 use nalgebra::{Matrix3, Vector3};
-use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView};
+use pdcal_albedo::{AlbedoIrradiance, AlbedoModel};
 use pdcal_attitude::{GyroNoise, Quat, normal_from_az_el};
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_photodiode::{MeasurementModel, Photodiode};
@@ -25,11 +27,11 @@ use crate::output::{CalibrationRun, ModeUsed, ResidualRecord, StepEstimate};
 use crate::prepare::{Prepared, RunInputs};
 use crate::propagation::{self, PropagationChoice};
 use crate::rate::{RateModel, StepEnvironment};
-use crate::references::albedo_into;
 use crate::screen::{Channel, Rejections};
 use crate::segments::{
     Acquisition, GapRules, InnovationWindow, SegmentBreak, SegmentReport, attitude_sigma_rad,
 };
+use crate::shared_rows::SharedRows;
 use crate::smoother::SmootherStore;
 use crate::{BiasAcrossSets, FilterError, References};
 use pdcal_ephem::Reference;
@@ -161,7 +163,8 @@ pub struct ForwardPass<'a> {
     /// Each photodiode's temperature held from its last sample up to the current row
     /// (empty without temperature columns).
     temperatures_c: Vec<f64>,
-    view: AlbedoView,
+    /// Each row's reference and albedo view, shared with the ensemble's members.
+    rows: Arc<SharedRows>,
     rejections: Rejections,
     repairs: RepairLog,
     /// [`RunInputs::set_first_rows`] not yet reached.
@@ -189,29 +192,36 @@ impl<'a> ForwardPass<'a> {
         Self::new_from(inputs, prepared, mode, model, algebra, None)
     }
 
-    /// [`ForwardPass::new`] with the calibration's start moved by `draw` (an ensemble
-    /// member's, [`crate::ensemble`]); the prior's sigmas are unchanged.
+    /// [`ForwardPass::new`] of an ensemble member ([`crate::ensemble`]): the calibration's
+    /// start moved by `draw` (the prior's sigmas unchanged), the per-row work shared with
+    /// the base through its [`ForwardPass::shared_rows`].
     pub fn new_from(
         inputs: &RunInputs<'a>,
         prepared: &'a Prepared<'a>,
         mode: &'a Mode,
         model: MeasurementModel,
         algebra: Algebra,
-        draw: Option<&StartDraw>,
+        member: Option<(&StartDraw, Arc<SharedRows>)>,
     ) -> Result<Self, FilterError> {
         let telemetry = prepared_telemetry(inputs, prepared)?;
         let config = prepared.config();
+        let sigmas = prepared.sigmas();
+        let (mode_used, use_mag) = mode_used(mode, telemetry.mag_nt.is_some());
+        let (draw, rows) = match member {
+            Some((draw, rows)) => (Some(draw), rows),
+            None => (None, SharedRows::new()),
+        };
         let m = inputs.meta.photodiodes.len();
         check_len("references", telemetry.len(), inputs.references.len())?;
         check_len("model photodiodes", m, model.photodiodes().len())?;
-        let sigmas = prepared.sigmas();
-        let (mode_used, use_mag) = mode_used(mode, telemetry.mag_nt.is_some());
         let prior = scale_only_prior(mode, m)?;
-        let initial = initial_scales(
-            telemetry,
-            &inputs.references,
-            config.min_lit_output_sigmas * sigmas.photodiode_v,
-        )?;
+        let initial = rows.initial_scales(|| {
+            initial_scales(
+                telemetry,
+                &inputs.references,
+                config.min_lit_output_sigmas * sigmas.photodiode_v,
+            )
+        })?;
         let used = initial.used.clone();
         let rules = prepared.rules();
         let layout = StateLayout::new(&model, prior.is_none());
@@ -259,7 +269,7 @@ impl<'a> ForwardPass<'a> {
             row: vec![None; m],
             temperatures_c: telemetry.held_temperatures(inputs.meta).at(0).to_vec(),
             temperature_columns: telemetry.photodiode_temperatures(inputs.meta),
-            view: AlbedoView::new(),
+            rows,
             rejections: prepared.screened().clone(),
             repairs: RepairLog::default(),
             sets_ahead: inputs.set_first_rows.iter().rev().copied().collect(),
@@ -309,6 +319,7 @@ impl<'a> ForwardPass<'a> {
                 &StartInputs {
                     telemetry: self.telemetry,
                     references: self.references,
+                    shared: &self.rows,
                     photodiodes: &photodiodes,
                     used: &self.used,
                     use_mag: self.use_mag,
@@ -561,6 +572,12 @@ impl<'a> ForwardPass<'a> {
         self.use_mag
     }
 
+    /// The pass's per-row results, for the ensemble members it starts
+    /// ([`ForwardPass::new_from`]).
+    pub fn shared_rows(&self) -> Arc<SharedRows> {
+        Arc::clone(&self.rows)
+    }
+
     /// The filter, after the last step.
     pub fn filter(&self) -> &Filter {
         &self.filter
@@ -609,7 +626,7 @@ impl<'a> ForwardPass<'a> {
             return Ok(None);
         }
         let t_s = tel.t_s[k];
-        let reference = &self.references.at(k)?;
+        let reference = &self.rows.reference(&self.references, k)?;
         check_reference(k, t_s, reference)?;
         self.propagate_to(k, reference)?;
         for (slot, column) in self.row.iter_mut().zip(&tel.pd_v) {
@@ -742,16 +759,16 @@ impl<'a> ForwardPass<'a> {
         if self.use_mag && mag_nt.is_none() {
             self.filter.count_mag_not_sampled();
         }
-        let provider: Option<&dyn AlbedoIrradiance> = match self.albedo {
+        let view = match self.albedo {
             Some(model)
                 if reference.sun_fraction >= self.min_sun_fraction
                     && self.row.iter().any(Option::is_some) =>
             {
-                albedo_into(reference, model, &mut self.view, k)?;
-                Some(&self.view)
+                Some(self.rows.albedo(reference, model, k)?)
             }
             _ => None,
         };
+        let provider = view.as_deref().map(|v| v as &dyn AlbedoIrradiance);
         let meas = Measurements {
             mag_nt,
             pd_v: &self.row,

@@ -11,8 +11,8 @@ use pdcal_dataset::Telemetry;
 use pdcal_ephem::Reference;
 use pdcal_photodiode::{Photodiode, SunVectorOptions, estimate_sun_vector};
 
-use crate::references::albedo_into;
 use crate::segments::GapRules;
+use crate::shared_rows::SharedRows;
 use crate::{FilterConfig, FilterError, References};
 
 /// A lit photodiode whose maximum output stays below this fraction of the median maximum
@@ -132,6 +132,8 @@ pub struct StartInputs<'a> {
     pub telemetry: &'a Telemetry,
     /// One reference per row.
     pub references: References<'a>,
+    /// The albedo views of the rows, shared with the other passes over the telemetry.
+    pub shared: &'a SharedRows,
     /// Photodiodes with the current scales and normals (`noise_v` = photodiode sigma).
     pub photodiodes: &'a [Photodiode],
     /// Which photodiodes take part.
@@ -174,7 +176,7 @@ pub fn find_start(
     config: &FilterConfig,
 ) -> Result<Result<Start, String>, FilterError> {
     let tel = inputs.telemetry;
-    let mut view = AlbedoView::new();
+    let no_albedo = AlbedoView::new();
     let sin_min_angle = config.initial_min_sun_field_angle_deg.to_radians().sin();
     // The reason of the row that came furthest through the checks: a row failing an
     // earlier check must not hide why a better row failed.
@@ -234,13 +236,12 @@ pub fn find_start(
                 continue;
             }
         }
-        let largest_albedo_ratio = match inputs.albedo {
-            Some(model) => {
-                albedo_into(reference, model, &mut view, k)?;
-                view.max_ratio()
-            }
-            None => 0.0,
+        let shared_view = match inputs.albedo {
+            Some(model) => Some(inputs.shared.albedo(reference, model, k)?),
+            None => None,
         };
+        let view = shared_view.as_deref().unwrap_or(&no_albedo);
+        let largest_albedo_ratio = view.max_ratio();
         let above = above_albedo(inputs, &sampled, k, largest_albedo_ratio);
         if above.is_empty() {
             reached(5);
@@ -283,7 +284,7 @@ pub fn find_start(
             factor: reference.sun_distance_factor(),
         });
         if let Some(probe) = &albedo_probe {
-            q = about_sun_line(&q, &sun_body, probe.best_angle(&q, &sun_body, &view));
+            q = about_sun_line(&q, &sun_body, probe.best_angle(&q, &sun_body, view));
         }
         if inputs.albedo.is_some() {
             let mut refined = true;
@@ -303,7 +304,7 @@ pub fn find_start(
                 sun_body = s;
                 q = attitude(&sun_body, field.as_ref(), reference, config)?;
                 if let Some(probe) = &albedo_probe {
-                    q = about_sun_line(&q, &sun_body, probe.best_angle(&q, &sun_body, &view));
+                    q = about_sun_line(&q, &sun_body, probe.best_angle(&q, &sun_body, view));
                 }
             }
             if !refined {

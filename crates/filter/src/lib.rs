@@ -116,6 +116,7 @@ pub mod run;
 pub mod screen;
 pub mod segments;
 mod sequential;
+pub mod shared_rows;
 pub mod smoother;
 pub mod sun_line;
 

@@ -13,6 +13,7 @@ use pdcal_ephem::Reference;
 use pdcal_filter::bias_fit::{BiasFit, FitInputs, FitPrior, fit_bias};
 use pdcal_filter::init::{StartInputs, find_start, initial_scales};
 use pdcal_filter::segments::GapRules;
+use pdcal_filter::shared_rows::SharedRows;
 use pdcal_filter::{FilterConfig, References, step_references};
 use pdcal_photodiode::Photodiode;
 
@@ -48,6 +49,7 @@ fn fit_first_segment(
         &StartInputs {
             telemetry,
             references,
+            shared: &SharedRows::new(),
             photodiodes: &photodiodes,
             used: &scales.used,
             use_mag,

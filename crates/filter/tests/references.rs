@@ -62,3 +62,88 @@ fn computed_references_equal_the_stored_ones() {
         Err(FilterError::LengthMismatch { .. })
     ));
 }
+
+/// `SharedRows` (the rows an ensemble's passes share) gives every row the reference and the
+/// albedo view a pass computes alone, whatever the order the passes ask in (members a few
+/// rows behind, a probe going back, rows long evicted), and computes the initial scales once.
+#[test]
+fn shared_rows_give_each_row_what_a_pass_computes_alone() {
+    use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView, MapChoice};
+    use pdcal_ephem::Reference;
+    use pdcal_filter::shared_rows::SharedRows;
+
+    let mut scenario = pdcal_sim::Scenario::rax2_like().unwrap();
+    scenario.duration_s = 40.0;
+    let sim = pdcal_sim::simulate(&scenario, 4).unwrap();
+    let model = reference_model(&sim.meta, &sim.telemetry).unwrap();
+    let albedo = AlbedoModel::from_choice(&MapChoice::TomsMean1p25x1).unwrap();
+    // Normals in GCRF: nadir, and 60 deg from it.
+    let normals = |r: &Reference| {
+        let nadir = -r.r_gcrf_km.normalize();
+        let side = nadir.cross(&r.sun_gcrf_unit).normalize();
+        [nadir, (nadir + side * 3f64.sqrt()).normalize()]
+    };
+    let alone = |r: &Reference| {
+        let mut view = AlbedoView::new();
+        albedo
+            .compute_into(&mut view, &r.r_gcrf_km, &r.sun_gcrf_km, &r.gcrf_to_itrf)
+            .unwrap();
+        normals(r).map(|n| view.ratio_and_vector(&n, 0.0))
+    };
+    // Forty rows a second apart from the first time of the orbit whose nadir sees a lit
+    // Earth, so that the views compared are not all zero.
+    let lit_s = (0..60)
+        .map(|k| 100.0 * f64::from(k))
+        .find(|&t| alone(&model.at(t).unwrap())[0].0 > 0.05)
+        .expect("a lit Earth below within 100 minutes");
+    let t_s: Vec<f64> = (0..40).map(|k| lit_s + f64::from(k)).collect();
+    let computed = References::Computed {
+        model: &model,
+        t_s: &t_s,
+    };
+    let stored: Vec<Reference> = t_s.iter().map(|&t| model.at(t).unwrap()).collect();
+    let n = stored.len();
+    let shared = SharedRows::new();
+    // Two passes in step, one a few rows behind, then back to the start and forward again.
+    let order = (0..n)
+        .flat_map(|k| [k, k, k.saturating_sub(3)])
+        .chain((0..n).rev())
+        .chain(0..n);
+    let mut held = Vec::new();
+    for k in order {
+        let reference = shared.reference(&computed, k).unwrap();
+        assert_eq!(reference, stored[k], "row {k}");
+        let view = shared.albedo(&reference, &albedo, k).unwrap();
+        assert_eq!(
+            normals(&stored[k]).map(|n| view.ratio_and_vector(&n, 0.0)),
+            alone(&stored[k]),
+            "row {k}"
+        );
+        // A view still read by a pass is never refilled under it.
+        held.push((k, view));
+        if held.len() > 12 {
+            let (j, old) = held.remove(0);
+            assert_eq!(
+                normals(&stored[j]).map(|n| old.ratio_and_vector(&n, 0.0)),
+                alone(&stored[j]),
+                "row {j}"
+            );
+        }
+    }
+    let sim_references = References::Computed {
+        model: &model,
+        t_s: &sim.telemetry.t_s,
+    };
+    let scales = || pdcal_filter::init::initial_scales(&sim.telemetry, &sim_references, 0.01);
+    let mut calls = 0;
+    for _ in 0..3 {
+        let initial = shared
+            .initial_scales(|| {
+                calls += 1;
+                scales()
+            })
+            .unwrap();
+        assert_eq!(initial, scales().unwrap());
+    }
+    assert_eq!(calls, 1);
+}
