@@ -123,7 +123,7 @@ impl SharedRows {
         if let Some(view) = &kept.row(index, || Ok(*reference))?.view {
             return Ok(Arc::clone(view));
         }
-        let mut view = kept.spare.pop().unwrap_or_else(AlbedoView::new);
+        let mut view = kept.spare.pop().unwrap_or_default();
         albedo_into(reference, model, &mut view, index)?;
         let view = Arc::new(view);
         kept.row(index, || Ok(*reference))?.view = Some(Arc::clone(&view));
