@@ -16,7 +16,7 @@
 //! the same prepared telemetry; [`crate::forward::ForwardPass`] hands its own to the
 //! members it starts and to no one else.
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::VecDeque;
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
 use pdcal_albedo::{AlbedoModel, AlbedoView};
@@ -32,13 +32,11 @@ const KEPT_ROWS: usize = 8;
 /// Views of dropped rows kept for their buffers, at most.
 const SPARE_VIEWS: usize = 4;
 
-/// The kept rows by index with their order of arrival, and the buffers of dropped rows'
-/// views: a view's buffers are large and only grow, so a new view is computed into a
-/// dropped one's.
+/// The kept rows, oldest first, and the buffers of dropped rows' views: a view's buffers
+/// are large and only grow, so a new view is computed into a dropped one's.
 #[derive(Default)]
 struct Kept {
-    rows: HashMap<usize, Row>,
-    order: VecDeque<usize>,
+    rows: VecDeque<(usize, Row)>,
     spare: Vec<AlbedoView>,
 }
 
@@ -50,28 +48,26 @@ impl Kept {
         index: usize,
         reference: impl FnOnce() -> Result<Reference, FilterError>,
     ) -> Result<&mut Row, FilterError> {
-        if !self.rows.contains_key(&index) {
-            let reference = reference()?;
-            if self.order.len() >= KEPT_ROWS {
-                self.drop_oldest();
-            }
-            self.order.push_back(index);
-            self.rows.insert(
-                index,
-                Row {
-                    reference,
+        let at = match self.rows.iter().rposition(|(k, _)| *k == index) {
+            Some(at) => at,
+            None => {
+                let row = Row {
+                    reference: reference()?,
                     view: None,
-                },
-            );
-        }
-        Ok(self.rows.get_mut(&index).expect("kept above"))
+                };
+                if self.rows.len() >= KEPT_ROWS {
+                    self.drop_oldest();
+                }
+                self.rows.push_back((index, row));
+                self.rows.len() - 1
+            }
+        };
+        Ok(&mut self.rows[at].1)
     }
 
     fn drop_oldest(&mut self) {
-        let Some(row) = self.order.pop_front().and_then(|k| self.rows.remove(&k)) else {
-            return;
-        };
-        if let Some(view) = row.view.and_then(|v| Arc::try_unwrap(v).ok())
+        let view = self.rows.pop_front().and_then(|(_, row)| row.view);
+        if let Some(view) = view.and_then(|v| Arc::try_unwrap(v).ok())
             && self.spare.len() < SPARE_VIEWS
         {
             self.spare.push(view);
