@@ -989,17 +989,22 @@ impl<'a> ForwardPass<'a> {
         }
     }
 
+    /// The attitude sigma beyond which the segment's attitude is not held, deg: the
+    /// configured bound, or the acquisition's sigma where larger.
+    fn loss_bound_deg(&self) -> f64 {
+        self.config
+            .segments
+            .lost_attitude_sigma_deg
+            .max(self.at.acquired_sigma_deg)
+    }
+
     /// Why the attitude is lost after the last step, if it is: its sigma beyond the bound
     /// and beyond what the acquisition gave (a q-method with Sun and field 20 degrees apart
     /// starts near 30 degrees about one axis, and is not lost for that), or most of a full
     /// window of innovations gated.
     fn lost_reason(&self) -> Option<String> {
         let sigma_deg = self.attitude_sigma_deg(self.at.next - 1);
-        let bound_deg = self
-            .config
-            .segments
-            .lost_attitude_sigma_deg
-            .max(self.at.acquired_sigma_deg);
+        let bound_deg = self.loss_bound_deg();
         if sigma_deg > bound_deg && self.relative_sigma_deg(self.at.next - 1) > bound_deg {
             return Some(format!(
                 "attitude sigma {sigma_deg:.1} deg above {bound_deg} deg"
@@ -1072,7 +1077,10 @@ impl<'a> ForwardPass<'a> {
         {
             store.push_transition(prop, self.at.prior_q, self.filter.calibration_noise());
         }
-        store.push_posterior(index, t_s, self.at.step_segment, &self.filter);
+        let p = self.filter.covariance();
+        let p_aa = p.fixed_view::<3, 3>(ATTITUDE, ATTITUDE).into_owned();
+        let linear = attitude_sigma_rad(&p_aa, None).to_degrees() <= self.loss_bound_deg();
+        store.push_posterior(index, t_s, self.at.step_segment, &self.filter, linear);
     }
 
     /// The samples rejected so far (screened, and gated up to the last step).

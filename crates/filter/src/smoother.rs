@@ -57,6 +57,9 @@ struct Stored {
     albedo_gain: f64,
     /// The body rate and residual dipole, with dynamics.
     w: Option<Motion>,
+    /// Whether the row's attitude error is small enough for the recursion's error state
+    /// ([`SmootherStore::push_posterior`]).
+    linear: bool,
     next: Option<Transition>,
 }
 
@@ -97,13 +100,19 @@ impl SmootherStore {
         }
     }
 
-    /// Records the filter's posterior at row `index`.
+    /// Records the filter's posterior at row `index`; `linear`: whether its attitude
+    /// error is small enough for the recursion, which composes rotation vectors and
+    /// rotates no covariance. A row that is not, and the row before it, keep the forward
+    /// estimate, and the recursion restarts there: with the Sun alone the rotation about
+    /// the Sun line has sigmas of a hundred degrees and more, and the gain carried those
+    /// across the line (smoothed errors of 90 deg beside forward ones of 6).
     pub(crate) fn push_posterior(
         &mut self,
         index: usize,
         t_s: f64,
         segment: usize,
         filter: &Filter,
+        linear: bool,
     ) {
         let (n, p) = (self.n, filter.covariance().as_slice());
         for j in 0..n {
@@ -120,6 +129,7 @@ impl SmootherStore {
             extras: filter.extra_values(),
             albedo_gain: filter.albedo_gain().unwrap_or(0.0),
             w: filter.motion(),
+            linear,
             next: None,
         });
     }
@@ -190,6 +200,12 @@ impl SmootherStore {
                     index: stored.index,
                 })?;
             self.unpack_into(k, &mut work.pf);
+            if !(stored.linear && self.steps[k + 1].linear) {
+                xs = SmoothedState::from_stored(stored);
+                ps.copy_from(&work.pf);
+                emit(xs.estimate(stored, &ps, layout, fixed));
+                continue;
+            }
             work.predict(
                 trans,
                 &self.cal_noise[k * n..(k + 1) * n],

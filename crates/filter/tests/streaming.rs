@@ -1,6 +1,8 @@
 //! The streaming run (per-row results through a sink, smoother by blocks recomputed from
 //! kept forward states, every block start kept or only some and the others regenerated)
-//! gives the in-memory run's numbers bit for bit, with and without gaps in the telemetry.
+//! gives the in-memory run's numbers bit for bit, with and without gaps in the telemetry,
+//! with the magnetometer and with the Sun alone (where the smoother leaves the rows whose
+//! attitude is beyond its linear range as the forward pass has them).
 
 mod common;
 
@@ -34,8 +36,35 @@ fn streaming_equals_in_memory_bit_for_bit() {
     // Starts in eclipse: the run's first row is not the data's.
     case.eclipse = 0..40;
     let (meta, tel, refs, _) = case.build();
-    let memory = compare(&meta, &tel, &refs);
+    let memory = compare(&meta, &tel, &refs, &Mode::Full);
     assert!(memory.start_index >= 40);
+}
+
+/// With the Sun alone and no albedo the rotation about the Sun line is never observed
+/// (sigmas of a hundred degrees and more): every such row keeps its forward estimate, row
+/// for row, in memory and streaming alike.
+#[test]
+fn streaming_equals_in_memory_with_the_sun_alone() {
+    let (meta, tel, refs, _) = Case::rax2(11, 1300).build();
+    let memory = compare(&meta, &tel, &refs, &Mode::PhotodiodeOnly);
+    let smoothed = memory.smoothed.as_ref().unwrap();
+    let whole_sigma_deg = |e: &StepEstimate| {
+        e.attitude_cov_deg2()
+            .symmetric_eigenvalues()
+            .max()
+            .max(0.0)
+            .sqrt()
+    };
+    // Far beyond any loss bound (20 deg, or the acquisition's sigma across the Sun line).
+    let wide = |k: usize| whole_sigma_deg(&memory.forward[k]) > 90.0;
+    let mut kept = 0;
+    for k in 0..smoothed.len() {
+        if wide(k) && (k + 1 == smoothed.len() || wide(k + 1)) {
+            assert_eq!(smoothed[k], memory.forward[k], "row {k}");
+            kept += 1;
+        }
+    }
+    assert!(kept > 1000, "{kept} of {} rows", smoothed.len());
 }
 
 #[test]
@@ -52,7 +81,7 @@ fn streaming_equals_in_memory_across_gaps() {
         .filter(|(k, _)| keep(*k))
         .map(|(_, r)| *r)
         .collect();
-    let memory = compare(&meta, &cut, &refs);
+    let memory = compare(&meta, &cut, &refs, &Mode::Full);
     assert_eq!(memory.segments.len(), 3, "{:#?}", memory.segments);
     let smoothed = memory.smoothed.as_ref().unwrap();
     for (f, s) in memory.forward.iter().zip(smoothed) {
@@ -66,6 +95,7 @@ fn compare(
     meta: &pdcal_dataset::DatasetMeta,
     tel: &pdcal_dataset::Telemetry,
     refs: &[pdcal_ephem::Reference],
+    mode: &Mode,
 ) -> pdcal_filter::CalibrationRun {
     let inputs = RunInputs {
         meta,
@@ -85,14 +115,8 @@ fn compare(
     };
     let prepared = Prepared::of(&inputs, &config).unwrap();
     let inputs = prepared.inputs(&inputs);
-    let memory = calibrate_with_model(
-        &inputs,
-        &prepared,
-        &Mode::Full,
-        model(),
-        Algebra::Structured,
-    )
-    .unwrap();
+    let memory =
+        calibrate_with_model(&inputs, &prepared, mode, model(), Algebra::Structured).unwrap();
     let smoothed = memory.smoothed.as_ref().unwrap();
     assert_eq!(smoothed.len(), memory.forward.len());
     // Every block start kept (what sets of up to a million rows get), and sparser: every
@@ -102,7 +126,7 @@ fn compare(
         let streamed = calibrate_streaming_kept(
             &inputs,
             &prepared,
-            &Mode::Full,
+            mode,
             (model(), None),
             Algebra::Structured,
             block_rows,

@@ -17,7 +17,8 @@
 //! The multi-start ensemble (`FilterConfig::ensemble`, on by default without a
 //! magnetometer) widens what is reported by the spread of the solutions the data allow: in
 //! seed 17 the filter alone settles 20-45 deg across the Sun line from the truth with a
-//! sigma of a few degrees; widened, the attitude is inside its 3 sigma. The tests of the
+//! sigma of a few degrees; widened, the attitude is inside its 3 sigma, the smoothed
+//! attitude as well. The tests of the
 //! filter's own behaviour run without it.
 
 use pdcal::calibrate::{RunConfig, albedo_model};
@@ -110,4 +111,12 @@ fn the_ensemble_widens_a_confidently_wrong_attitude_to_cover_the_truth() {
     assert_eq!(alone.segments, widened.segments);
     assert_eq!(alone.verdict, widened.verdict);
     assert!(widened.final_inside.0 > alone.final_inside.0, "{widened:?}");
+    // The smoother does not turn it confident again: the rows whose attitude is beyond its
+    // linear range (the rotation about the Sun line unknown) keep the forward estimate.
+    let (about, across) = widened.smoothed_attitude_sun_inside;
+    assert!(
+        about >= widened.attitude_about_sun_inside - 0.01
+            && across >= widened.attitude_across_sun_inside - 0.01,
+        "{widened:?}"
+    );
 }
