@@ -52,6 +52,39 @@ pub struct Evaluation {
     pub truth_coverage: TruthCoverage,
     /// The figures that are `null`, and why.
     pub not_evaluable: Vec<NotEvaluable>,
+    /// The smoother's attitude (`estimates_smoothed.csv`) on the same kind of samples, when
+    /// the run smoothed ([`Evaluation::with_smoothed`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub smoothed: Option<SmoothedAttitude>,
+}
+
+/// The attitude figures of [`Evaluation`] for the smoothed rows (`null` where their
+/// evaluation's are: that evaluation's `not_evaluable` says why).
+#[derive(Debug, Clone, Serialize)]
+pub struct SmoothedAttitude {
+    /// Attitude error over sunlit samples after convergence.
+    pub attitude: AttitudeStats,
+    /// As [`Consistency::attitude_within_3sigma`].
+    pub attitude_within_3sigma: f64,
+    /// As [`Consistency::attitude_about_sun_within_3sigma`].
+    pub attitude_about_sun_within_3sigma: f64,
+    /// As [`Consistency::attitude_across_sun_within_3sigma`].
+    pub attitude_across_sun_within_3sigma: f64,
+}
+
+impl Evaluation {
+    /// This evaluation with the attitude figures of `smoothed`, the evaluation of the
+    /// smoothed rows of the same run.
+    pub fn with_smoothed(mut self, smoothed: &Evaluation) -> Self {
+        let c = &smoothed.consistency;
+        self.smoothed = Some(SmoothedAttitude {
+            attitude: smoothed.attitude.clone(),
+            attitude_within_3sigma: c.attitude_within_3sigma,
+            attitude_about_sun_within_3sigma: c.attitude_about_sun_within_3sigma,
+            attitude_across_sun_within_3sigma: c.attitude_across_sun_within_3sigma,
+        });
+        self
+    }
 }
 
 /// How many estimate rows truth.csv covers.
@@ -293,6 +326,7 @@ pub fn evaluate(
         consistency,
         truth_coverage,
         not_evaluable: Vec::new(),
+        smoothed: None,
     };
     mark_not_evaluable(&mut evaluation);
     Ok(evaluation)
@@ -666,7 +700,7 @@ fn fraction(flags: &[bool]) -> f64 {
 
 /// Rows for index.html.
 pub fn index_rows(e: &Evaluation) -> Vec<(String, String)> {
-    vec![
+    let mut rows = vec![
         (
             "worst normal error, lit >= 5 min (deg)".into(),
             format!("{:.3}", e.worst_normal_error_deg),
@@ -687,5 +721,12 @@ pub fn index_rows(e: &Evaluation) -> Vec<(String, String)> {
             "attitude errors inside 3-sigma".into(),
             format!("{:.1} %", 100.0 * e.consistency.attitude_within_3sigma),
         ),
-    ]
+    ];
+    if let Some(s) = &e.smoothed {
+        rows.push((
+            "smoothed attitude errors inside 3-sigma".into(),
+            format!("{:.1} %", 100.0 * s.attitude_within_3sigma),
+        ));
+    }
+    rows
 }

@@ -167,8 +167,9 @@ pub fn run_dir(dataset: &Path, out: &Path) -> Result<Evaluation> {
     Ok(evaluation)
 }
 
-/// [`evaluate`] of the calibration outputs in `out` (`calibration.ron`, `estimates.csv`)
-/// against a dataset's truth, writing nothing.
+/// [`evaluate`] of the calibration outputs in `out` (`calibration.ron`, `estimates.csv`,
+/// and `estimates_smoothed.csv` when there is one) against a dataset's truth, writing
+/// nothing.
 pub fn evaluate_output(
     truth: &TruthSeries,
     constants: &TruthConstants,
@@ -180,5 +181,11 @@ pub fn evaluate_output(
     let final_cal =
         Calibration::from_ron_str(&text).with_context(|| format!("{}", cal_path.display()))?;
     let estimates = read_estimates(&out.join("estimates.csv"))?;
-    evaluate(&estimates, &final_cal, truth, constants)
+    let evaluation = evaluate(&estimates, &final_cal, truth, constants)?;
+    let smoothed_path = out.join("estimates_smoothed.csv");
+    if !smoothed_path.exists() {
+        return Ok(evaluation);
+    }
+    let smoothed = read_estimates(&smoothed_path)?;
+    Ok(evaluation.with_smoothed(&evaluate(&smoothed, &final_cal, truth, constants)?))
 }

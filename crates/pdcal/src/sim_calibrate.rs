@@ -427,6 +427,10 @@ pub fn run_seed(
         &truth,
         &sims[0].constants,
     )?;
+    let eval = match outcome.run.smoothed.as_ref() {
+        Some(rows) => eval.with_smoothed(&evaluate(rows, &s.reported, &truth, &sims[0].constants)?),
+        None => eval,
+    };
     let best_single = if sims.len() > 1 {
         let singles: Vec<(f64, f64)> = sims
             .iter()
@@ -477,12 +481,12 @@ pub fn run_seed(
         by_status: eval.consistency.by_status,
         attitude_about_sun_inside: eval.consistency.attitude_about_sun_within_3sigma,
         attitude_across_sun_inside: eval.consistency.attitude_across_sun_within_3sigma,
-        smoothed_attitude_sun_inside: smoothed_sun_line(
-            &outcome.run,
-            &s.reported,
-            &truth,
-            &sims[0].constants,
-        )?,
+        smoothed_attitude_sun_inside: eval.smoothed.as_ref().map_or((f64::NAN, f64::NAN), |x| {
+            (
+                x.attitude_about_sun_within_3sigma,
+                x.attitude_across_sun_within_3sigma,
+            )
+        }),
         gyro_bias_inside: eval.consistency.gyro_bias_within_3sigma,
         repeatability: s
             .repeatability
@@ -561,24 +565,6 @@ pub struct SeedRun {
 
 /// Fails unless every estimate is finite and the covariance never needed a repair (the
 /// guard factors it every 1024 rows and checks its diagonal every row).
-/// The smoothed attitude's errors about and across the Sun line inside their 3 sigma
-/// ([`evaluate`] of `estimates_smoothed.csv`'s rows); NaN without the smoother.
-fn smoothed_sun_line(
-    run: &pdcal_filter::CalibrationRun,
-    reported: &pdcal_filter::Calibration,
-    truth: &TruthSeries,
-    constants: &pdcal_dataset::TruthConstants,
-) -> Result<(f64, f64)> {
-    let Some(smoothed) = run.smoothed.as_ref() else {
-        return Ok((f64::NAN, f64::NAN));
-    };
-    let c = evaluate(smoothed, reported, truth, constants)?.consistency;
-    Ok((
-        c.attitude_about_sun_within_3sigma,
-        c.attitude_across_sun_within_3sigma,
-    ))
-}
-
 fn check_numbers(run: &pdcal_filter::CalibrationRun) -> Result<()> {
     anyhow::ensure!(
         run.covariance_repairs.count == 0,

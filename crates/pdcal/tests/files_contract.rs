@@ -141,6 +141,23 @@ fn calibrate_and_evaluate_outputs_carry_the_contract_keys() {
             "evaluation.json photodiode lacks {key}"
         );
     }
+    // The smoother's attitude, from estimates_smoothed.csv, on the same samples.
+    let smoothed = &evaluation["smoothed"];
+    assert_eq!(
+        smoothed["attitude"]["samples"],
+        evaluation["attitude"]["samples"]
+    );
+    for key in [
+        "attitude_within_3sigma",
+        "attitude_about_sun_within_3sigma",
+        "attitude_across_sun_within_3sigma",
+    ] {
+        let x = smoothed[key].as_f64();
+        assert!(
+            x.is_some_and(|x| (0.0..=1.0).contains(&x)),
+            "evaluation.json smoothed.{key}: {x:?}"
+        );
+    }
     for name in [
         "fig04_residuals.png",
         "fig05_scale.svg",
