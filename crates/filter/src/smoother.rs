@@ -104,8 +104,8 @@ impl SmootherStore {
     /// error is small enough for the recursion, which composes rotation vectors and
     /// rotates no covariance. A row that is not, and the row before it, keep the forward
     /// estimate, and the recursion restarts there: with the Sun alone the rotation about
-    /// the Sun line has sigmas of a hundred degrees and more, and the gain carried those
-    /// across the line (smoothed errors of 90 deg beside forward ones of 6).
+    /// the Sun line can be unknown to a half turn, far outside that range, and the gain
+    /// would carry it into the directions across the line the forward pass holds.
     pub(crate) fn push_posterior(
         &mut self,
         index: usize,
