@@ -118,6 +118,10 @@ def test_equals_xtask_sim_calibrate(client, tmp_path):
             },
             "attitude_about_sun_inside": row["attitude_about_sun_inside"],
             "attitude_across_sun_inside": row["attitude_across_sun_inside"],
+            "smoothed_attitude_sun_inside": [
+                row["smoothed_attitude_about_sun_inside"],
+                row["smoothed_attitude_across_sun_inside"],
+            ],
             "gyro_bias_inside": row["gyro_bias_inside"],
             "repeatability": row["repeatability"],
             "differing": [d for d in row["repeat_differing"].split(";") if d],

@@ -96,6 +96,8 @@ FIGURES = [
     "not_determined_outside_3sigma",
     "attitude_about_sun_inside",
     "attitude_across_sun_inside",
+    "smoothed_attitude_about_sun_inside",
+    "smoothed_attitude_across_sun_inside",
     "gyro_bias_inside",
     "repeatability",
     "repeat_differing",
@@ -467,6 +469,9 @@ def _flatten(result: dict) -> dict:
         "not_determined_outside_3sigma": int(result["by_status"]["not_determined_outside_3sigma"]),
         "attitude_about_sun_inside": result["attitude_about_sun_inside"],
         "attitude_across_sun_inside": result["attitude_across_sun_inside"],
+        # The same for the smoother's attitude (estimates_smoothed.csv).
+        "smoothed_attitude_about_sun_inside": result["smoothed_attitude_sun_inside"][0],
+        "smoothed_attitude_across_sun_inside": result["smoothed_attitude_sun_inside"][1],
         # Running gyro-bias errors inside their 3 sigma, per axis.
         "gyro_bias_inside": result["gyro_bias_inside"],
         # With several sets: the repeatability verdict, the parameters whose sets differ
