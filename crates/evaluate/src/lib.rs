@@ -53,7 +53,7 @@ pub struct Evaluation {
     /// The figures that are `null`, and why.
     pub not_evaluable: Vec<NotEvaluable>,
     /// The smoother's attitude (`estimates_smoothed.csv`) on the same kind of samples, when
-    /// the run smoothed ([`Evaluation::with_smoothed`]).
+    /// the run smoothed ([`evaluate_with_smoothed`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub smoothed: Option<SmoothedAttitude>,
 }
@@ -72,18 +72,16 @@ pub struct SmoothedAttitude {
     pub attitude_across_sun_within_3sigma: f64,
 }
 
-impl Evaluation {
-    /// This evaluation with the attitude figures of `smoothed`, the evaluation of the
-    /// smoothed rows of the same run.
-    pub fn with_smoothed(mut self, smoothed: &Evaluation) -> Self {
-        let c = &smoothed.consistency;
-        self.smoothed = Some(SmoothedAttitude {
-            attitude: smoothed.attitude.clone(),
+impl SmoothedAttitude {
+    /// The attitude figures of `e`, the evaluation of a run's smoothed rows.
+    fn of(e: &Evaluation) -> Self {
+        let c = &e.consistency;
+        SmoothedAttitude {
+            attitude: e.attitude.clone(),
             attitude_within_3sigma: c.attitude_within_3sigma,
             attitude_about_sun_within_3sigma: c.attitude_about_sun_within_3sigma,
             attitude_across_sun_within_3sigma: c.attitude_across_sun_within_3sigma,
-        });
-        self
+        }
     }
 }
 
@@ -272,6 +270,23 @@ pub fn quaternion_fault(q: &[f64; 4]) -> String {
     } else {
         format!("{q:?} (its norm overflows)")
     }
+}
+
+/// [`evaluate`] of a run's forward estimates, with the attitude figures of its smoothed
+/// rows (`smoothed`, when it smoothed) against the same truth and calibration.
+pub fn evaluate_with_smoothed(
+    estimates: &[StepEstimate],
+    smoothed: Option<&[StepEstimate]>,
+    final_cal: &Calibration,
+    truth: &TruthSeries,
+    constants: &TruthConstants,
+) -> Result<Evaluation> {
+    let mut evaluation = evaluate(estimates, final_cal, truth, constants)?;
+    if let Some(rows) = smoothed {
+        let of_rows = evaluate(rows, final_cal, truth, constants)?;
+        evaluation.smoothed = Some(SmoothedAttitude::of(&of_rows));
+    }
+    Ok(evaluation)
 }
 
 /// Evaluates estimates (forward or smoothed) and the final calibration against truth.

@@ -181,11 +181,16 @@ pub fn evaluate_output(
     let final_cal =
         Calibration::from_ron_str(&text).with_context(|| format!("{}", cal_path.display()))?;
     let estimates = read_estimates(&out.join("estimates.csv"))?;
-    let evaluation = evaluate(&estimates, &final_cal, truth, constants)?;
     let smoothed_path = out.join("estimates_smoothed.csv");
-    if !smoothed_path.exists() {
-        return Ok(evaluation);
-    }
-    let smoothed = read_estimates(&smoothed_path)?;
-    Ok(evaluation.with_smoothed(&evaluate(&smoothed, &final_cal, truth, constants)?))
+    let smoothed = match smoothed_path.exists() {
+        true => Some(read_estimates(&smoothed_path)?),
+        false => None,
+    };
+    evaluate_with_smoothed(
+        &estimates,
+        smoothed.as_deref(),
+        &final_cal,
+        truth,
+        constants,
+    )
 }

@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use serde::Serialize;
 
 use crate::calibrate::{AlbedoModelType, RunConfig};
-use crate::evaluate::{Evaluation, evaluate};
+use crate::evaluate::{Evaluation, evaluate, evaluate_with_smoothed};
 use crate::files::{Summary, summary};
 use pdcal_dataset::TruthSeries;
 use pdcal_filter::Mode;
@@ -421,16 +421,13 @@ pub fn run_seed(
     let truth = joint_truth(&sims, &joint);
     let s: Summary = summary(&joint.meta, &outcome);
     // The calibration as reported: a quantity the data did not determine at its prior.
-    let eval: Evaluation = evaluate(
+    let eval: Evaluation = evaluate_with_smoothed(
         &outcome.run.forward,
+        outcome.run.smoothed.as_deref(),
         &s.reported,
         &truth,
         &sims[0].constants,
     )?;
-    let eval = match outcome.run.smoothed.as_ref() {
-        Some(rows) => eval.with_smoothed(&evaluate(rows, &s.reported, &truth, &sims[0].constants)?),
-        None => eval,
-    };
     let best_single = if sims.len() > 1 {
         let singles: Vec<(f64, f64)> = sims
             .iter()
