@@ -445,6 +445,11 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
     );
     sun_line_of_consistent_runs(&mut s, r);
     smoothed_sun_line(&mut s, r);
+    let (m, _, wi) = stats(r.iter().map(|x| x.sigma_factor));
+    let _ = writeln!(
+        s,
+        "| factor on the reported sigmas from the residuals' spread after each step (`dispersion`) | {m:.2} | {wi:.2} | - |"
+    );
     let (m, wi, _) = stats(r.iter().map(|x| x.gyro_bias_inside));
     let d = defined(r, |x| x.gyro_bias_inside);
     let _ = writeln!(

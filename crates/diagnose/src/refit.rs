@@ -109,6 +109,7 @@ mod tests {
             residual,
             bound_3sigma: 3.0 * sigma,
             accepted: true,
+            post_fit: residual,
             attitude_held: true,
         }
     }

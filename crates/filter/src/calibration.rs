@@ -152,6 +152,20 @@ pub struct Calibration {
 }
 
 impl Calibration {
+    /// Multiplies every sigma (gyro bias, scales, normals, parameters) by `factor`
+    /// ([`crate::consistency::Dispersion`]).
+    pub fn scale_sigmas(&mut self, factor: f64) {
+        self.gyro_bias_sigma_rad_s
+            .iter_mut()
+            .for_each(|s| *s *= factor);
+        for pd in &mut self.photodiodes {
+            pd.scale_sigma_v *= factor;
+            pd.azimuth_sigma_deg = pd.azimuth_sigma_deg.map(|s| s * factor);
+            pd.elevation_sigma_deg *= factor;
+        }
+        self.parameters.iter_mut().for_each(|p| p.sigma *= factor);
+    }
+
     /// Parses `calibration.ron` text and checks every photodiode by the dataset's own rules
     /// for a mounting and a scale factor ([`pdcal_dataset::rules`]).
     pub fn from_ron_str(text: &str) -> Result<Self, FilterError> {

@@ -223,6 +223,10 @@ pub struct FilterConfig {
     pub ensemble: EnsembleRuns,
     /// Seed of the ensemble's starts (ChaCha8): the same seed, the same numbers.
     pub ensemble_seed: u64,
+    /// Scale every reported sigma by the residuals' spread over the sensor noise where it
+    /// exceeds one ([`crate::consistency::Dispersion`]). Default true; false reports the
+    /// filter's own covariances (widened by the ensemble when one runs).
+    pub widen_by_residual_spread: bool,
 }
 
 /// How many extra forward passes, each from a start drawn from the calibration's prior,
@@ -325,6 +329,7 @@ impl Default for FilterConfig {
             inertia_sigma_fraction: 0.1,
             ensemble: EnsembleRuns::Auto,
             ensemble_seed: 1,
+            widen_by_residual_spread: true,
         }
     }
 }

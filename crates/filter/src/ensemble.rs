@@ -638,6 +638,7 @@ mod tests {
             residual,
             bound_3sigma: 3.0 * sigma,
             accepted,
+            post_fit: residual,
             attitude_held: true,
         }
     }

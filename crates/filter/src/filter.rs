@@ -139,6 +139,9 @@ pub struct UpdateRecord {
     pub bound_3sigma: f64,
     /// Whether the update was applied (false: rejected by the gate).
     pub accepted: bool,
+    /// The residual after the whole step's correction, linearised (`y - h(x_0) - H dx`):
+    /// for a model that explains the data, within the sensor noise.
+    pub post_fit: f64,
 }
 
 /// Counts of one sensor class.
@@ -1251,13 +1254,14 @@ impl Filter {
         self.run_rows();
         let s = &mut self.scratch;
         let mut any = false;
-        for (o, &(sensor, measured)) in s.outcome.iter().zip(&s.sources) {
+        for (l, (o, &(sensor, measured))) in s.outcome.iter().zip(&s.sources).enumerate() {
             self.records.push(UpdateRecord {
                 sensor,
                 measured,
                 residual: o.residual,
                 bound_3sigma: 3.0 * o.spread.sqrt(),
                 accepted: o.accepted,
+                post_fit: s.rows.after(l, s.dx.as_slice()),
             });
             let counts = match sensor {
                 Sensor::Photodiode(_) => &mut self.counts.photodiode,

@@ -567,6 +567,11 @@ impl<'a> ForwardPass<'a> {
         self.start
     }
 
+    /// The sensor sigmas the run uses (config, hints, defaults).
+    pub fn sensor_sigmas(&self) -> SensorSigmas {
+        self.sigmas
+    }
+
     /// Whether the run uses the magnetometer (else the Sun is its only vector).
     pub fn uses_magnetometer(&self) -> bool {
         self.use_mag
@@ -1059,6 +1064,7 @@ impl<'a> ForwardPass<'a> {
             residual: r.residual,
             bound_3sigma: r.bound_3sigma,
             accepted: r.accepted,
+            post_fit: r.post_fit,
             attitude_held: self.at.held,
         })
     }
@@ -1142,6 +1148,7 @@ impl<'a> ForwardPass<'a> {
             bias_time_held_s: self.use_times.bias_held_s,
             propagation: self.propagation,
             ensemble: None,
+            dispersion: None,
         }
     }
 }

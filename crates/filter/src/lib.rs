@@ -127,7 +127,7 @@ pub use common_rotation::CommonRotation;
 pub use config::{
     BiasAcrossSets, Dynamics, EnsembleRuns, FilterConfig, Mode, ParameterSigma, SensorSigmas,
 };
-pub use consistency::{Consistency, ConsistencyAccumulator, Verdict};
+pub use consistency::{Consistency, ConsistencyAccumulator, Dispersion, DispersionReport, Verdict};
 pub use error::FilterError;
 pub use filter::{
     AlbedoGainNoise, Algebra, Filter, FilterNoise, FilterState, InitialState, Measurements,

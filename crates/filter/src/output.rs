@@ -45,6 +45,13 @@ impl StepEstimate {
         Matrix3::new(sx * sx, xy, xz, xy, sy * sy, yz, xz, yz, sz * sz)
     }
 
+    /// Multiplies every sigma (attitude and calibration) by `factor`
+    /// ([`crate::consistency::Dispersion`]).
+    pub fn scale_sigmas(&mut self, factor: f64) {
+        self.set_attitude_cov_deg2(&(self.attitude_cov_deg2() * (factor * factor)));
+        self.calibration.scale_sigmas(factor);
+    }
+
     /// Sets the sigmas and off-diagonal terms from a whole attitude covariance, deg^2.
     pub fn set_attitude_cov_deg2(&mut self, p: &Matrix3<f64>) {
         self.attitude_sigma_deg = [0, 1, 2].map(|k| p[(k, k)].max(0.0).sqrt());
@@ -69,6 +76,9 @@ pub struct ResidualRecord {
     pub bound_3sigma: f64,
     /// Applied (true) or rejected by the gate.
     pub accepted: bool,
+    /// The residual after the row's whole correction, linearised, V or nT
+    /// ([`crate::consistency::Dispersion`]).
+    pub post_fit: f64,
     /// Whether the attitude was held at the row (its sigma in the observed directions at
     /// most `segments.held_attitude_sigma_deg`): the rows whose bounds the consistency
     /// verdict judges ([`crate::consistency`]).
@@ -142,6 +152,9 @@ pub struct CalibrationRun {
     /// The multi-start ensemble that widened the covariances, when one ran
     /// ([`crate::ensemble`]).
     pub ensemble: Option<crate::ensemble::EnsembleReport>,
+    /// The variance factor the reported covariances were scaled by
+    /// ([`crate::consistency::Dispersion`]); absent when the configuration turns it off.
+    pub dispersion: Option<crate::consistency::DispersionReport>,
 }
 
 /// The estimate at one row from a state and its covariance (the forward filter's or the

@@ -6,7 +6,8 @@ use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_photodiode::{Albedo, DirectSun, MeasurementModel, Photodiode};
 
 use crate::FilterError;
-use crate::config::{FilterConfig, Mode};
+use crate::config::{FilterConfig, Mode, SensorSigmas};
+use crate::consistency::Dispersion;
 use crate::ensemble::Ensemble;
 use crate::filter::Algebra;
 use crate::forward::{ForwardPass, PassCheckpoint};
@@ -86,6 +87,7 @@ fn calibrate_in_memory(
     let mut pass = ForwardPass::new(inputs, prepared, mode, model, algebra)?;
     let mut ensemble =
         members.and_then(|m| Ensemble::start(&pass, (inputs, prepared, mode), m, algebra));
+    let mut spread = SpreadWidening::new(config, pass.sensor_sigmas());
     let steps = pass.remaining();
     let mut store = config
         .smoother
@@ -107,6 +109,7 @@ fn calibrate_in_memory(
         let first = residuals.len();
         residuals.extend(pass.residual_records());
         let mut estimate = pass.estimate();
+        spread.widen(&mut estimate, &residuals[first..]);
         if let Some(e) = ensemble.as_mut() {
             e.widen(&mut estimate, &residuals[first..]);
         }
@@ -118,10 +121,14 @@ fn calibrate_in_memory(
     if let (Some(store), Some(out)) = (store.as_ref(), smoothed.as_mut()) {
         out.extend(store.smooth(pass.filter().layout(), pass.prior)?);
     }
+    if let Some(out) = smoothed.as_mut() {
+        out.iter_mut().for_each(|s| spread.widen_smoothed(s));
+    }
     if let (Some(e), Some(out)) = (ensemble.as_ref(), smoothed.as_mut()) {
         out.iter_mut().for_each(|s| e.widen_smoothed(s));
     }
     let mut run = pass.result(forward, smoothed, residuals);
+    spread.widen_final(&mut run);
     if let Some(e) = ensemble {
         e.widen_final(&mut run);
     }
@@ -240,6 +247,7 @@ pub fn calibrate_streaming_kept(
     let mut pass = ForwardPass::new(inputs, prepared, mode, model, algebra)?;
     let mut ensemble =
         members.and_then(|m| Ensemble::start(&pass, (inputs, prepared, mode), m, algebra));
+    let mut spread = SpreadWidening::new(config, pass.sensor_sigmas());
     let mut kept: Vec<Kept> = Vec::new();
     let mut residuals = Vec::new();
     let mut starts = BlockStarts::new(block_rows);
@@ -260,6 +268,7 @@ pub fn calibrate_streaming_kept(
         residuals.clear();
         residuals.extend(pass.residual_records());
         let mut estimate = pass.estimate();
+        spread.widen(&mut estimate, &residuals);
         if let Some(e) = ensemble.as_mut() {
             e.widen(&mut estimate, &residuals);
         }
@@ -267,8 +276,10 @@ pub fn calibrate_streaming_kept(
     }
     // The forward results, before the replays below move the filter.
     let mut run = pass.result(Vec::new(), None, Vec::new());
+    spread.widen_final(&mut run);
     let mut widening = WideningSink {
         inner: sink,
+        spread: &spread,
         ensemble: ensemble.as_ref(),
     };
     let sink: &mut dyn RunSink = &mut widening;
@@ -297,9 +308,11 @@ pub fn calibrate_streaming_kept(
     Ok(run)
 }
 
-/// A sink that widens the smoothed rows by the ensemble's spread before passing them on.
+/// A sink that widens the smoothed rows by the residuals' spread and the ensemble's before
+/// passing them on.
 struct WideningSink<'s, 'e> {
     inner: &'s mut dyn RunSink,
+    spread: &'s SpreadWidening,
     ensemble: Option<&'s Ensemble<'e>>,
 }
 
@@ -309,14 +322,14 @@ impl RunSink for WideningSink<'_, '_> {
     }
 
     fn smoothed(&mut self, segment: &[StepEstimate]) {
-        match self.ensemble {
-            Some(e) => {
-                let mut widened = segment.to_vec();
-                widened.iter_mut().for_each(|s| e.widen_smoothed(s));
-                self.inner.smoothed(&widened);
+        let mut widened = segment.to_vec();
+        for s in &mut widened {
+            self.spread.widen_smoothed(s);
+            if let Some(e) = self.ensemble {
+                e.widen_smoothed(s);
             }
-            None => self.inner.smoothed(segment),
         }
+        self.inner.smoothed(&widened);
     }
 
     fn cancelled(&mut self) -> bool {
@@ -435,4 +448,44 @@ impl Backward {
 /// gap test; the gyro's own spacing is [`crate::segments::gyro_step_s`]).
 pub fn nominal_step_s(tel: &Telemetry) -> f64 {
     crate::segments::median_spacing(tel.t_s.iter().copied()).unwrap_or(1.0)
+}
+
+/// The reported covariances scaled by the residuals' spread over the sensor noise
+/// ([`Dispersion`]), when the configuration asks for it: each forward row by the spread of
+/// the updates up to it (what a forward pass knows), the smoothed rows and the final
+/// calibration and covariance by the whole run's. Applied before the ensemble adds its
+/// spread: the factor measures the base's misfit.
+struct SpreadWidening(Option<Dispersion>);
+
+impl SpreadWidening {
+    fn new(config: &FilterConfig, sigmas: SensorSigmas) -> Self {
+        SpreadWidening(
+            config
+                .widen_by_residual_spread
+                .then(|| Dispersion::new(sigmas.photodiode_v, sigmas.mag_nt)),
+        )
+    }
+
+    fn widen(&mut self, e: &mut StepEstimate, records: &[ResidualRecord]) {
+        if let Some(d) = self.0.as_mut() {
+            records.iter().for_each(|r| d.push(r));
+            e.scale_sigmas(d.report().sigma_factor);
+        }
+    }
+
+    fn widen_smoothed(&self, e: &mut StepEstimate) {
+        if let Some(d) = self.0.as_ref() {
+            e.scale_sigmas(d.report().sigma_factor);
+        }
+    }
+
+    fn widen_final(&self, run: &mut CalibrationRun) {
+        if let Some(d) = self.0.as_ref() {
+            let report = d.report();
+            let k = report.sigma_factor;
+            run.calibration.scale_sigmas(k);
+            run.final_covariance *= k * k;
+            run.dispersion = Some(report);
+        }
+    }
 }

@@ -91,6 +91,13 @@ impl Rows {
         self.decided[l].unwrap_or(nu * nu <= gate2 * spread)
     }
 
+    /// Row `l`'s residual after the correction `dx` of the whole step, linearised:
+    /// `y - h(x_0) - h_l dx`.
+    pub(crate) fn after(&self, l: usize, dx: &[f64]) -> f64 {
+        let (idx, val) = self.row(l);
+        self.innovation[l] - idx.iter().zip(val).map(|(&k, &v)| v * dx[k]).sum::<f64>()
+    }
+
     /// Appends a non-zero `(state, value)` to the last row.
     pub(crate) fn entry(&mut self, state: usize, value: f64) {
         self.idx.push(state);

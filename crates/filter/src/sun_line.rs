@@ -180,6 +180,7 @@ mod tests {
             residual: 0.2,
             bound_3sigma: 0.3,
             accepted: true,
+            post_fit: 0.2,
         };
         let t = ProbeTerm::new(7, &record).unwrap();
         let s: f64 = 0.01;

@@ -36,17 +36,25 @@ fn streaming_equals_in_memory_bit_for_bit() {
     // Starts in eclipse: the run's first row is not the data's.
     case.eclipse = 0..40;
     let (meta, tel, refs, _) = case.build();
-    let memory = compare(&meta, &tel, &refs, &Mode::Full);
+    let memory = compare(&meta, &tel, &refs, &Mode::Full, FilterConfig::default());
     assert!(memory.start_index >= 40);
+    // The residuals' spread scaled what was reported, the same in both.
+    assert!(memory.dispersion.unwrap().sigma_factor > 1.0);
 }
 
 /// With the Sun alone and no albedo the rotation about the Sun line is never observed
 /// (sigmas of a hundred degrees and more): every such row keeps its forward estimate, row
-/// for row, in memory and streaming alike.
+/// for row, in memory and streaming alike. (The sigmas the filter's own: scaled by the
+/// residuals' spread, a forward row takes the factor of the updates up to it and its
+/// smoothed row the whole run's.)
 #[test]
 fn streaming_equals_in_memory_with_the_sun_alone() {
     let (meta, tel, refs, _) = Case::rax2(11, 1300).build();
-    let memory = compare(&meta, &tel, &refs, &Mode::PhotodiodeOnly);
+    let config = FilterConfig {
+        widen_by_residual_spread: false,
+        ..FilterConfig::default()
+    };
+    let memory = compare(&meta, &tel, &refs, &Mode::PhotodiodeOnly, config);
     let smoothed = memory.smoothed.as_ref().unwrap();
     let whole_sigma_deg = |e: &StepEstimate| {
         e.attitude_cov_deg2()
@@ -81,7 +89,7 @@ fn streaming_equals_in_memory_across_gaps() {
         .filter(|(k, _)| keep(*k))
         .map(|(_, r)| *r)
         .collect();
-    let memory = compare(&meta, &cut, &refs, &Mode::Full);
+    let memory = compare(&meta, &cut, &refs, &Mode::Full, FilterConfig::default());
     assert_eq!(memory.segments.len(), 3, "{:#?}", memory.segments);
     let smoothed = memory.smoothed.as_ref().unwrap();
     for (f, s) in memory.forward.iter().zip(smoothed) {
@@ -96,6 +104,7 @@ fn compare(
     tel: &pdcal_dataset::Telemetry,
     refs: &[pdcal_ephem::Reference],
     mode: &Mode,
+    config: FilterConfig,
 ) -> pdcal_filter::CalibrationRun {
     let inputs = RunInputs {
         meta,
@@ -104,7 +113,6 @@ fn compare(
         albedo: None,
         set_first_rows: &[],
     };
-    let config = FilterConfig::default();
     let model = || {
         let pds = meta
             .photodiodes
@@ -147,6 +155,7 @@ fn compare(
         assert_eq!(streamed.counts, memory.counts);
         assert_eq!(streamed.rejections, memory.rejections);
         assert_eq!(streamed.segments, memory.segments);
+        assert_eq!(streamed.dispersion, memory.dispersion);
         // Blocks arrive last first, each in row order.
         let joined: Vec<StepEstimate> = sink.segments.iter().rev().flatten().cloned().collect();
         assert_eq!(&joined, smoothed, "blocks of {block_rows}, every {every}");

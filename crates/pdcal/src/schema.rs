@@ -80,6 +80,11 @@ pub struct Summary {
     /// ([`pdcal_filter::ensemble`]); absent otherwise.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ensemble: Option<pdcal_filter::ensemble::EnsembleReport>,
+    /// The factor every reported sigma was multiplied by: the residuals' spread after each
+    /// step's correction over the sensor noise, at least 1 ([`pdcal_filter::Dispersion`]);
+    /// absent when the configuration turns it off.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dispersion: Option<pdcal_filter::DispersionReport>,
     /// The segments: rows between gaps, silent gyros and lost attitudes, how each one's
     /// attitude was acquired, or why it was skipped.
     pub segments: Vec<SegmentReport>,
@@ -476,6 +481,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         segment_rules: run.segment_rules,
         propagation: run.propagation,
         ensemble: run.ensemble.clone(),
+        dispersion: run.dispersion,
         segments: run.segments.clone(),
         datasets: outcome.datasets.clone(),
         repeatability: outcome.repeatability.clone(),

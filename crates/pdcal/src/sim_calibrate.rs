@@ -76,6 +76,9 @@ pub struct SeedResult {
     /// The common rotation of the normals from the nominal mounting (`summary.json`
     /// `normals_rotation`); `None` when not fitted.
     pub normals_rotation: Option<pdcal_filter::CommonRotation>,
+    /// The factor every reported sigma was multiplied by (`summary.json` `dispersion`);
+    /// 1 when the configuration turns it off.
+    pub sigma_factor: f64,
 }
 
 /// What a downlink keeps and what the filter is told, comma-separated parts:
@@ -514,6 +517,7 @@ pub fn run_seed(
             s.propagation.gyro_rate_test.map(|t| t.chi_square_per_dof),
         ),
         normals_rotation: s.normals_rotation.clone(),
+        sigma_factor: s.dispersion.map_or(1.0, |d| d.sigma_factor),
     };
     Ok(SeedRun {
         result,

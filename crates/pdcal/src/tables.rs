@@ -61,16 +61,28 @@ pub fn photodiode_table(summary: &Summary) -> Table {
             ]
         })
         .collect();
+    let scaled = summary
+        .dispersion
+        .filter(|d| d.sigma_factor > 1.0)
+        .map(|d| {
+            format!(
+                "; sigmas multiplied by {:.2}, the residuals' spread after each step over \
+                 the noise",
+                d.sigma_factor
+            )
+        })
+        .unwrap_or_default();
     let widened = summary
         .ensemble
         .as_ref()
         .map(|e| {
             format!(
-                "; sigmas widened by the spread of {} of {} ensemble runs from other starts",
+                "{scaled}; sigmas widened by the spread of {} of {} ensemble runs from other \
+                 starts",
                 e.started, e.runs
             )
         })
-        .unwrap_or_default();
+        .unwrap_or(scaled);
     Table::new(
         &format!(
             "Photodiodes (calibrated value +- 1 sigma{widened}; nominal: the dataset.ron \

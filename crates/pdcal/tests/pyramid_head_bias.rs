@@ -18,18 +18,22 @@
 //! magnetometer) widens what is reported by the spread of the solutions the data allow: in
 //! seed 17 the filter alone settles 20-45 deg across the Sun line from the truth with a
 //! sigma of a few degrees; widened, the attitude is inside its 3 sigma, the smoothed
-//! attitude as well. The tests of the
-//! filter's own behaviour run without it.
+//! attitude as well. Where no member finds a better solution than the filter's wrong one
+//! (seed 14: azimuths 6-38 deg off, every member's fit far worse), the residuals after
+//! each step, several times the noise, scale every sigma (`widen_by_residual_spread`).
+//! The tests of the filter's own behaviour run without either.
 
 use pdcal::calibrate::{RunConfig, albedo_model};
 use pdcal::sim_calibrate::run_seed;
 use pdcal_filter::{EnsembleRuns, FilterConfig, Mode};
 
-/// The filter alone (no ensemble), with `relinearise_window_s`.
+/// The filter alone (no ensemble, its sigmas not scaled by the residuals' spread), with
+/// `relinearise_window_s`.
 fn run(seed: u64, relinearise_window_s: f64) -> pdcal::sim_calibrate::SeedResult {
     let filter = FilterConfig {
         relinearise_window_s,
         ensemble: EnsembleRuns::Off,
+        widen_by_residual_spread: false,
         ..FilterConfig::default()
     };
     run_sets(seed, 3, filter)
@@ -97,7 +101,14 @@ fn states_learnt_while_the_attitude_was_not_held_are_not_called_calibrated() {
 #[test]
 fn the_ensemble_widens_a_confidently_wrong_attitude_to_cover_the_truth() {
     let alone = run(17, FilterConfig::default().relinearise_window_s);
-    let widened = run_sets(17, 3, FilterConfig::default());
+    let widened = run_sets(
+        17,
+        3,
+        FilterConfig {
+            widen_by_residual_spread: false,
+            ..FilterConfig::default()
+        },
+    );
     eprintln!(
         "seed 17, across the Sun line inside: alone {:.3}, widened {:.3}; final states {:?} -> {:?}",
         alone.attitude_across_sun_inside,
@@ -119,4 +130,42 @@ fn the_ensemble_widens_a_confidently_wrong_attitude_to_cover_the_truth() {
             && across >= widened.attitude_across_sun_inside - 0.01,
         "{widened:?}"
     );
+}
+
+#[test]
+fn the_residuals_spread_widens_what_the_ensemble_cannot() {
+    let ensemble_only = run_sets(
+        14,
+        3,
+        FilterConfig {
+            widen_by_residual_spread: false,
+            ..FilterConfig::default()
+        },
+    );
+    let scaled = run_sets(14, 3, FilterConfig::default());
+    eprintln!(
+        "seed 14, across the Sun line inside: ensemble {:.3}, scaled by {:.2} {:.3}; final \
+         states {:?} -> {:?}",
+        ensemble_only.attitude_across_sun_inside,
+        scaled.sigma_factor,
+        scaled.attitude_across_sun_inside,
+        ensemble_only.final_inside,
+        scaled.final_inside
+    );
+    assert!(
+        ensemble_only.attitude_across_sun_inside < 0.8,
+        "{ensemble_only:?}"
+    );
+    assert_eq!(ensemble_only.sigma_factor, 1.0);
+    // The post-fit residuals spread beyond the noise, and the run says it is inconsistent.
+    assert!(scaled.sigma_factor > 2.0, "{scaled:?}");
+    assert_eq!(scaled.verdict, "inconsistent");
+    assert!(scaled.attitude_across_sun_inside > 0.99, "{scaled:?}");
+    assert!(
+        scaled.final_inside.0 > ensemble_only.final_inside.0,
+        "{scaled:?}"
+    );
+    assert_eq!(scaled.by_status.calibrated_outside_3sigma, 0, "{scaled:?}");
+    // The estimate is the run's own: the same segments.
+    assert_eq!(ensemble_only.segments, scaled.segments);
 }

@@ -137,6 +137,7 @@ def test_equals_xtask_sim_calibrate(client, tmp_path):
                 row["about_sun_undecided"],
             ],
             "dynamics": [row["dynamics"], row["gyro_rate_chi_square_per_dof"]],
+            "sigma_factor": row["sigma_factor"],
         }
         rotation = want["normals_rotation"]
         assert [

@@ -114,6 +114,7 @@ FIGURES = [
     "normals_rotation_chi_square",
     "normals_rotation_explained",
     "normals_turned",
+    "sigma_factor",
 ]
 
 _DEG = math.pi / 180.0
@@ -499,6 +500,8 @@ def _flatten(result: dict) -> dict:
         "normals_rotation_chi_square": None if rotation is None else rotation["chi_square"],
         "normals_rotation_explained": None if rotation is None else rotation["explained"],
         "normals_turned": None if rotation is None else bool(rotation["finding"]),
+        # The factor every reported sigma was multiplied by (summary.json dispersion).
+        "sigma_factor": result["sigma_factor"],
     }
     for pd in result["photodiodes"]:
         p = f"pd{pd['index']:02d}"
