@@ -87,7 +87,7 @@ fn calibrate_in_memory(
     let mut pass = ForwardPass::new(inputs, prepared, mode, model, algebra)?;
     let mut ensemble =
         members.and_then(|m| Ensemble::start(&pass, (inputs, prepared, mode), m, algebra));
-    let mut spread = SpreadWidening::new(config, pass.sensor_sigmas());
+    let mut scaling = ResidualScaling::new(config, pass.sensor_sigmas());
     let steps = pass.remaining();
     let mut store = config
         .smoother
@@ -109,7 +109,7 @@ fn calibrate_in_memory(
         let first = residuals.len();
         residuals.extend(pass.residual_records());
         let mut estimate = pass.estimate();
-        spread.widen(&mut estimate, &residuals[first..]);
+        scaling.widen(&mut estimate, &residuals[first..]);
         if let Some(e) = ensemble.as_mut() {
             e.widen(&mut estimate, &residuals[first..]);
         }
@@ -122,13 +122,13 @@ fn calibrate_in_memory(
         out.extend(store.smooth(pass.filter().layout(), pass.prior)?);
     }
     if let Some(out) = smoothed.as_mut() {
-        out.iter_mut().for_each(|s| spread.widen_smoothed(s));
+        out.iter_mut().for_each(|s| scaling.widen_smoothed(s));
     }
     if let (Some(e), Some(out)) = (ensemble.as_ref(), smoothed.as_mut()) {
         out.iter_mut().for_each(|s| e.widen_smoothed(s));
     }
     let mut run = pass.result(forward, smoothed, residuals);
-    spread.widen_final(&mut run);
+    scaling.widen_final(&mut run);
     if let Some(e) = ensemble {
         e.widen_final(&mut run);
     }
@@ -247,7 +247,7 @@ pub fn calibrate_streaming_kept(
     let mut pass = ForwardPass::new(inputs, prepared, mode, model, algebra)?;
     let mut ensemble =
         members.and_then(|m| Ensemble::start(&pass, (inputs, prepared, mode), m, algebra));
-    let mut spread = SpreadWidening::new(config, pass.sensor_sigmas());
+    let mut scaling = ResidualScaling::new(config, pass.sensor_sigmas());
     let mut kept: Vec<Kept> = Vec::new();
     let mut residuals = Vec::new();
     let mut starts = BlockStarts::new(block_rows);
@@ -268,7 +268,7 @@ pub fn calibrate_streaming_kept(
         residuals.clear();
         residuals.extend(pass.residual_records());
         let mut estimate = pass.estimate();
-        spread.widen(&mut estimate, &residuals);
+        scaling.widen(&mut estimate, &residuals);
         if let Some(e) = ensemble.as_mut() {
             e.widen(&mut estimate, &residuals);
         }
@@ -276,10 +276,10 @@ pub fn calibrate_streaming_kept(
     }
     // The forward results, before the replays below move the filter.
     let mut run = pass.result(Vec::new(), None, Vec::new());
-    spread.widen_final(&mut run);
+    scaling.widen_final(&mut run);
     let mut widening = WideningSink {
         inner: sink,
-        spread: &spread,
+        scaling: &scaling,
         ensemble: ensemble.as_ref(),
     };
     let sink: &mut dyn RunSink = &mut widening;
@@ -312,7 +312,7 @@ pub fn calibrate_streaming_kept(
 /// passing them on.
 struct WideningSink<'s, 'e> {
     inner: &'s mut dyn RunSink,
-    spread: &'s SpreadWidening,
+    scaling: &'s ResidualScaling,
     ensemble: Option<&'s Ensemble<'e>>,
 }
 
@@ -324,7 +324,7 @@ impl RunSink for WideningSink<'_, '_> {
     fn smoothed(&mut self, segment: &[StepEstimate]) {
         let mut widened = segment.to_vec();
         for s in &mut widened {
-            self.spread.widen_smoothed(s);
+            self.scaling.widen_smoothed(s);
             if let Some(e) = self.ensemble {
                 e.widen_smoothed(s);
             }
@@ -455,11 +455,11 @@ pub fn nominal_step_s(tel: &Telemetry) -> f64 {
 /// the updates up to it (what a forward pass knows), the smoothed rows and the final
 /// calibration and covariance by the whole run's. Applied before the ensemble adds its
 /// spread: the factor measures the base's misfit.
-struct SpreadWidening(Option<Dispersion>);
+struct ResidualScaling(Option<Dispersion>);
 
-impl SpreadWidening {
+impl ResidualScaling {
     fn new(config: &FilterConfig, sigmas: SensorSigmas) -> Self {
-        SpreadWidening(
+        ResidualScaling(
             config
                 .widen_by_residual_spread
                 .then(|| Dispersion::new(sigmas.photodiode_v, sigmas.mag_nt)),
