@@ -186,13 +186,18 @@ struct Sums {
 }
 
 impl Sums {
+    /// Counts an accepted update and its `|residual|` over the noise in the spread.
+    fn push_spread(&mut self, residual: f64, noise_sigma: f64) {
+        self.updates += 1;
+        if noise_sigma > 0.0 {
+            self.spread.push(residual.abs() / noise_sigma);
+        }
+    }
+
     fn push(&mut self, r: &ResidualRecord, noise_sigma: f64) {
         if r.accepted {
-            self.updates += 1;
+            self.push_spread(r.residual, noise_sigma);
             self.sum_sq += r.residual * r.residual;
-            if noise_sigma > 0.0 {
-                self.spread.push(r.residual.abs() / noise_sigma);
-            }
         }
         if !r.attitude_held {
             return;
@@ -362,13 +367,17 @@ impl Dispersion {
 
     /// Adds one scalar update (its residual after the step's correction).
     pub fn push(&mut self, r: &ResidualRecord) {
-        let after = ResidualRecord {
-            residual: r.post_fit,
-            ..*r
+        self.push_update(r.sensor, r.post_fit, r.accepted);
+    }
+
+    /// Adds one scalar update by its sensor, post-fit residual and acceptance.
+    pub fn push_update(&mut self, sensor: Sensor, post_fit: f64, accepted: bool) {
+        let (sums, noise_sigma) = match sensor {
+            Sensor::Photodiode(_) => (&mut self.photodiode, self.photodiode_sigma_v),
+            Sensor::Magnetometer(_) => (&mut self.magnetometer, self.mag_sigma_nt),
         };
-        match r.sensor {
-            Sensor::Photodiode(_) => self.photodiode.push(&after, self.photodiode_sigma_v),
-            Sensor::Magnetometer(_) => self.magnetometer.push(&after, self.mag_sigma_nt),
+        if accepted {
+            sums.push_spread(post_fit, noise_sigma);
         }
     }
 

@@ -844,7 +844,10 @@ impl<'a> ForwardPass<'a> {
         let turned = self.probe(until_t_s)?;
         let turned_end = self.probe_end();
         self.back_to(&start)?;
-        let choice = crate::sun_line::compare(&kept, &turned, [&kept_end, &turned_end]);
+        let variance_factor = crate::sun_line::variance_factor(&kept, self.sigmas)
+            .min(crate::sun_line::variance_factor(&turned, self.sigmas));
+        let choice =
+            crate::sun_line::compare(&kept, &turned, [&kept_end, &turned_end], variance_factor);
         if choice.turned {
             self.filter.turn_attitude(&half_turn);
             self.at.prior_q = self.filter.q();

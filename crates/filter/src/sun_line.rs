@@ -24,6 +24,8 @@ pub(crate) struct ProbeTerm {
     row: usize,
     sensor: Sensor,
     neg2_ln_l: f64,
+    post_fit: f64,
+    accepted: bool,
 }
 
 impl ProbeTerm {
@@ -35,6 +37,8 @@ impl ProbeTerm {
             row,
             sensor: record.sensor,
             neg2_ln_l: record.residual.powi(2) / variance + variance.ln(),
+            post_fit: record.post_fit,
+            accepted: record.accepted,
         })
     }
 }
@@ -77,12 +81,26 @@ impl ProbeEnd {
     }
 }
 
+/// The unit-weight variance of a probe's own updates (the square of
+/// [`crate::consistency::Dispersion`]'s factor over them), for the sensor noise `sigmas`.
+pub(crate) fn variance_factor(terms: &[ProbeTerm], sigmas: crate::SensorSigmas) -> f64 {
+    let mut d = crate::consistency::Dispersion::new(sigmas.photodiode_v, sigmas.mag_nt);
+    for t in terms {
+        d.push_update(t.sensor, t.post_fit, t.accepted);
+    }
+    d.report().sigma_factor.powi(2)
+}
+
 /// Compares the probes of the acquired start (`kept`) and of its half turn (`turned`)
-/// over the measurements (row and sensor) both made.
+/// over the measurements (row and sensor) both made. The likelihood ratio is divided by
+/// `variance_factor`, the unit-weight variance of the start that fits better
+/// ([`variance_factor`]): a quasi-likelihood, so that a model whose residuals spread
+/// beyond their noise does not decide with the confidence of one that explains them.
 pub(crate) fn compare(
     kept: &[ProbeTerm],
     turned: &[ProbeTerm],
     ends: [&ProbeEnd; 2],
+    variance_factor: f64,
 ) -> AboutSunLine {
     let mut sum = [0.0, 0.0];
     let mut common = 0;
@@ -101,7 +119,7 @@ pub(crate) fn compare(
             common += 1;
         }
     }
-    let delta = sum[0] - sum[1];
+    let delta = (sum[0] - sum[1]) / variance_factor.max(1.0);
     let same_end = ends[0].same_as(ends[1]);
     AboutSunLine {
         turned: delta > 0.0,
@@ -134,7 +152,41 @@ mod tests {
             row,
             sensor: Sensor::Photodiode(pd),
             neg2_ln_l,
+            post_fit: 0.0,
+            accepted: true,
         }
+    }
+
+    #[test]
+    fn a_start_whose_residuals_spread_beyond_the_noise_decides_less_surely() {
+        // Odds of 20 decide at a unit-weight variance of 1; the same over a model whose
+        // post-fit residuals spread twice the noise (variance 4) are 5, not decided.
+        let kept: Vec<_> = (0..10).map(|k| term(k, 0, 3.0)).collect();
+        let turned: Vec<_> = (0..10).map(|k| term(k, 0, 1.0)).collect();
+        let [a, b] = apart();
+        assert!(compare(&kept, &turned, [&a, &b], 1.0).decided);
+        let spread: Vec<_> = turned
+            .iter()
+            .enumerate()
+            .map(|(k, t)| ProbeTerm {
+                post_fit: if k % 2 == 0 { 0.02 } else { -0.02 },
+                ..*t
+            })
+            .collect();
+        // |post-fit| 0.02 V against a noise whose Gaussian median |x| is 0.01 V: a spread
+        // of 2 (to the 12 % histogram bin the median is read from).
+        let sigmas = crate::SensorSigmas {
+            photodiode_v: 0.01 / 0.674_489_750_196_081_7,
+            mag_nt: 300.0,
+            gyro_rad_s: 1e-3,
+        };
+        let factor = variance_factor(&spread, sigmas);
+        assert!((3.5..4.5).contains(&factor), "{factor}");
+        let c = compare(&kept, &spread, [&a, &b], factor);
+        assert!(c.turned && !c.decided, "{c:?}");
+        assert!((c.neg2_ln_likelihood_ratio - 20.0 / factor).abs() < 1e-9);
+        // Below the noise the factor is 1: a model never decides more surely for it.
+        assert_eq!(variance_factor(&turned, sigmas), 1.0);
     }
 
     #[test]
@@ -143,7 +195,7 @@ mod tests {
         let kept = [term(3, 0, 1.0), term(3, 1, 1.0), term(4, 0, 1.0)];
         let turned = [term(3, 0, 2.0), term(3, 2, 100.0), term(4, 0, 2.0)];
         let [a, b] = apart();
-        let c = compare(&kept, &turned, [&a, &b]);
+        let c = compare(&kept, &turned, [&a, &b], 1.0);
         assert_eq!(c.common_measurements, 2);
         assert!(!c.turned);
         assert!((c.neg2_ln_likelihood_ratio - 2.0).abs() < 1e-12);
@@ -155,21 +207,21 @@ mod tests {
         let kept: Vec<_> = (0..10).map(|k| term(k, 0, 3.0)).collect();
         let turned: Vec<_> = (0..10).map(|k| term(k, 0, 1.0)).collect();
         let [a, b] = apart();
-        let c = compare(&kept, &turned, [&a, &b]);
+        let c = compare(&kept, &turned, [&a, &b], 1.0);
         assert!(c.turned);
         assert!((c.neg2_ln_likelihood_ratio - 20.0).abs() < 1e-12);
         // 2 ln(369.4) = 11.8: 20 is beyond it, 11 would not be.
         assert!(c.decided);
         let turned: Vec<_> = (0..10).map(|k| term(k, 0, 1.9)).collect();
-        assert!(!compare(&kept, &turned, [&a, &b]).decided);
+        assert!(!compare(&kept, &turned, [&a, &b], 1.0).decided);
         // Ends 2 deg apart with 1 deg sigmas each (2.0 of a combined 1.41 sigma): the
         // same attitude, so the choice holds however close the likelihoods.
         let (c, d) = (end(0.0, 1.0), end(2.0, 1.0));
-        let near = compare(&kept, &turned, [&c, &d]);
+        let near = compare(&kept, &turned, [&c, &d], 1.0);
         assert!(near.same_end && near.decided);
         // 6 deg apart is 4.2 combined sigma: not the same.
         let e = end(6.0, 1.0);
-        assert!(!compare(&kept, &turned, [&c, &e]).same_end);
+        assert!(!compare(&kept, &turned, [&c, &e], 1.0).same_end);
     }
 
     #[test]
