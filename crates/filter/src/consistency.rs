@@ -327,13 +327,14 @@ impl ConsistencyAccumulator {
 /// several times worse than the noise while its covariance says it is known to a few
 /// degrees (docs/validation.md, "pyramid-head"): the covariance describes the model, and the
 /// model does not describe the data. The factor is the robust spread of the accepted
-/// updates' residuals over the sensor noise alone (the verdict's figure,
+/// updates' residuals *after* their step's correction (`ResidualRecord::post_fit`) over the
+/// sensor noise alone (the statistic of the verdict's
 /// [`ChannelConsistency::robust_over_noise`]), of the sensor class that spreads most, never
-/// below one: every reported sigma is multiplied by it. Pre-update residuals carry the
-/// filter's own state errors as well as the model's, so on a run the model explains the
-/// factor overstates the uncertainty a little (1.1 on rax2-like); it never understates it.
-/// What it does not touch: the estimates, the filter's own gates and bounds, and the
-/// verdict, which judge the run as it is.
+/// below one: every reported sigma is multiplied by it. Post-fit, not pre-update: the
+/// innovations also carry the filter's own state uncertainty, which its covariance already
+/// holds, while a post-fit residual of a model that explains its data lies within the
+/// noise. What it does not touch: the estimates, the filter's own gates and bounds, and
+/// the verdict, which judge the run as it is.
 #[derive(Debug, Clone)]
 pub struct Dispersion {
     photodiode_sigma_v: f64,
