@@ -48,6 +48,9 @@ impl StepEstimate {
     /// Multiplies every sigma (attitude and calibration) by `factor`
     /// ([`crate::consistency::Dispersion`]).
     pub fn scale_sigmas(&mut self, factor: f64) {
+        if factor == 1.0 {
+            return;
+        }
         self.set_attitude_cov_deg2(&(self.attitude_cov_deg2() * (factor * factor)));
         self.calibration.scale_sigmas(factor);
     }

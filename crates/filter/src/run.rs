@@ -122,7 +122,8 @@ fn calibrate_in_memory(
         out.extend(store.smooth(pass.filter().layout(), pass.prior)?);
     }
     if let Some(out) = smoothed.as_mut() {
-        out.iter_mut().for_each(|s| scaling.widen_smoothed(s));
+        let k = scaling.factor();
+        out.iter_mut().for_each(|s| s.scale_sigmas(k));
     }
     if let (Some(e), Some(out)) = (ensemble.as_ref(), smoothed.as_mut()) {
         out.iter_mut().for_each(|s| e.widen_smoothed(s));
@@ -279,7 +280,7 @@ pub fn calibrate_streaming_kept(
     scaling.widen_final(&mut run);
     let mut widening = WideningSink {
         inner: sink,
-        scaling: &scaling,
+        sigma_factor: scaling.factor(),
         ensemble: ensemble.as_ref(),
     };
     let sink: &mut dyn RunSink = &mut widening;
@@ -308,11 +309,11 @@ pub fn calibrate_streaming_kept(
     Ok(run)
 }
 
-/// A sink that widens the smoothed rows by the residuals' spread and the ensemble's before
-/// passing them on.
+/// A sink that widens the smoothed rows by the residuals' spread (the whole run's factor,
+/// [`ResidualScaling`]) and the ensemble's before passing them on.
 struct WideningSink<'s, 'e> {
     inner: &'s mut dyn RunSink,
-    scaling: &'s ResidualScaling,
+    sigma_factor: f64,
     ensemble: Option<&'s Ensemble<'e>>,
 }
 
@@ -324,7 +325,7 @@ impl RunSink for WideningSink<'_, '_> {
     fn smoothed(&mut self, segment: &[StepEstimate]) {
         let mut widened = segment.to_vec();
         for s in &mut widened {
-            self.scaling.widen_smoothed(s);
+            s.scale_sigmas(self.sigma_factor);
             if let Some(e) = self.ensemble {
                 e.widen_smoothed(s);
             }
@@ -473,10 +474,9 @@ impl ResidualScaling {
         }
     }
 
-    fn widen_smoothed(&self, e: &mut StepEstimate) {
-        if let Some(d) = self.0.as_ref() {
-            e.scale_sigmas(d.report().sigma_factor);
-        }
+    /// The factor of everything pushed so far (1 when off).
+    fn factor(&self) -> f64 {
+        self.0.as_ref().map_or(1.0, |d| d.report().sigma_factor)
     }
 
     fn widen_final(&self, run: &mut CalibrationRun) {
