@@ -63,7 +63,7 @@
 //! step, equivalent to a degree-4 spherical-harmonic expansion) and evaluates a sensor in O(1)
 //! by fitting its gated cosine kernel with a polynomial on the range of n.u the Earth disc
 //! spans. It is exact for sensors that see all or none of the disc. Measured against the full
-//! model (`tests/approx.rs`, TOMS map, 1000 random LEO geometries x normals), in units of the
+//! model (`tests/integration/approx.rs`, TOMS map, 1000 random LEO geometries x normals), in units of the
 //! step's maximum ratio (sum of c, about 0.3 over the sub-solar point): fov 90 deg max 2.4e-3,
 //! rms 3.7e-4; fov 60 deg max 1.3e-2, rms 2.4e-3. Building the moments from a 2 x 2.5 deg
 //! block-mean map (4x fewer cells) barely changes this (2.8e-3 / 1.5e-2 max). The vector

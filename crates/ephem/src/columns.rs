@@ -5,7 +5,7 @@
 //! Lagrange polynomial through the (up to) five nearest samples. This keeps the result C¹ (a
 //! smooth velocity for the filter), exact at the samples, and fourth order in the spacing h:
 //! on an SGP4 LEO orbit the error is 7e-9 km (SGP4's own noise) at h = 1 s and 3e-7 km at
-//! h = 10 s, the velocity error 9e-9 and 1e-7 km/s (see `tests/columns_interpolation.rs`).
+//! h = 10 s, the velocity error 9e-9 and 1e-7 km/s (see `tests/integration/columns_interpolation.rs`).
 
 use hifitime::Epoch;
 use nalgebra::Vector3;

@@ -1,0 +1,25 @@
+//! One test binary for the driver's integration tests: the `pdcal` binary run on files, as a user runs it: each module is one file of
+//! tests, linked once instead of once per file.
+
+mod consistency_verdict;
+mod files_contract;
+mod hand_made_dataset;
+mod import_command;
+mod input_checks;
+mod joint_sets;
+mod mag_align_photodiodes;
+mod magcal_command;
+mod mounting_findings;
+mod output_faults;
+mod output_replace;
+mod pyramid_head_bias;
+mod reliability_inputs;
+mod repeatability;
+mod skcube_honesty;
+mod skcube_import;
+mod spikes;
+mod streaming_outputs;
+mod sun_line_half_turn;
+mod sun_only_attitude;
+mod truth_is_not_read;
+mod turned_head;
