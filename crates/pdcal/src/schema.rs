@@ -471,8 +471,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
             .cloned()
             .chain(bias_beyond_prior(&run.initial, &run.calibration))
             .chain(
-                initial_bias
-                    .as_ref()
+                last_set_fit(run, &outcome.datasets)
                     .and_then(|b| bias_beyond_fit(b, &run.calibration)),
             )
             .chain(about_sun_line_undecided(&run.segments))
@@ -567,9 +566,25 @@ fn bias_beyond_prior(initial: &Calibration, calibration: &Calibration) -> Vec<St
         .collect()
 }
 
-/// A warning when the first acquisition's bias came from the fit and the final estimate
-/// lies beyond 3 sigma of it on some axis: the fit, which held the first minutes' attitude,
-/// was off (a Sun vector worse than its sigma, a rate the gyro did not measure).
+/// The bias at the first acquisition of the last data set: the one the final estimate
+/// belongs to. An earlier set's is another turn-on of the gyro (the bias restarts with each
+/// set, [`pdcal_filter::BiasAcrossSets`]), and even carried across sets it is weeks of walk
+/// away; neither says whether a fit was off.
+fn last_set_fit<'a>(
+    run: &'a pdcal_filter::CalibrationRun,
+    datasets: &[DatasetSummary],
+) -> Option<&'a pdcal_filter::InitialBias> {
+    let first_row = datasets.last().map_or(0, |d| d.span.first_row);
+    run.segments
+        .iter()
+        .filter(|s| s.first_row >= first_row)
+        .find_map(|s| s.initial_bias.as_ref())
+}
+
+/// A warning when the last data set's first acquisition took its bias from the fit and the
+/// final estimate lies beyond 3 sigma of it on some axis: the fit, which held that
+/// acquisition's first minutes' attitude, was off (a Sun vector worse than its sigma, a
+/// rate the gyro did not measure).
 fn bias_beyond_fit(
     initial: &pdcal_filter::InitialBias,
     calibration: &Calibration,
@@ -587,8 +602,8 @@ fn bias_beyond_fit(
     (worst > 3.0).then(|| {
         format!(
             "gyro bias: the final estimate lies {worst:.1} sigma from the fit at the first \
-             acquisition ({:.3}, {:.3}, {:.3} deg/s): the first segment's attitude leaned on \
-             a wrong bias",
+             acquisition of its data set ({:.3}, {:.3}, {:.3} deg/s): that segment's attitude \
+             leaned on a wrong bias",
             initial.bias_deg_s[0], initial.bias_deg_s[1], initial.bias_deg_s[2]
         )
     })

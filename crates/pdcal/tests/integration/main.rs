@@ -1,6 +1,7 @@
 //! One test binary for the driver's integration tests: the `pdcal` binary run on files, as a user runs it: each module is one file of
 //! tests, linked once instead of once per file.
 
+mod bias_per_set;
 mod consistency_verdict;
 mod files_contract;
 mod hand_made_dataset;
