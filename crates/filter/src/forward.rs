@@ -1015,7 +1015,7 @@ impl<'a> ForwardPass<'a> {
         let bound_deg = self.loss_bound_deg();
         if sigma_deg > bound_deg && self.relative_sigma_deg(self.at.next - 1) > bound_deg {
             return Some(format!(
-                "attitude sigma {sigma_deg:.1} deg above {bound_deg} deg"
+                "attitude sigma {sigma_deg:.1} deg above {bound_deg:.1} deg"
             ));
         }
         self.at.window.lost().map(|fraction| {
