@@ -1014,8 +1014,13 @@ impl<'a> ForwardPass<'a> {
         let sigma_deg = self.attitude_sigma_deg(self.at.next - 1);
         let bound_deg = self.loss_bound_deg();
         if sigma_deg > bound_deg && self.relative_sigma_deg(self.at.next - 1) > bound_deg {
+            let which = if self.use_mag {
+                ""
+            } else {
+                " across the Sun line"
+            };
             return Some(format!(
-                "attitude sigma {sigma_deg:.1} deg above {bound_deg:.1} deg"
+                "attitude sigma{which} {sigma_deg:.1} deg above {bound_deg:.1} deg"
             ));
         }
         self.at.window.lost().map(|fraction| {
