@@ -434,7 +434,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         })
         .collect();
     let sv = &outcome.sun_vector;
-    let initial_bias = run.segments.iter().find_map(|s| s.initial_bias.clone());
+    let initial_bias = first_bias_from(run, 0).cloned();
     Summary {
         format_version: OUTPUT_FORMAT_VERSION,
         dataset: meta.name.clone(),
@@ -471,7 +471,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
             .cloned()
             .chain(bias_beyond_prior(&run.initial, &run.calibration))
             .chain(
-                last_set_fit(run, &outcome.datasets)
+                first_bias_from(run, last_set_row(&outcome.datasets))
                     .and_then(|b| bias_beyond_fit(b, &run.calibration)),
             )
             .chain(about_sun_line_undecided(&run.segments))
@@ -566,15 +566,19 @@ fn bias_beyond_prior(initial: &Calibration, calibration: &Calibration) -> Vec<St
         .collect()
 }
 
-/// The bias at the first acquisition of the last data set: the one the final estimate
-/// belongs to. An earlier set's is another turn-on of the gyro (the bias restarts with each
-/// set, [`pdcal_filter::BiasAcrossSets`]), and even carried across sets it is weeks of walk
-/// away; neither says whether a fit was off.
-fn last_set_fit<'a>(
-    run: &'a pdcal_filter::CalibrationRun,
-    datasets: &[DatasetSummary],
-) -> Option<&'a pdcal_filter::InitialBias> {
-    let first_row = datasets.last().map_or(0, |d| d.span.first_row);
+/// The first row of the last data set: the one the final estimate belongs to. An earlier
+/// set's bias is another turn-on of the gyro (the bias restarts with each set,
+/// [`pdcal_filter::BiasAcrossSets`]), and even carried across sets it is weeks of walk away;
+/// its fit says nothing of whether the final estimate's set was fitted well.
+fn last_set_row(datasets: &[DatasetSummary]) -> usize {
+    datasets.last().map_or(0, |d| d.span.first_row)
+}
+
+/// The bias at the first acquisition from `first_row` on.
+fn first_bias_from(
+    run: &pdcal_filter::CalibrationRun,
+    first_row: usize,
+) -> Option<&pdcal_filter::InitialBias> {
     run.segments
         .iter()
         .filter(|s| s.first_row >= first_row)

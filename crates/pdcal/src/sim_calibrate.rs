@@ -261,7 +261,7 @@ pub const SET_SPACING_DAYS: f64 = 30.0;
 /// The seed's data set `j` of `sets`: the scenario with its epoch `j` months later, as
 /// downlink `j` of the seed (the same hardware, its own noise, start attitude and gyro
 /// bias), cut into passes when asked.
-fn simulate_set(
+pub fn simulate_set(
     scenario: &pdcal_sim::Scenario,
     seed: u64,
     j: usize,

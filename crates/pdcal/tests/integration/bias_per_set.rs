@@ -6,30 +6,21 @@
 
 use pdcal::calibrate::{RunConfig, run_sets};
 use pdcal::output::OutputDir;
+use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_filter::{InitialBias, Mode};
 
 const SEED: u64 = 1;
 
-/// Downlink `j` of the pyramid head, `j` months after the first; its magnetometer dropped
-/// (the flight set has none) and its true bias at the end, rad/s.
-fn downlink(
-    j: u64,
-) -> (
-    (
-        std::path::PathBuf,
-        pdcal_dataset::DatasetMeta,
-        pdcal_dataset::Telemetry,
-    ),
-    [f64; 3],
-) {
+/// Downlink `j` of the pyramid head as the Monte Carlo's `--sets` makes it (`j` months
+/// after the first), its magnetometer dropped (the flight set has none), and its true bias
+/// at the end, rad/s.
+fn downlink(j: usize) -> ((std::path::PathBuf, DatasetMeta, Telemetry), [f64; 3]) {
     let path = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../../fixtures/scenarios/weak/pyramid-head.ron"
     );
-    let mut s = pdcal::simulate::load_scenario(path).unwrap();
-    s.epoch_utc = ["2011-11-04T18:29:45Z", "2011-12-04T18:29:45Z"][j as usize].to_owned();
-    s.name = format!("downlink{}", j + 1);
-    let mut sim = pdcal::simulate::run_downlink(&s, SEED, j).unwrap();
+    let scenario = pdcal::simulate::load_scenario(path).unwrap();
+    let mut sim = pdcal::sim_calibrate::simulate_set(&scenario, SEED, j, None).unwrap();
     sim.telemetry.mag_nt = None;
     let last = sim.truth.t_s.len() - 1;
     let bias = sim.truth.gyro_bias_rad_s[last].into();
