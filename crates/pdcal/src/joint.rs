@@ -340,7 +340,12 @@ fn concat(parts: impl Iterator<Item = (f64, Telemetry)>) -> Telemetry {
 /// Each set's own estimate for the repeatability check ([`crate::repeatability`]): a
 /// forward pass over the set's rows alone (the run's machinery, no smoother: the last row's
 /// forward estimate is the set's whole information), from the same configuration and mode
-/// as the joint run, with the statuses judged from its own covariance and residuals.
+/// as the joint run, with the statuses judged from its own covariance and residuals. Its
+/// covariance is widened as a calibration of that set alone would widen it (the residuals'
+/// spread and the multi-start ensemble, [`pdcal_filter::ensemble`]): without the ensemble a
+/// set whose Sun-only start settled on a wrong solution holds it with the filter's own,
+/// too small sigma, and the comparison of sets says "differs" where the data decided
+/// nothing.
 /// `meta` and `telemetry` are the joint run's (mountings corrected, screened), `references`
 /// one per joint row. A set whose own pass fails is kept with the reason.
 pub fn own_estimates(
@@ -392,12 +397,12 @@ fn own_estimate(
         sigmas.photodiode_v,
         sigmas.mag_nt,
     ));
-    let model = pdcal_filter::paper_model(pdcal_filter::nominal_photodiodes(meta), &filter);
+    let model = || pdcal_filter::paper_model(pdcal_filter::nominal_photodiodes(meta), &filter);
     let run = pdcal_filter::calibrate_streaming(
         &inputs,
         &prepared,
         mode,
-        (model, None),
+        (model(), Some(&model)),
         pdcal_filter::Algebra::Structured,
         pdcal_filter::SMOOTHER_BLOCK_ROWS,
         &mut sink,

@@ -473,24 +473,49 @@ fn warning(p: &Parameter, sets: &[SetInput], threshold: f64, comparisons: usize)
     let digits = if unit == "V" { 4 } else { 2 };
     let show = |(x, v): (f64, f64)| format!("{x:.digits$} +- {:.digits$} {unit}", v.sqrt());
     let name = |k: usize| format!("set {} ({})", k + 1, sets[k].name);
-    let this = p.per_set[worst.set].1.map(show).unwrap_or_default();
-    let what = match worst.other {
-        Some(b) => format!(
-            "{} {this} against {} {}",
-            name(worst.set),
-            name(b),
-            p.per_set[b].1.map(show).unwrap_or_default()
+    let shown = |k: usize| {
+        let (status, value) = p.per_set[k];
+        let value = value.map(show).unwrap_or_default();
+        match status {
+            Status::Calibrated => value,
+            _ => format!("{value} ({})", status.as_str()),
+        }
+    };
+    let (what, involved) = match worst.other {
+        Some(b) => (
+            format!(
+                "{} {} against {} {}",
+                name(worst.set),
+                shown(worst.set),
+                name(b),
+                shown(b)
+            ),
+            vec![worst.set, b],
         ),
-        None => format!(
-            "{} {this} against the other sets' {}",
-            name(worst.set),
-            p.rest_value[worst.set].map(show).unwrap_or_default()
+        None => (
+            format!(
+                "{} {} against the other sets' {}",
+                name(worst.set),
+                shown(worst.set),
+                p.rest_value[worst.set].map(show).unwrap_or_default()
+            ),
+            (0..p.per_set.len())
+                .filter(|&k| p.per_set[k].1.is_some())
+                .collect(),
         ),
+    };
+    let weak = involved
+        .iter()
+        .any(|&k| p.per_set[k].0 != Status::Calibrated);
+    let causes = if weak {
+        "a degradation, a changed mounting, an effect the model lacks, or a set that \
+         determined it only weakly holding a wrong solution tighter than its sigma says"
+    } else {
+        "a degradation, a changed mounting or an effect the model lacks"
     };
     Some(format!(
         "repeatability: {} differs between the data sets: {what}, {:.1} sigma (threshold \
-         {threshold:.2} sigma for {comparisons} comparisons at {:.2} % family-wise): a \
-         degradation, a changed mounting or an effect the model lacks",
+         {threshold:.2} sigma for {comparisons} comparisons at {:.2} % family-wise): {causes}",
         p.label,
         worst.z.abs(),
         100.0 * FAMILY_FALSE_ALARM
@@ -779,9 +804,30 @@ mod tests {
             w.starts_with("repeatability: pd01 scale_V differs between the data sets: set 3 (c) 0.8000 +- 0.0100 V against the other sets' 0.7000 +- 0.0071 V, 8.2 sigma"),
             "{w}"
         );
+        // Set 2 determined it only weakly: the warning says a weak set's wrong solution
+        // may be the cause.
+        assert!(
+            w.ends_with("holding a wrong solution tighter than its sigma says"),
+            "{w}"
+        );
         let row = &r.sets[2].parameters[0];
         assert_eq!(row.verdict, "differs");
         assert!((row.vs_other_sets.unwrap() - 0.1 / 1.5e-4f64.sqrt()).abs() < 1e-9);
+        // Every set calibrated it: the causes are the hardware's or the model's.
+        let mut calibrated = sets;
+        calibrated[1] = set("b", 1.0, (0.7, 0.01), Status::Calibrated, 0.0);
+        let w = &compare(&calibrated, &NO_WALK, PRIOR).warnings[0];
+        assert!(
+            w.ends_with("a changed mounting or an effect the model lacks"),
+            "{w}"
+        );
+        // A weak set's estimate says its status.
+        calibrated[2] = set("c", 2.0, (0.8, 0.01), Status::WeaklyDetermined, 0.0);
+        let w = &compare(&calibrated, &NO_WALK, PRIOR).warnings[0];
+        assert!(
+            w.contains("set 3 (c) 0.8000 +- 0.0100 V (weakly-determined) against"),
+            "{w}"
+        );
         // The pair (1, 3) differs too; the normals agree.
         assert_eq!(r.sets[0].parameters[0].verdict, "differs");
         assert_eq!(r.sets[0].parameters[1].verdict, "agrees");

@@ -11,17 +11,10 @@ use pdcal_filter::{InitialBias, Mode};
 
 const SEED: u64 = 1;
 
-/// Downlink `j` of the pyramid head as the Monte Carlo's `--sets` makes it (`j` months
-/// after the first), its magnetometer dropped (the flight set has none), and its true bias
-/// at the end, rad/s.
+/// Downlink `j` of the pyramid head without its magnetometer, and its true bias at the
+/// end, rad/s.
 fn downlink(j: usize) -> ((std::path::PathBuf, DatasetMeta, Telemetry), [f64; 3]) {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../fixtures/scenarios/weak/pyramid-head.ron"
-    );
-    let scenario = pdcal::simulate::load_scenario(path).unwrap();
-    let mut sim = pdcal::sim_calibrate::simulate_set(&scenario, SEED, j, None).unwrap();
-    sim.telemetry.mag_nt = None;
+    let sim = crate::common::pyramid_downlink(SEED, j);
     let last = sim.truth.t_s.len() - 1;
     let bias = sim.truth.gyro_bias_rad_s[last].into();
     (

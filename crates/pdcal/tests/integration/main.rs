@@ -2,6 +2,7 @@
 //! tests, linked once instead of once per file.
 
 mod bias_per_set;
+mod common;
 mod consistency_verdict;
 mod files_contract;
 mod hand_made_dataset;
