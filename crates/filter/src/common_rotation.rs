@@ -72,21 +72,54 @@ impl CommonRotation {
         if !self.finding {
             return None;
         }
+        Some(format!(
+            "the calibrated normals of {} are turned together from the nominal mounting by \
+             {}: a sensor head mounted turned, a mounting table in another frame, or an \
+             attitude error the normals took up; check the mounting",
+            self.names(),
+            self.figures(),
+        ))
+    }
+
+    /// The fit in one sentence, finding or not (the printed summary and index.html): what
+    /// the data say of the normals' common rotation, and why it is or is not a finding.
+    pub fn describe(&self) -> String {
+        let verdict = if self.finding {
+            "a finding (see the warnings)".to_owned()
+        } else if self.chi_square > self.chi_square_threshold {
+            format!(
+                "determined, not a finding: a finding explains more than {:.0} % (independent \
+                 mounting errors of {} normals leave {:.0} % to a rotation on average)",
+                100.0 * MIN_EXPLAINED,
+                self.photodiodes.len(),
+                100.0 * 3.0 / (2.0 * self.photodiodes.len() as f64),
+            )
+        } else {
+            format!(
+                "not determined (a determined rotation has a chi-square above {:.1})",
+                self.chi_square_threshold
+            )
+        };
+        format!("{}: {}; {verdict}", self.names(), self.figures())
+    }
+
+    fn names(&self) -> String {
         let names: Vec<String> = self
             .photodiodes
             .iter()
             .map(|i| format!("pd{i:02}"))
             .collect();
+        names.join(", ")
+    }
+
+    /// The angle, axis, sigmas, chi-square and explained part.
+    fn figures(&self) -> String {
         let r = Vector3::from(self.rotation_body_deg);
         let axis = r / r.norm().max(f64::MIN_POSITIVE);
         let s = self.sigma_body_deg;
-        Some(format!(
-            "the calibrated normals of {} are turned together from the nominal mounting by \
-             {:.1} deg about body ({:.3}, {:.3}, {:.3}) (rotation vector sigma {:.1}, {:.1}, \
-             {:.1} deg; chi-square {:.1} for 3 dof; it explains {:.0} % of their changes): a \
-             sensor head mounted turned, a mounting table in another frame, or an attitude \
-             error the normals took up; check the mounting",
-            names.join(", "),
+        format!(
+            "{:.1} deg about body ({:.3}, {:.3}, {:.3}) (rotation vector sigma {:.1}, {:.1}, \
+             {:.1} deg; chi-square {:.1} for 3 dof; it explains {:.0} % of their changes)",
             self.angle_deg,
             axis.x,
             axis.y,
@@ -96,7 +129,7 @@ impl CommonRotation {
             s[2],
             self.chi_square,
             100.0 * self.explained,
-        ))
+        )
     }
 }
 
@@ -343,6 +376,19 @@ mod tests {
             w.contains("pd01, pd02, pd03, pd04, pd05, pd06") && w.contains("15.2 deg"),
             "{w}"
         );
+        let d = r.describe();
+        assert!(
+            d.starts_with("pd01, pd02, pd03, pd04, pd05, pd06: 15.2 deg"),
+            "{d}"
+        );
+        assert!(d.ends_with("a finding (see the warnings)"), "{d}");
+        // No change at all: nothing determined.
+        let none = fit(&nominal, &nominal, &p, &layout);
+        assert!(none.warning().is_none());
+        assert!(
+            none.describe()
+                .ends_with("not determined (a determined rotation has a chi-square above 14.2)")
+        );
     }
 
     #[test]
@@ -364,6 +410,10 @@ mod tests {
             let r = fit(&nominal, &calibrated, &p, &layout);
             // Determined (the sigmas are 30 times below the errors) but not most of it.
             found += usize::from(r.finding);
+            if !r.finding {
+                let d = r.describe();
+                assert!(d.contains("; determined, not a finding: a finding explains more than 50 % (independent mounting errors of 6 normals leave 25 % to a rotation on average)"), "{d}");
+            }
         }
         // A rotation takes 3 of the 12 degrees of freedom: beyond half of the change in
         // about 3 % of draws (Beta(1.5, 4.5) above 0.5).

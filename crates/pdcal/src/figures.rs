@@ -471,6 +471,12 @@ pub fn write_index(
     if let Some(extra) = evaluation {
         rows.extend(extra.iter().cloned());
     }
+    rows.extend(summary.normals_rotation.as_ref().map(|r| {
+        (
+            crate::tables::NORMALS_ROTATION_TITLE.to_owned(),
+            r.describe(),
+        )
+    }));
     rows.extend(
         summary
             .warnings

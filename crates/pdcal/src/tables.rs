@@ -247,12 +247,27 @@ pub fn text(table: &Table) -> String {
 /// repeatability of a joint run (its verdict and one line per warning) and the segments.
 pub fn console_summary(summary: &Summary) -> String {
     format!(
-        "{}\n{}\n{}{}",
+        "{}\n{}\n{}{}{}",
         text(&photodiode_table(summary)),
         text(&consistency_table(&summary.consistency)),
         repeatability_lines(summary),
+        normals_rotation_line(summary),
         text(&shortened(segment_table(summary), CONSOLE_SEGMENTS))
     )
+}
+
+/// The title of the normals' common rotation (`summary.json` `normals_rotation`).
+pub const NORMALS_ROTATION_TITLE: &str = "Normals turned together from the nominal mounting";
+
+/// The normals' common rotation in one line, finding or not, so that a rotation the data
+/// determined is read even where it is no finding; empty when it was not fitted.
+pub fn normals_rotation_line(summary: &Summary) -> String {
+    summary
+        .normals_rotation
+        .as_ref()
+        .map_or_else(String::new, |r| {
+            format!("{NORMALS_ROTATION_TITLE}: {}\n\n", r.describe())
+        })
 }
 
 /// The repeatability verdict of a joint run in one line, then one line per warning (the

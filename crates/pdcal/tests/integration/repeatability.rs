@@ -73,6 +73,16 @@ fn unchanged_hardware_repeats_and_a_degraded_photodiode_is_named() {
     assert!(rows[0]["estimate"].is_f64() && rows[0]["sigma"].is_f64());
     assert!(rows[0]["vs_other_sets"].is_f64());
     assert_eq!(rows[0]["vs_sets"].as_array().unwrap().len(), 2);
+    // The normals' common rotation is printed and in index.html, finding or not.
+    let r = same.normals_rotation.as_ref().expect("17 normals fitted");
+    let line = format!(
+        "{}: {}",
+        pdcal::tables::NORMALS_ROTATION_TITLE,
+        r.describe()
+    );
+    assert!(pdcal::tables::console_summary(&same).contains(&line));
+    let html = std::fs::read_to_string(tmp.path().join("same/index.html")).unwrap();
+    assert!(html.contains(pdcal::tables::NORMALS_ROTATION_TITLE));
 
     // pd01's output 10 % lower in the third downlink.
     let mut degraded = sets;
