@@ -414,6 +414,17 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
         "| of those, runs that give a `calibrated` or `weakly-determined` state outside its 3-sigma | {wrong} / {} | - | 0 |",
         silent.len()
     );
+    // A quiet run whose data left the normals' common turn at its prior says that a
+    // turned head would go unseen (`normals_rotation_not_fitted`).
+    let untested = silent
+        .iter()
+        .filter(|x| x.normals_rotation.is_none())
+        .count();
+    let _ = writeln!(
+        s,
+        "| of those, runs that say a turned head would go unseen (`normals_rotation_not_fitted`) | {untested} / {} | - | - |",
+        silent.len()
+    );
     let with_dynamics = r.iter().filter(|x| x.dynamics.0).count();
     let tested: Vec<f64> = r.iter().filter_map(|x| x.dynamics.1).collect();
     let chi = if tested.is_empty() {

@@ -471,12 +471,10 @@ pub fn write_index(
     if let Some(extra) = evaluation {
         rows.extend(extra.iter().cloned());
     }
-    rows.extend(summary.normals_rotation.as_ref().map(|r| {
-        (
-            crate::tables::NORMALS_ROTATION_TITLE.to_owned(),
-            r.describe(),
-        )
-    }));
+    rows.extend(
+        crate::tables::normals_rotation_text(summary)
+            .map(|t| (crate::tables::NORMALS_ROTATION_TITLE.to_owned(), t)),
+    );
     rows.extend(
         summary
             .warnings

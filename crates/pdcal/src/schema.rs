@@ -103,6 +103,9 @@ pub struct Summary {
     /// to the photodiodes whose normals the data moved, with its sigma and whether it is a
     /// finding (`pdcal_filter::common_rotation`); null when fewer than 4 were.
     pub normals_rotation: Option<pdcal_filter::CommonRotation>,
+    /// Why `normals_rotation` is null: the data did not test whether the photodiodes are
+    /// turned together (a head mounted turned would go unseen); null when it is fitted.
+    pub normals_rotation_not_fitted: Option<String>,
     /// The calibration as reported (`calibration.ron`): every quantity the data did not
     /// determine at its prior value, the statuses listed.
     #[serde(skip)]
@@ -400,7 +403,10 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         &bias_status,
     );
     reported.status = status_lines(&determination, &bias_status);
-    let normals_rotation = normals_rotation(run);
+    let (normals_rotation, normals_rotation_not_fitted) = match normals_rotation(run) {
+        Ok(r) => (Some(r), None),
+        Err(why) => (None, Some(why)),
+    };
     let photodiodes = reported
         .photodiodes
         .iter()
@@ -486,20 +492,24 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         repeatability: outcome.repeatability.clone(),
         mounting_findings: outcome.mountings.clone(),
         normals_rotation,
+        normals_rotation_not_fitted,
         reported,
     }
 }
 
 /// The common rotation of the used photodiodes' estimated normals from the nominal
-/// mounting, when the data determined it. Every used normal takes part, a `not-determined`
-/// one too: the fit weighs each by the joint final covariance, so a normal the data hardly
-/// moved counts for little, and the normals' common turn can be determined while no single
-/// normal is (with the ensemble's widened covariances, [`pdcal_filter::ensemble`], most
-/// normals of an uncalibrated Sun-only head are `not-determined` one by one). A rotation
-/// whose sigma about any axis is above [`NOT_DETERMINED_SIGMA_RATIO`] of the normals'
-/// prior sigma is the prior's, not the data's, and is not reported, by the rule of
-/// [`pdcal_filter::identifiability`].
-fn normals_rotation(run: &pdcal_filter::CalibrationRun) -> Option<pdcal_filter::CommonRotation> {
+/// mounting, when the data determined it, or why not. Every used normal takes part, a
+/// `not-determined` one too: the fit weighs each by the joint final covariance, so a
+/// normal the data hardly moved counts for little, and the normals' common turn can be
+/// determined while no single normal is (with the ensemble's widened covariances,
+/// [`pdcal_filter::ensemble`], most normals of an uncalibrated Sun-only head are
+/// `not-determined` one by one). A rotation whose sigma about any axis is above
+/// [`NOT_DETERMINED_SIGMA_RATIO`] of the normals' prior sigma is the prior's, not the
+/// data's, and is not reported, by the rule of [`pdcal_filter::identifiability`]; the
+/// reason then says so, with that sigma.
+fn normals_rotation(
+    run: &pdcal_filter::CalibrationRun,
+) -> Result<pdcal_filter::CommonRotation, String> {
     let prior_deg = run
         .initial
         .photodiodes
@@ -508,18 +518,37 @@ fn normals_rotation(run: &pdcal_filter::CalibrationRun) -> Option<pdcal_filter::
         .filter(|(_, used)| **used)
         .map(|(p, _)| p.elevation_sigma_deg)
         .fold(0.0, f64::max);
-    pdcal_filter::common_rotation::common_rotation(
+    let used = run.used_photodiodes.iter().filter(|u| **u).count();
+    let minimum = pdcal_filter::common_rotation::MIN_PHOTODIODES;
+    let r = pdcal_filter::common_rotation::common_rotation(
         &run.initial,
         &run.calibration,
         &run.final_covariance,
         &run.layout,
         &run.used_photodiodes,
     )
-    .filter(|r| {
-        r.sigma_body_deg
-            .iter()
-            .all(|s| *s <= NOT_DETERMINED_SIGMA_RATIO * prior_deg)
-    })
+    .ok_or_else(|| match used < minimum {
+        true => format!(
+            "{used} photodiodes used, fewer than the {minimum} a common turn of the normals \
+             is fitted to: a head mounted turned is not tested"
+        ),
+        false => "the normals' covariance is not positive definite: a head mounted turned is \
+                  not tested"
+            .to_owned(),
+    })?;
+    let bound = NOT_DETERMINED_SIGMA_RATIO * prior_deg;
+    let s = r.sigma_body_deg;
+    if s.iter().any(|s| *s > bound) {
+        let unseen = 3.0 * s.iter().copied().fold(0.0, f64::max);
+        return Err(format!(
+            "the normals' common turn has a sigma of {:.1}, {:.1}, {:.1} deg about body x, y, \
+             z, above {bound:.1} deg ({NOT_DETERMINED_SIGMA_RATIO} of the normals' prior): \
+             the prior's, not the data's; a head mounted turned by up to about {unseen:.0} \
+             deg would go unseen",
+            s[0], s[1], s[2]
+        ));
+    }
+    Ok(r)
 }
 
 /// A warning naming the Sun-only segments whose attitude the data did not tell from its

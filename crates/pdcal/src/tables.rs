@@ -260,14 +260,22 @@ pub fn console_summary(summary: &Summary) -> String {
 pub const NORMALS_ROTATION_TITLE: &str = "Normals turned together from the nominal mounting";
 
 /// The normals' common rotation in one line, finding or not, so that a rotation the data
-/// determined is read even where it is no finding; empty when it was not fitted.
+/// determined is read even where it is no finding, or why it was not fitted.
 pub fn normals_rotation_line(summary: &Summary) -> String {
-    summary
-        .normals_rotation
-        .as_ref()
-        .map_or_else(String::new, |r| {
-            format!("{NORMALS_ROTATION_TITLE}: {}\n\n", r.describe())
-        })
+    normals_rotation_text(summary).map_or_else(String::new, |t| {
+        format!("{NORMALS_ROTATION_TITLE}: {t}\n\n")
+    })
+}
+
+/// The normals' common rotation described, or why it was not fitted.
+pub fn normals_rotation_text(summary: &Summary) -> Option<String> {
+    match &summary.normals_rotation {
+        Some(r) => Some(r.describe()),
+        None => summary
+            .normals_rotation_not_fitted
+            .as_ref()
+            .map(|why| format!("not fitted: {why}")),
+    }
 }
 
 /// The repeatability verdict of a joint run in one line, then one line per warning (the

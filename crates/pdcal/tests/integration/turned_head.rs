@@ -7,6 +7,8 @@
 //! ones, fitted with their joint covariance, is a finding, about the boresight, near the
 //! 15 deg the simulator turned the head by. Against the simulator's truth; the unturned
 //! head's seed 7, also `consistent` and `repeatable`, is not called turned.
+//! And a downlink whose data leave the common turn at its prior says that a turned head
+//! would go unseen.
 
 use pdcal::calibrate::{RunConfig, albedo_model};
 use pdcal::sim_calibrate::{SeedResult, run_seed};
@@ -56,4 +58,47 @@ fn a_head_turned_about_its_boresight_is_found_where_the_verdicts_see_nothing() {
     assert_eq!(unturned.verdict, "consistent", "{unturned:?}");
     let r = unturned.normals_rotation.expect("the rotation is fitted");
     assert!(!r.finding, "{r:?}");
+}
+
+/// A downlink whose data leave the normals' common turn at its prior: the run says that a
+/// head mounted turned would go unseen, in summary.json, the printed summary and
+/// index.html, instead of saying nothing of the mounting. The pyramid head's seed 6, first
+/// downlink: the Sun stays 60 deg or more from every normal, every state `not-determined`.
+#[test]
+fn a_run_that_cannot_see_a_turned_head_says_so() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sim = crate::common::pyramid_downlink(6, 0);
+    let config = RunConfig {
+        mode: Mode::PhotodiodeOnly,
+        ..RunConfig::default()
+    };
+    let out = tmp.path().join("out");
+    let dir = pdcal::output::OutputDir::create(&out, "calibrate").unwrap();
+    let set = ("downlink1".into(), sim.meta, sim.telemetry);
+    let (_, summary) = pdcal::calibrate::run_sets(vec![set], dir, &config, None).unwrap();
+    assert!(summary.normals_rotation.is_none());
+    let why = summary
+        .normals_rotation_not_fitted
+        .as_ref()
+        .expect("the reason it was not fitted");
+    assert!(
+        why.contains("above 5.0 deg (0.5 of the normals' prior)")
+            && why.contains("would go unseen"),
+        "{why}"
+    );
+    let printed = pdcal::tables::console_summary(&summary);
+    assert!(
+        printed.contains(&format!(
+            "{}: not fitted: {why}",
+            pdcal::tables::NORMALS_ROTATION_TITLE
+        )),
+        "{printed}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(json["normals_rotation"], serde_json::Value::Null);
+    assert_eq!(json["normals_rotation_not_fitted"], why.as_str());
+    let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+    // index.html escapes the apostrophe.
+    assert!(html.contains("not fitted: the normals&#39; common turn"));
 }
