@@ -17,10 +17,7 @@ fn downlink(j: usize) -> ((std::path::PathBuf, DatasetMeta, Telemetry), [f64; 3]
     let sim = crate::common::pyramid_downlink(SEED, j);
     let last = sim.truth.t_s.len() - 1;
     let bias = sim.truth.gyro_bias_rad_s[last].into();
-    (
-        (format!("downlink{}", j + 1).into(), sim.meta, sim.telemetry),
-        bias,
-    )
+    (crate::common::downlink_set(sim, j), bias)
 }
 
 /// The largest of `|estimate - fit| / fit sigma` over the axes.

@@ -182,13 +182,6 @@ fn a_gyro_turned_on_anew_in_each_downlink_has_its_bias_found_in_each() {
     );
 }
 
-/// Downlink `j` of the pyramid head without its magnetometer: the calibration widens its
-/// sigmas by the multi-start ensemble.
-fn pyramid_downlink(seed: u64, j: usize) -> (PathBuf, DatasetMeta, Telemetry) {
-    let sim = crate::common::pyramid_downlink(seed, j);
-    (format!("downlink{}", j + 1).into(), sim.meta, sim.telemetry)
-}
-
 /// The estimate a joint run compares for a set is the one a calibration of that set alone
 /// reports: the same value and the same (widened) sigma. A set's own pass held with the
 /// filter's bare covariance, narrower than its calibration's, would make the comparison
@@ -202,7 +195,11 @@ fn a_sets_own_estimate_is_its_calibration_alone() {
         mode: pdcal_filter::Mode::PhotodiodeOnly,
         ..RunConfig::default()
     };
-    let sets: Vec<_> = (0..2).map(|j| pyramid_downlink(10, j)).collect();
+    // The pyramid head without its magnetometer: the calibration widens its sigmas by the
+    // multi-start ensemble.
+    let sets: Vec<_> = (0..2)
+        .map(|j| crate::common::downlink_set(crate::common::pyramid_downlink(10, j), j))
+        .collect();
     let dir = OutputDir::create(&tmp.path().join("joint"), "calibrate").unwrap();
     let joint = run_sets(sets.clone(), dir, &config, None).unwrap().1;
     for (k, set) in sets.into_iter().enumerate() {

@@ -74,7 +74,7 @@ fn a_run_that_cannot_see_a_turned_head_says_so() {
     };
     let out = tmp.path().join("out");
     let dir = pdcal::output::OutputDir::create(&out, "calibrate").unwrap();
-    let set = ("downlink1".into(), sim.meta, sim.telemetry);
+    let set = crate::common::downlink_set(sim, 0);
     let (_, summary) = pdcal::calibrate::run_sets(vec![set], dir, &config, None).unwrap();
     assert!(summary.normals_rotation.is_none());
     let why = summary

@@ -13,3 +13,15 @@ pub fn pyramid_downlink(seed: u64, j: usize) -> pdcal_sim::SimOutput {
     sim.telemetry.mag_nt = None;
     sim
 }
+
+/// `sim` as the data set `downlink{j + 1}` of a joint calibration.
+pub fn downlink_set(
+    sim: pdcal_sim::SimOutput,
+    j: usize,
+) -> (
+    std::path::PathBuf,
+    pdcal_dataset::DatasetMeta,
+    pdcal_dataset::Telemetry,
+) {
+    (format!("downlink{}", j + 1).into(), sim.meta, sim.telemetry)
+}
