@@ -414,15 +414,20 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
         "| of those, runs that give a `calibrated` or `weakly-determined` state outside its 3-sigma | {wrong} / {} | - | 0 |",
         silent.len()
     );
-    // A quiet run whose data left the normals' common turn at its prior says that a
-    // turned head would go unseen (`normals_rotation_not_fitted`).
+    // A quiet run whose data left the normals' common turn at its prior
+    // (`normals_rotation_not_fitted`), or fitted it without determining it, says that a
+    // turned head would go unseen.
     let untested = silent
         .iter()
-        .filter(|x| x.normals_rotation.is_none())
+        .filter(|x| {
+            x.normals_rotation
+                .as_ref()
+                .is_none_or(|f| f.chi_square <= f.chi_square_threshold)
+        })
         .count();
     let _ = writeln!(
         s,
-        "| of those, runs that say a turned head would go unseen (`normals_rotation_not_fitted`) | {untested} / {} | - | - |",
+        "| of those, runs that say a turned head would go unseen (`normals_rotation_not_fitted`, or a turn fitted and not determined) | {untested} / {} | - | - |",
         silent.len()
     );
     let with_dynamics = r.iter().filter(|x| x.dynamics.0).count();

@@ -58,6 +58,11 @@ pub struct CommonRotation {
     pub chi_square: f64,
     /// The chi-square beyond which the data determined a rotation (3-sigma, 3 dof).
     pub chi_square_threshold: f64,
+    /// The largest turn of the head these data would leave undetermined, deg: a turn whose
+    /// chi-square reaches the threshold about the worst-determined axis,
+    /// `sqrt(threshold x the largest eigenvalue of the rotation's covariance)`.
+    #[serde(default)]
+    pub unseen_turn_deg: f64,
     /// The part of the normals' changes (their chi-square against the nominal mounting)
     /// the rotation explains, 0..1.
     pub explained: f64,
@@ -96,8 +101,9 @@ impl CommonRotation {
             )
         } else {
             format!(
-                "not determined (a determined rotation has a chi-square above {:.1})",
-                self.chi_square_threshold
+                "not determined (a determined rotation has a chi-square above {:.1}): a head \
+                 mounted turned by up to about {:.0} deg would go unseen",
+                self.chi_square_threshold, self.unseen_turn_deg
             )
         };
         format!("{}: {}; {verdict}", self.names(), self.figures())
@@ -171,6 +177,7 @@ pub fn common_rotation(
         0.0
     };
     let threshold = crate::gate::chi_square_3_threshold(3.0);
+    let widest_rad2 = covariance_rad2.symmetric_eigenvalues().max();
     Some(CommonRotation {
         photodiodes: chosen.iter().map(|i| i + 1).collect(),
         rotation_body_deg: std::array::from_fn(|k| vector[k].to_degrees()),
@@ -178,6 +185,7 @@ pub fn common_rotation(
         sigma_body_deg: std::array::from_fn(|k| covariance_rad2[(k, k)].sqrt().to_degrees()),
         chi_square,
         chi_square_threshold: threshold,
+        unseen_turn_deg: (threshold * widest_rad2).sqrt().to_degrees(),
         explained,
         finding: chi_square > threshold && explained > MIN_EXPLAINED,
     })
@@ -387,7 +395,7 @@ mod tests {
         assert!(none.warning().is_none());
         assert!(
             none.describe()
-                .ends_with("not determined (a determined rotation has a chi-square above 14.2)")
+                .contains("not determined (a determined rotation has a chi-square above 14.2): a head mounted turned by up to about ")
         );
     }
 
@@ -455,6 +463,41 @@ mod tests {
                 sigma[k]
             );
         }
+    }
+
+    /// `unseen_turn_deg` is the size at which the least-determined turn reaches the
+    /// threshold: every turn a little larger is determined, and the weakest direction at
+    /// that size sits on the threshold.
+    #[test]
+    fn the_unseen_turn_is_the_largest_the_fit_leaves_undetermined() {
+        let (nominal, layout) = head();
+        let p = covariance(&layout, 1.5f64.to_radians());
+        let unseen = fit(&nominal, &nominal, &p, &layout).unseen_turn_deg;
+        let directions = 600;
+        let mut weakest = f64::INFINITY;
+        for k in 0..directions {
+            // Fibonacci lattice: directions spread evenly over the sphere.
+            let z = 1.0 - 2.0 * (k as f64 + 0.5) / directions as f64;
+            let phi = k as f64 * std::f64::consts::PI * (3.0 - 5f64.sqrt());
+            let axis = Vector3::new(
+                (1.0 - z * z).sqrt() * phi.cos(),
+                (1.0 - z * z).sqrt() * phi.sin(),
+                z,
+            );
+            let chi_square_at = |deg: f64| {
+                let turn = Rotation3::new(axis * deg.to_radians());
+                let turned: Vec<Vector3<f64>> = nominal.iter().map(|n| turn * n).collect();
+                fit(&nominal, &turned, &p, &layout)
+            };
+            let above = chi_square_at(1.05 * unseen);
+            assert!(above.chi_square > above.chi_square_threshold, "{above:?}");
+            weakest = weakest.min(chi_square_at(unseen).chi_square);
+        }
+        let threshold = crate::gate::chi_square_3_threshold(3.0);
+        assert!(
+            (weakest / threshold - 1.0).abs() < 0.05,
+            "weakest chi-square {weakest:.2} at {unseen:.2} deg against {threshold:.2}"
+        );
     }
 
     #[test]

@@ -539,13 +539,12 @@ fn normals_rotation(
     let bound = NOT_DETERMINED_SIGMA_RATIO * prior_deg;
     let s = r.sigma_body_deg;
     if s.iter().any(|s| *s > bound) {
-        let unseen = 3.0 * s.iter().copied().fold(0.0, f64::max);
         return Err(format!(
             "the normals' common turn has a sigma of {:.1}, {:.1}, {:.1} deg about body x, y, \
              z, above {bound:.1} deg ({NOT_DETERMINED_SIGMA_RATIO} of the normals' prior): \
-             the prior's, not the data's; a head mounted turned by up to about {unseen:.0} \
-             deg would go unseen",
-            s[0], s[1], s[2]
+             the prior's, not the data's; a head mounted turned by up to about {:.0} deg \
+             would go unseen",
+            s[0], s[1], s[2], r.unseen_turn_deg
         ));
     }
     Ok(r)
