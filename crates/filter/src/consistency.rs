@@ -306,7 +306,11 @@ impl ConsistencyAccumulator {
         } else {
             Verdict::Inconsistent
         };
-        let notes = sensors.iter().filter_map(conservative_note).collect();
+        let notes = sensors
+            .iter()
+            .flat_map(|c| [conservative_note(c), unheld_note(c), tail_note(c)])
+            .flatten()
+            .collect();
         Consistency {
             verdict,
             reasons,
@@ -464,15 +468,48 @@ fn channel_problems(c: &ChannelConsistency) -> Vec<String> {
 /// A sentence when a sensor class's mean NIS over its held updates lies below its band.
 fn conservative_note(c: &ChannelConsistency) -> Option<String> {
     let (nis, [low, _]) = (c.nis_mean?, c.nis_band?);
+    let rms = c.rms_over_noise.unwrap_or(0.0);
     (c.held_updates >= MIN_JUDGED_UPDATES && nis < low).then(|| {
         format!(
             "{}: mean normalised innovation squared {nis:.3} below its 99.9 % band (>= \
              {low:.2}): the filter's bounds are wider than the residuals need, and its sigmas \
              overstate the uncertainty (a measurement variance larger than the misfit: the \
-             declared noise, albedo_sigma_w_m2)",
+             declared noise, albedo_sigma_w_m2; or a state uncertainty wider than its error); \
+             the residuals themselves are {rms:.2} times the sensor noise",
             c.channel
         )
     })
+}
+
+/// A channel judged by its spread alone: no update of it was made with the attitude held,
+/// so an attitude free to follow the outputs may have absorbed a misfit the spread cannot
+/// show.
+fn unheld_note(c: &ChannelConsistency) -> Option<String> {
+    (c.updates >= MIN_JUDGED_UPDATES && c.held_updates == 0).then(|| {
+        format!(
+            "{}: no update was made with the attitude held, so its normalised innovations \
+             and the fraction inside 3 sigma were not tested: the verdict rests on the \
+             residuals' spread alone, which cannot see a misfit that an attitude free to \
+             follow the outputs took up",
+            c.channel
+        )
+    })
+}
+
+/// A channel whose RMS is beyond the bound while its robust spread is not: the misfit is
+/// in a minority of its updates.
+fn tail_note(c: &ChannelConsistency) -> Option<String> {
+    let (rms, robust) = (c.rms_over_noise?, c.robust_over_noise?);
+    (c.updates >= MIN_JUDGED_UPDATES && rms > MAX_RMS_NOISE_RATIO && robust <= MAX_RMS_NOISE_RATIO)
+        .then(|| {
+            format!(
+                "{}: residual RMS {rms:.2} times the sensor noise, its robust spread \
+                 {robust:.2}: the misfit sits in a minority of the updates (the first minutes \
+                 of convergence, or an effect the model lacks where it acts); residuals.csv \
+                 shows where",
+                c.channel
+            )
+        })
 }
 
 /// More than 1 % outside and 3 sigma beyond the binomial expectation of 0.27 %.
@@ -639,6 +676,35 @@ mod tests {
         let c = judge(&records, 3, 0.01, 300.0);
         assert!(c.sensors[0].rms_over_noise.unwrap() > 5.0);
         assert_eq!(c.verdict, Verdict::Consistent, "{:?}", c.reasons);
+        // Said: the RMS beyond the bound sits in a minority of the updates.
+        assert!(
+            c.notes
+                .iter()
+                .any(|n| n.starts_with("photodiode: residual RMS") && n.contains("minority")),
+            "{:?}",
+            c.notes
+        );
+    }
+
+    #[test]
+    fn a_verdict_on_the_spread_alone_says_so() {
+        // Residuals at the noise, but no row with the attitude held: consistent by the
+        // spread, the held figures untested, and the notes say both.
+        let records: Vec<ResidualRecord> = gaussian_records(600, 0.01, 0.01, 17)
+            .into_iter()
+            .map(|r| ResidualRecord {
+                attitude_held: false,
+                ..r
+            })
+            .collect();
+        let c = judge(&records, 3, 0.01, 300.0);
+        assert_eq!(c.verdict, Verdict::Consistent, "{:?}", c.reasons);
+        assert!(c.sensors[0].nis_mean.is_none() && c.sensors[0].fraction_within_3sigma.is_none());
+        assert_eq!(c.notes.len(), 1, "{:?}", c.notes);
+        assert!(c.notes[0].starts_with("photodiode: no update was made with the attitude held"));
+        // With held rows the note is not given.
+        let held = judge(&gaussian_records(600, 0.01, 0.01, 17), 3, 0.01, 300.0);
+        assert!(held.notes.is_empty(), "{:?}", held.notes);
     }
 
     #[test]

@@ -34,7 +34,9 @@ pub const MAX_CORRELATION: f64 = 0.98;
 /// `segments.held_attitude_sigma_deg`), and to the time the attitude was held since the
 /// gyro bias last started from its prior: the EKF linearises each update at its estimate,
 /// and a state learnt at an attitude tens of degrees uncertain gets a sigma from Jacobians
-/// taken that far from the truth (docs/validation.md, "Weak real data").
+/// taken that far from the truth (docs/validation.md, "Weak real data"). A photodiode
+/// with no time held at all has nothing but such updates behind its quantities: they are
+/// `not-determined`, whatever their sigmas.
 pub const MIN_USED_MIN: f64 = 5.0;
 
 /// How well the data determined a quantity.
@@ -212,7 +214,17 @@ fn judge_photodiode(e: &Evidence<'_>, i: usize) -> PdIdentifiability {
             .filter_map(|&k| max_correlation(e.covariance, k, &own, e.layout))
             .max_by(|a, b| a.0.abs().total_cmp(&b.0.abs()));
         cap_by_correlation(j, rho);
-        if minutes < MIN_USED_MIN {
+        if held_minutes <= 0.0 {
+            demote(
+                j,
+                Status::NotDetermined,
+                format!(
+                    "lit and used {minutes:.1} min, none of them with the attitude held: \
+                     every update that moved it was linearised at an attitude less certain \
+                     than the held bound, so its sigma is not the data's"
+                ),
+            );
+        } else if minutes < MIN_USED_MIN {
             demote(
                 j,
                 Status::WeaklyDetermined,

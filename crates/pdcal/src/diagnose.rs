@@ -440,5 +440,38 @@ pub fn console_summary(outcome: &DiagnoseOutcome) -> String {
             }
         );
     }
+    for note in &d.consistency.notes {
+        let _ = writeln!(s, "    note: {note}");
+    }
+    if let Some(why) = verdicts_differ(&d.misfit, &d.consistency) {
+        let _ = writeln!(s, "  {why}");
+    }
     s
+}
+
+/// Why the post-fit residuals and calibrate's verdict can disagree, when they do: they
+/// judge different residuals, and neither answer cancels the other.
+fn verdicts_differ(
+    misfit: &pdcal_diagnose::Misfit,
+    c: &pdcal_filter::consistency::Consistency,
+) -> Option<String> {
+    let filter_consistent = c.verdict == pdcal_filter::consistency::Verdict::Consistent;
+    let pd = c.sensors.first()?;
+    (misfit.explained != filter_consistent).then(|| {
+        format!(
+            "the two answers judge different residuals: calibrate's verdict, the filter's {} \
+             accepted photodiode updates ({} of them with the attitude held) against the sensor \
+             noise, each made at the attitude the filter held then; the residuals above, every \
+             photodiode sample at the smoothed attitude and the final calibration, rows the \
+             filter did not use included (eclipse, high incidence, albedo only). A model that \
+             explains the data passes both; here {} does not",
+            pd.updates,
+            pd.held_updates,
+            if misfit.explained {
+                "the filter's updates"
+            } else {
+                "the smoothed, final model"
+            }
+        )
+    })
 }

@@ -143,7 +143,7 @@ pub struct PdSummary {
     pub time_used_min: f64,
     /// The part of it with the attitude held (its sigma in the observed directions within
     /// `segments.held_attitude_sigma_deg`), min: under 5 min a quantity is at most
-    /// `weakly-determined`.
+    /// `weakly-determined`, with none at all `not-determined`.
     pub time_held_min: f64,
     /// Why the result deserves a second look, when it does: `never lit`, `lit too little
     /// (N min)`, `change beyond 3 sigma of the prior`.
@@ -498,8 +498,8 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
 }
 
 /// The common rotation of the used photodiodes' estimated normals from the nominal
-/// mounting, when the data determined it, or why not. Every used normal takes part, a
-/// `not-determined` one too: the fit weighs each by the joint final covariance, so a
+/// mounting, when the data determined it, or why not. Every normal used with the attitude
+/// held for some of its time takes part, a `not-determined` one too: the fit weighs each by the joint final covariance, so a
 /// normal the data hardly moved counts for little, and the normals' common turn can be
 /// determined while no single normal is (with the ensemble's widened covariances,
 /// [`pdcal_filter::ensemble`], most normals of an uncalibrated Sun-only head are
@@ -518,19 +518,29 @@ fn normals_rotation(
         .filter(|(_, used)| **used)
         .map(|(p, _)| p.elevation_sigma_deg)
         .fold(0.0, f64::max);
+    // A normal learnt with the attitude never held has a covariance from updates
+    // linearised far from the truth (`identifiability`): it does not take part.
+    let fitted: Vec<bool> = run
+        .used_photodiodes
+        .iter()
+        .zip(&run.photodiode_time_held_s)
+        .map(|(used, held_s)| *used && *held_s > 0.0)
+        .collect();
     let used = run.used_photodiodes.iter().filter(|u| **u).count();
+    let held = fitted.iter().filter(|f| **f).count();
     let minimum = pdcal_filter::common_rotation::MIN_PHOTODIODES;
     let r = pdcal_filter::common_rotation::common_rotation(
         &run.initial,
         &run.calibration,
         &run.final_covariance,
         &run.layout,
-        &run.used_photodiodes,
+        &fitted,
     )
-    .ok_or_else(|| match used < minimum {
+    .ok_or_else(|| match held < minimum {
         true => format!(
-            "{used} photodiodes used, fewer than the {minimum} a common turn of the normals \
-             is fitted to: a head mounted turned is not tested"
+            "{used} photodiodes used, {held} of them with the attitude held, fewer than the \
+             {minimum} a common turn of the normals is fitted to: a head mounted turned is \
+             not tested"
         ),
         false => "the normals' covariance is not positive definite: a head mounted turned is \
                   not tested"

@@ -12,6 +12,7 @@ mod joint_sets;
 mod mag_align_photodiodes;
 mod magcal_command;
 mod mounting_findings;
+mod never_held;
 mod output_faults;
 mod output_replace;
 mod pyramid_head_bias;

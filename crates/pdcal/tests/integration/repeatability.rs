@@ -185,9 +185,8 @@ fn a_gyro_turned_on_anew_in_each_downlink_has_its_bias_found_in_each() {
 /// The estimate a joint run compares for a set is the one a calibration of that set alone
 /// reports: the same value and the same (widened) sigma. A set's own pass held with the
 /// filter's bare covariance, narrower than its calibration's, would make the comparison
-/// say "differs" where the set's own calibration says its data decided little (in seed 10
-/// the bare pass held pd01's scale at 0.045 V where the calibration of the set alone says
-/// 0.076 V).
+/// say "differs" where the set's own calibration says its data decided little (seed 13's
+/// first downlink, the only one of its two that held the attitude).
 #[test]
 fn a_sets_own_estimate_is_its_calibration_alone() {
     let tmp = tempfile::tempdir().unwrap();
@@ -198,10 +197,13 @@ fn a_sets_own_estimate_is_its_calibration_alone() {
     // The pyramid head without its magnetometer: the calibration widens its sigmas by the
     // multi-start ensemble.
     let sets: Vec<_> = (0..2)
-        .map(|j| crate::common::downlink_set(crate::common::pyramid_downlink(10, j), j))
+        .map(|j| crate::common::downlink_set(crate::common::pyramid_downlink(13, j), j))
         .collect();
     let dir = OutputDir::create(&tmp.path().join("joint"), "calibrate").unwrap();
     let joint = run_sets(sets.clone(), dir, &config, None).unwrap().1;
+    // A set whose attitude was never held determines no scale (its photodiodes are
+    // `not-determined`) and compares none.
+    let mut checked = 0;
     for (k, set) in sets.into_iter().enumerate() {
         let dir = OutputDir::create(&tmp.path().join(format!("set{k}")), "calibrate").unwrap();
         let (alone, _) = run_sets(vec![set], dir, &config, None).unwrap();
@@ -212,7 +214,7 @@ fn a_sets_own_estimate_is_its_calibration_alone() {
             .iter()
             .filter(|p| p.parameter.ends_with("scale_V") && p.estimate.is_some())
             .collect();
-        assert!(!compared.is_empty(), "set {k} determined a scale");
+        checked += compared.len();
         for p in compared {
             let i: usize = p.parameter[2..4].parse::<usize>().unwrap() - 1;
             let pd = &alone.run.calibration.photodiodes[i];
@@ -231,4 +233,5 @@ fn a_sets_own_estimate_is_its_calibration_alone() {
             );
         }
     }
+    assert!(checked > 0, "no set determined a scale");
 }
