@@ -59,6 +59,7 @@ mod column;
 mod current;
 mod error;
 mod files;
+mod line_ends;
 pub mod manifest;
 mod meta;
 pub mod publish;
@@ -78,6 +79,7 @@ pub use files::{
     Dataset, DatasetWriter, LIBRARY_WRITE_COMMAND, begin_dataset, begin_dataset_as, read_dataset,
     read_meta, read_telemetry, read_telemetry_into, read_truth, render_dataset, write_dataset,
 };
+pub use line_ends::CrlfToLf;
 pub use meta::{
     DatasetMeta, EpochUtc, FORMAT_VERSION, Inertia, MetaFields, NoiseHints, NominalMount,
     OrbitSpec, meta_from_fields, meta_from_str,

@@ -14,7 +14,7 @@ use crate::error::{DatasetError, ErrorKind, FileFaultKind};
 /// blank lines are skipped.
 pub(crate) struct CsvRows<'a, R = &'a [u8]> {
     file: &'a Path,
-    reader: csv::Reader<R>,
+    reader: csv::Reader<crate::CrlfToLf<R>>,
     record: StringRecord,
     /// The header cells.
     pub header: Vec<String>,
@@ -41,7 +41,7 @@ impl<'a, R: Read> CsvRows<'a, R> {
             .flexible(true)
             .trim(Trim::All)
             .buffer_capacity(1 << 16)
-            .from_reader(source);
+            .from_reader(crate::CrlfToLf::new(source));
         let mut rows = Self {
             file,
             reader,

@@ -109,7 +109,7 @@ pub(crate) struct Records<R: Read> {
     pub(crate) detected: bool,
 }
 
-type Source<R> = io::Chain<Cursor<Vec<u8>>, BufReader<Utf8Check<R>>>;
+type Source<R> = pdcal_dataset::CrlfToLf<io::Chain<Cursor<Vec<u8>>, BufReader<Utf8Check<R>>>>;
 
 enum Kind<R: Read> {
     Csv(csv::Reader<Source<R>>),
@@ -178,7 +178,7 @@ impl<R: Read> Records<R> {
                 true,
             ),
         };
-        let source = Cursor::new(head).chain(reader);
+        let source = pdcal_dataset::CrlfToLf::new(Cursor::new(head).chain(reader));
         let kind = match delimiter.byte() {
             Some(byte) => Kind::Csv(
                 csv::ReaderBuilder::new()
@@ -208,10 +208,20 @@ impl<R: Read> Records<R> {
     /// skipped.
     pub(crate) fn next(&mut self, record: &mut StringRecord) -> Result<Option<usize>, ImportError> {
         let result = match &mut self.kind {
-            Kind::Csv(reader) => match reader.read_record(record) {
-                Ok(false) => Ok(None),
-                Ok(true) => Ok(Some(record.position().map_or(1, |p| line_of(p.line())))),
-                Err(e) => Err((e.position().map(|p| line_of(p.line())), e.to_string())),
+            Kind::Csv(reader) => loop {
+                match reader.read_record(record) {
+                    Ok(false) => break Ok(None),
+                    // A line of blanks only: a blank line.
+                    Ok(true) if record.len() == 1 && record[0].is_empty() => continue,
+                    Ok(true) => {
+                        let line = record.position().map_or(1, |p| line_of(p.line()));
+                        if let Some(column) = record.iter().position(|c| c.contains(['\n', '\r'])) {
+                            return Err(open_quote(&self.file, line, column + 1, &record[column]));
+                        }
+                        break Ok(Some(line));
+                    }
+                    Err(e) => break Err((e.position().map(|p| line_of(p.line())), e.to_string())),
+                }
             },
             Kind::Words { reader, line, text } => loop {
                 text.clear();
@@ -256,6 +266,26 @@ impl<R: Read> Records<R> {
     pub(crate) fn blank_so_far(&self) -> bool {
         !self.seen.text.get()
     }
+}
+
+/// A cell that holds a line break: a quote opened and not closed on its line takes every
+/// line after it into the cell, up to the next quote (a cell of an export never spans
+/// lines).
+fn open_quote(file: &Path, line: usize, column: usize, cell: &str) -> ImportError {
+    let breaks = cell.matches('\n').count().max(1);
+    ImportError::at(
+        file,
+        line,
+        Some(column),
+        FileFaultKind::Csv {
+            message: format!(
+                "a quoted cell runs over {breaks} line break(s) from here: a quote opened \
+                 and not closed on its line takes the lines after it into one cell (close \
+                 the quote or remove it)"
+            ),
+        }
+        .into(),
+    )
 }
 
 fn line_of(line: u64) -> usize {

@@ -384,3 +384,62 @@ fn a_map_without_gyro_columns_imports_rows_without_a_gyro() {
     assert!((tm.pd_v[1].get(0).unwrap() - 1.5).abs() < 1e-12);
     assert!(imported.dataset.meta.inertia_kg_m2.is_some());
 }
+
+/// A Windows export (`\r\n` line ends) is placed line for line as the same export with `\n`:
+/// the duplicate-time message and a bad cell name the lines an editor shows.
+#[test]
+fn line_ends_of_a_windows_export_do_not_move_the_lines_named() {
+    let crlf = DUPLICATES.replace('\n', "\r\n");
+    assert_eq!(
+        error(&map_text(""), &crlf),
+        error(&map_text(""), DUPLICATES)
+    );
+    let bad = CSV.replace("1320431387,1,2,3,4095", "1320431387,1,2x,3,4095");
+    let lf = error(&map_text(""), &bad);
+    assert!(lf.starts_with("export.csv:4:3 (wy)"), "{lf}");
+    assert_eq!(error(&map_text(""), &bad.replace('\n', "\r\n")), lf);
+    // A lone `\r` inside a line is not a line end the reader drops.
+    let imported = import(&map_text(""), &CSV.replace('\n', "\r\n")).unwrap();
+    assert_eq!(imported.dataset.telemetry.t_s, [0.0, 1.0, 2.0, 3.0]);
+}
+
+/// A quote opened and not closed takes every later line into one cell: refused at the
+/// line and cell it opens, never read as a shorter export.
+#[test]
+fn a_quote_left_open_is_refused_where_it_opens() {
+    let csv = CSV.replace(
+        "1320431386,1,2,3,2048,,1500",
+        "1320431386,1,2,3,2048,\"oops,1500",
+    );
+    let e = error(&map_text(""), &csv);
+    assert!(
+        e.starts_with("export.csv:3:6:") && e.contains("a quote opened and not closed"),
+        "{e}"
+    );
+    // Quotes closed on their line are cells like any other.
+    let quoted = CSV.replace(
+        "1320431386,1,2,3,2048,,1500",
+        "1320431386,1,2,3,\"2048\",,1500",
+    );
+    assert_eq!(rows_read(&quoted), 4);
+}
+
+/// A line of blanks is a blank line.
+#[test]
+fn a_line_of_blanks_is_skipped() {
+    let csv = CSV.replace(
+        "1320431386,1,2,3,2048,,1500\n",
+        "1320431386,1,2,3,2048,,1500\n   \n",
+    );
+    assert_eq!(rows_read(&csv), 4);
+}
+
+/// The rows `csv` imports to with the base map.
+fn rows_read(csv: &str) -> usize {
+    import(&map_text(""), csv)
+        .unwrap()
+        .dataset
+        .telemetry
+        .t_s
+        .len()
+}

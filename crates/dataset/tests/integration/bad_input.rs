@@ -309,6 +309,12 @@ fn text_in_a_number() {
         shown(&e),
         "telemetry.csv:5:10 (pd03_V): \"abc\" is not a number"
     );
+    // With Windows line ends, the same line.
+    let e = fail("telemetry.csv", &text.replace('\n', "\r\n"));
+    assert_eq!(
+        shown(&e),
+        "telemetry.csv:5:10 (pd03_V): \"abc\" is not a number"
+    );
 
     // A decimal comma splits the row into one cell too many.
     let text = replace_line(TELEMETRY, 2, "0,0.01,0.02,0.03,100,200,300,1.5,2,5,0");
