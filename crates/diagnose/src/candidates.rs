@@ -9,7 +9,7 @@ use pdcal_effects::REFERENCE_TEMPERATURE_C;
 use pdcal_photodiode::{FovRolloff, ShadowMode};
 
 use crate::fit::{CandidateFit, candidate_fit, pd_entries_of, scored};
-use crate::forms::{self, MIN_CLIPPED_SAMPLES};
+use crate::forms;
 use crate::model::ModelSpec;
 use crate::residuals::{PdSample, Residuals, in_umbra};
 use crate::stats::{Entry, WaldFit, hac_wald};
@@ -313,19 +313,20 @@ fn dark_offset(res: &Residuals, n_pd: usize, lag: usize) -> CandidateFit {
 /// noise, so clipped samples sit exactly on it); signature `min(y, L) - y` of the model's
 /// pre-stage output `y`.
 fn saturation(res: &Residuals, lag: usize) -> CandidateFit {
-    let level = res
+    let largest = res
         .pd
         .iter()
         .map(|p| p.measured_v)
         .fold(f64::NEG_INFINITY, f64::max);
-    let at_level = res.pd.iter().filter(|p| p.measured_v >= level).count();
+    // The largest output is always at the largest output: clipping shows as samples piled
+    // up exactly there ([`forms::clip_level`]).
+    let clipped = forms::clip_level(res.pd.iter().map(|p| p.measured_v), res.sigma_pd_v);
+    let (level, at_level) = clipped.unwrap_or((largest, 0));
     let (entries, support) = pd_entries_of(res, |p| {
         (p.pre_stage_v > level).then_some((0, level - p.pre_stage_v))
     });
     let mut fit = signed(hac_wald(&entries, 1, lag, &[pd_var(res)]));
-    // The largest output is always at the largest output: clipping shows as several samples
-    // exactly there.
-    if at_level < MIN_CLIPPED_SAMPLES {
+    if clipped.is_none() {
         fit.wald = 0.0;
     }
     let evidence = format!(

@@ -136,9 +136,37 @@ pub(crate) fn kelly_reshaped(
 /// Fewest samples exactly at a photodiode's largest output that make it its clip level.
 pub(crate) const MIN_CLIPPED_SAMPLES: usize = 3;
 
+/// The largest of `outputs` and whether the data pile up there as a clipped sensor's do:
+/// at least [`MIN_CLIPPED_SAMPLES`] samples exactly at it, and more than lie just below it,
+/// within the noise `noise_sigma_v` or one step, whichever is wider. Outputs read by an ADC
+/// sit on its codes, and a peak that merely reaches its top code may have several samples
+/// there too, but no more than the band below it holds (a smooth peak thins out towards its
+/// maximum, and noise spreads its top over the codes below); clipping piles every sample
+/// beyond the level onto it. The step is the smallest gap between distinct outputs (one
+/// code; for unquantised data a gap no other sample falls in).
+pub(crate) fn clip_level(
+    outputs: impl Iterator<Item = f64>,
+    noise_sigma_v: f64,
+) -> Option<(f64, usize)> {
+    let mut values: Vec<f64> = outputs.filter(|v| v.is_finite()).collect();
+    values.sort_by(|a, b| b.total_cmp(a));
+    let level = *values.first()?;
+    let at_level = values.iter().take_while(|v| **v >= level).count();
+    let step = values
+        .windows(2)
+        .map(|w| w[0] - w[1])
+        .filter(|d| *d > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    let band = noise_sigma_v.max(step) + 0.5 * step;
+    let below = values
+        .iter()
+        .filter(|v| **v < level && **v >= level - band)
+        .count();
+    (at_level >= MIN_CLIPPED_SAMPLES && at_level > below).then_some((level, at_level))
+}
+
 /// `saturation`, one level per photodiode: photodiode `i`'s clip level is its largest
-/// measured output where at least [`MIN_CLIPPED_SAMPLES`] samples sit exactly there (the
-/// data reach it); signature `min(y, L_i) - y` of the model's pre-stage output, one
+/// measured output where the data pile up as a clipped sensor's do ([`clip_level`]); signature `min(y, L_i) - y` of the model's pre-stage output, one
 /// amplitude per clipped photodiode. A photodiode the data never clip keeps `common`
 /// (nothing in the data says where it would clip). `None` when no photodiode clips.
 pub(crate) fn saturation_per_photodiode(
@@ -147,20 +175,20 @@ pub(crate) fn saturation_per_photodiode(
     common: f64,
     lag: usize,
 ) -> Option<CandidateFit> {
-    let mut level = vec![f64::NEG_INFINITY; n_pd];
-    for p in res.pd.iter().filter(|p| p.pd < n_pd) {
-        level[p.pd] = level[p.pd].max(p.measured_v);
-    }
-    let mut at_level = vec![0usize; n_pd];
-    for p in res.pd.iter().filter(|p| p.pd < n_pd) {
-        if p.measured_v >= level[p.pd] {
-            at_level[p.pd] += 1;
-        }
-    }
-    let reached: Vec<bool> = at_level
+    let clipped_at: Vec<Option<f64>> = (0..n_pd)
+        .map(|i| {
+            clip_level(
+                res.pd.iter().filter(|p| p.pd == i).map(|p| p.measured_v),
+                res.sigma_pd_v,
+            )
+            .map(|(level, _)| level)
+            .filter(|l| *l > 0.0)
+        })
+        .collect();
+    let reached: Vec<bool> = clipped_at.iter().map(Option::is_some).collect();
+    let level: Vec<f64> = clipped_at
         .iter()
-        .zip(&level)
-        .map(|(&n, &l)| n >= MIN_CLIPPED_SAMPLES && l > 0.0)
+        .map(|l| l.unwrap_or(f64::NEG_INFINITY))
         .collect();
     if !reached.iter().any(|r| *r) {
         return None;
@@ -274,6 +302,72 @@ pub(crate) fn albedo_map(res: &Residuals, lag: usize) -> CandidateFit {
 mod tests {
     use super::*;
     use crate::residuals::PdSample;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+
+    /// A photodiode's outputs over a smooth peak of `peak_v` (a cosine over five turns of a
+    /// tumble) with 0.5 mV noise, under the 1.2 mV step of a 12-bit ADC of 5 V, clipped at
+    /// `clip_v`, read by that ADC when `quantised`.
+    fn peak_outputs(peak_v: f64, clip_v: f64, quantised: bool) -> Vec<f64> {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let noise = Normal::new(0.0, 0.0005).unwrap();
+        let lsb = 5.0 / 4096.0;
+        (0..6000)
+            .map(|k| {
+                let y = peak_v * (k as f64 * 0.3).to_radians().cos().max(0.0);
+                let y = (y + noise.sample(&mut rng)).min(clip_v);
+                if quantised {
+                    (y / lsb).round() * lsb
+                } else {
+                    y
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_peak_on_an_adc_code_is_not_clipping_and_a_clipped_one_is() {
+        // Unclipped: no level, quantised or not (the top code of a quantised peak holds
+        // several samples, but no more than the code below).
+        for quantised in [false, true] {
+            let outputs = peak_outputs(0.667, f64::INFINITY, quantised);
+            let top = outputs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let at_top = outputs.iter().filter(|v| **v >= top).count();
+            // Quantised, the top code alone would pass for clipping.
+            assert_eq!(
+                at_top >= MIN_CLIPPED_SAMPLES,
+                quantised,
+                "{at_top} at the top"
+            );
+            assert_eq!(
+                clip_level(outputs.into_iter(), 0.0005),
+                None,
+                "quantised {quantised}"
+            );
+        }
+        // Clipped at 0.6 V: found, with the samples piled there, quantised or not.
+        for quantised in [false, true] {
+            let outputs = peak_outputs(0.667, 0.6, quantised);
+            let (level, at) = clip_level(outputs.into_iter(), 0.0005).expect("clipped");
+            assert!((level - 0.6).abs() < 5.0 / 4096.0, "{level}");
+            assert!(at > 20, "{at} samples at the level");
+        }
+        // Noise of several codes: three samples on the top code and fewer on the code
+        // below happen by chance, and the band of the noise below holds more.
+        let lsb = 5.0 / 4096.0;
+        let code = |k: f64| (546.0 - k) * lsb;
+        let counts = [3, 2, 3, 2, 3];
+        let peak: Vec<f64> = (0..5)
+            .flat_map(|k| std::iter::repeat_n(code(k as f64), counts[k]))
+            .collect();
+        assert_eq!(clip_level(peak.iter().copied(), 0.0055), None);
+        // The same band under thirty samples piled on the top code: clipped.
+        let piled = peak
+            .iter()
+            .copied()
+            .chain(std::iter::repeat_n(code(0.0), 27));
+        assert_eq!(clip_level(piled, 0.0055), Some((code(0.0), 30)));
+    }
 
     /// Lit samples of `n_pd` photodiodes (C = 4 V) over incidences 0-89.9 deg, residuals
     /// of a model holding `model` on data made with `truth` (both Kelly laws).

@@ -407,9 +407,14 @@ pub fn console_summary(outcome: &DiagnoseOutcome) -> String {
     }
     match d.final_candidates.first() {
         Some(c) => {
+            let why = if c.score > d.threshold {
+                "above it, but its refit is not named: below"
+            } else {
+                "below it"
+            };
             let _ = writeln!(
                 s,
-                "  then none: best remaining {} at {:.1} (threshold {:.1})",
+                "  then none: best remaining {} at {:.1} (threshold {:.1}; {why})",
                 c.id, c.score, d.threshold
             );
         }
