@@ -177,6 +177,11 @@ fn layout(rows: &CsvRows<'_>) -> Result<Layout, DatasetError> {
     })
 }
 
+/// How far from 1 a truth quaternion's norm may be: far above what writing its components
+/// to six significant digits leaves (about 1e-6); a quaternion of norm 2 or 1e-9 is no
+/// attitude, and evaluating against its normalisation would hide a broken writer.
+pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
+
 /// Parses and validates truth.csv text (file name `truth.csv` in errors).
 pub fn truth_series_from_str(text: &str) -> Result<TruthSeries, DatasetError> {
     parse_truth_series(Path::new(crate::TRUTH_CSV), text)
@@ -192,7 +197,19 @@ pub(crate) fn parse_truth_series(file: &Path, text: &str) -> Result<TruthSeries,
         ts.t_s.push(t);
         let q = lay.q.map(|c| rows.req(line, c));
         let [x, y, z, w] = q;
-        ts.q.push(Vector4::new(x?, y?, z?, w?));
+        let q = Vector4::new(x?, y?, z?, w?);
+        if (q.norm() - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
+            let kind = ErrorKind::OutOfRange {
+                value: q.norm(),
+                rule: format!(
+                    "an attitude quaternion has unit norm (within {QUATERNION_NORM_TOLERANCE:e}); \
+                     this one's norm is the value"
+                ),
+            };
+            let err = DatasetError::at(file, line, Some(lay.q[0] + 1), kind);
+            return Err(err.named("q_x, q_y, q_z, q_w"));
+        }
+        ts.q.push(q);
         ts.w_body_rad_s.push(rows.vec3_req(line, lay.w)?);
         ts.gyro_bias_rad_s.push(rows.vec3_req(line, lay.bias)?);
         ts.sun_body.push(rows.vec3_req(line, lay.sun)?);

@@ -297,6 +297,34 @@ fn inf_in_a_number() {
 }
 
 #[test]
+fn a_truth_quaternion_off_unit_norm() {
+    // Norm 2: refused at its line, named.
+    let text = replace_line(
+        TRUTH_CSV,
+        3,
+        "1,0,0,0,2,0.1,0.2,0.3,0.001,0.002,0.003,1,0,0,1,7000,0,0,20000,0,0",
+    );
+    let e = fail("truth.csv", &text);
+    assert_eq!(
+        place(&e),
+        (
+            "truth.csv".into(),
+            Some(3),
+            Some(2),
+            Some("q_x, q_y, q_z, q_w")
+        )
+    );
+    assert!(shown(&e).contains("unit norm"), "{}", shown(&e));
+    // Written to six digits: accepted.
+    let text = replace_line(
+        TRUTH_CSV,
+        3,
+        "1,0.577350,0.577350,0.577350,0,0.1,0.2,0.3,0.001,0.002,0.003,1,0,0,1,7000,0,0,20000,0,0",
+    );
+    assert!(read_with("truth.csv", Some(&text)).is_ok());
+}
+
+#[test]
 fn text_in_a_number() {
     let text = replace_line(TELEMETRY, 5, "3,0.01,0.02,0.03,,,,1.8,2.2,abc");
     let e = fail("telemetry.csv", &text);
