@@ -168,6 +168,7 @@ pub fn run_with_references(
     sets: &[crate::joint::SetSpan],
 ) -> Result<Outcome> {
     let mut warnings = crate::checks::check_telemetry(telemetry)?;
+    warnings.extend(crate::checks::orbit_age(meta, telemetry, "dataset.ron"));
     let mountings = crate::mounting::check(
         meta,
         telemetry,
@@ -456,9 +457,20 @@ pub fn run_sets(
     if let Some((dir, meta, _)) = sets.first() {
         check_photodiode_count(meta.photodiodes.len(), &dir.display().to_string())?;
     }
+    let orbit_ages: Vec<String> = sets
+        .iter()
+        .filter_map(|(dir, meta, telemetry)| {
+            crate::checks::orbit_age(
+                meta,
+                telemetry,
+                &dir.join("dataset.ron").display().to_string(),
+            )
+        })
+        .collect();
     let joint = crate::joint::join(sets)?;
     let mut meta = joint.meta;
     let mut warnings = crate::checks::check_telemetry(&joint.telemetry)?;
+    warnings.extend(orbit_ages);
     // Prepared (screened) once, here: the mounting check, the Sun-vector metrics and the
     // figures read the telemetry the filter reads, and never see a wild sample.
     let mut prepared = Prepared::new(&meta, Cow::Owned(joint.telemetry), &config.filter)

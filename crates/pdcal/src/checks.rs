@@ -226,3 +226,37 @@ fn gyro_units(telemetry: &Telemetry, mag: &Vectors) -> Option<String> {
         )
     })
 }
+
+/// Farthest a TLE's epoch may lie from its data set's rows, days, before the run says so: a
+/// year, the span beyond which a joint calibration refuses its sets
+/// ([`crate::joint::MAX_JOINT_SPAN_DAYS`]). Elements a year old place a low-orbit spacecraft
+/// anywhere along its orbit; a gap of years is a time tag read in the wrong scale or epoch.
+pub const MAX_TLE_AGE_DAYS: f64 = crate::joint::MAX_JOINT_SPAN_DAYS;
+
+/// A warning when the data set `name`'s TLE epoch lies more than [`MAX_TLE_AGE_DAYS`] from
+/// its first or last row; `None` for position columns, or a TLE the reader has not accepted
+/// (its own error says why).
+pub fn orbit_age(
+    meta: &pdcal_dataset::DatasetMeta,
+    telemetry: &Telemetry,
+    name: &str,
+) -> Option<String> {
+    let pdcal_dataset::OrbitSpec::Tle { line1, line2 } = &meta.orbit else {
+        return None;
+    };
+    let tle = pdcal_ephem::TleOrbit::from_lines(line1, line2).ok()?;
+    let start = meta.epoch_utc.epoch();
+    let span_s = telemetry.t_s.last().copied().unwrap_or(0.0);
+    let end = start + hifitime::Unit::Second * span_s;
+    let days = |t: hifitime::Epoch| (t - tle.epoch()).to_seconds().abs() / 86_400.0;
+    let age = days(start).max(days(end));
+    (age > MAX_TLE_AGE_DAYS).then(|| {
+        format!(
+            "{name}: the TLE's epoch {} lies {age:.0} days from the data (first row {start}): \
+             elements that old put the spacecraft anywhere along its orbit, so the eclipses \
+             and the albedo's footprint are not the data's; a gap of years is a time column \
+             read in the wrong scale or epoch (see the map's `time`)",
+            tle.epoch()
+        )
+    })
+}

@@ -382,3 +382,29 @@ fn each_cause_is_said_once() {
         "references: reference field: SHC coefficient file, line 3: bad"
     );
 }
+
+/// A TLE years from its data (a Unix time column read as GPS time puts the data ten years
+/// on) is said; one within the year is not.
+#[test]
+fn a_tle_years_from_the_data_is_said() {
+    let mut meta = sim().meta.clone();
+    let telemetry = &sim().telemetry;
+    assert_eq!(
+        pdcal::checks::orbit_age(&meta, telemetry, "dataset.ron"),
+        None
+    );
+    for (epoch, said) in [
+        ("2012-03-01T00:00:00Z", false),
+        ("2021-11-10T18:29:45Z", true),
+    ] {
+        meta.epoch_utc = pdcal_dataset::EpochUtc::parse(epoch).unwrap();
+        let warning = pdcal::checks::orbit_age(&meta, telemetry, "dataset.ron");
+        assert_eq!(warning.is_some(), said, "{epoch}: {warning:?}");
+        if let Some(w) = warning {
+            assert!(
+                w.starts_with("dataset.ron: the TLE's epoch") && w.contains("3659 days"),
+                "{w}"
+            );
+        }
+    }
+}
