@@ -55,7 +55,10 @@ pub enum FilterError {
         reason: String,
     },
     /// No photodiode ever produced a lit output.
-    #[error("no photodiode output exceeds {threshold_v} V: nothing to calibrate")]
+    #[error(
+        "no photodiode output exceeds {threshold_v:.4} V: nothing to calibrate (every \
+         photodiode sample lies below it, or there is none at all)"
+    )]
     NoLitPhotodiode {
         /// Threshold used, V.
         threshold_v: f64,

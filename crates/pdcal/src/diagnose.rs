@@ -330,19 +330,24 @@ fn shrink_line(x: &pdcal_diagnose::Shrink) -> String {
 
 /// The consistency check in words: consistent, or the misfit's size and where it is.
 fn misfit_text(m: &pdcal_diagnose::Misfit) -> String {
+    // The noise model holds the calibration's and the albedo map's uncertainty besides the
+    // sensor noise: on weak data it is far wider than the noise, and both ratios are said.
+    let against_noise = m.photodiode_rms_v / m.photodiode_noise_v;
     if m.explained {
         return format!(
             "Yes: photodiode RMS {:.4} V, {:.2} times the noise model's sigma (sensor noise, \
-             the calibration's uncertainty, the albedo map's), {:.1} % inside 3 sigma, every \
-             photodiode consistent.",
+             the calibration's uncertainty, the albedo map's) and {against_noise:.2} times the \
+             sensor noise alone ({:.4} V), {:.1} % inside 3 sigma, every photodiode consistent.",
             m.photodiode_rms_v,
             m.rms_ratio,
+            m.photodiode_noise_v,
             100.0 * m.fraction_within_3sigma
         );
     }
     let mut s = format!(
-        "No (`unexplained`): photodiode RMS {:.4} V, {:.2} times the noise model's sigma \
-         (sensor noise {:.4} V), {:.1} % inside 3 sigma. Concentrated in: {}.",
+        "No (`unexplained`): photodiode RMS {:.4} V, {:.2} times the noise model's sigma and \
+         {against_noise:.2} times the sensor noise alone ({:.4} V), {:.1} % inside 3 sigma. \
+         Concentrated in: {}.",
         m.photodiode_rms_v,
         m.rms_ratio,
         m.photodiode_noise_v,

@@ -50,14 +50,26 @@ pub fn quote(text: &str) -> String {
 
 /// A parser's message for a user, in our words where the parser speaks of its own
 /// internals (ron's "Exceeded recursion limit, try increasing `ron::Options::recursion_limit`
-/// ...", which the user cannot do), then [`clip`]ped.
+/// ...", which the user cannot do), then [`clip`]ped. The valid names a parser lists after
+/// "expected one of" are the program's own, and what the user needs to fix a typo: only the
+/// part before them, which quotes the input, is cut.
 pub fn parser_message(message: &str) -> String {
     if message.contains("recursion limit") {
         return "nested too deeply: more brackets inside brackets than any pdcal file has"
             .to_owned();
     }
-    clip(message)
+    match message.find(EXPECTED_ONE_OF) {
+        Some(at) => format!(
+            "{}{}",
+            clip(&message[..at]),
+            escape_controls(&message[at..])
+        ),
+        None => clip(message),
+    }
 }
+
+/// Where a parser's message starts listing the valid names.
+const EXPECTED_ONE_OF: &str = ", expected one of ";
 
 /// A number for a message: `Display` writes every digit (`1e300` is 301 characters), so it
 /// is cut like any quoted value.
@@ -101,6 +113,24 @@ pub fn skip_blanks(text: &str, line: usize, col: usize) -> (usize, usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_valid_names_a_parser_lists_are_never_cut() {
+        let message = "Unexpected variant named `Median` in enum `DuplicateTimes`, expected one \
+                       of `Refuse`, `KeepFirst`, `Average`";
+        assert!(message.len() > QUOTE_MAX_CHARS);
+        assert_eq!(parser_message(message), message);
+        // The input quoted before the list is cut as any quoted value.
+        let long = format!(
+            "Unexpected variant named `{}`, expected one of `A`",
+            "x".repeat(500)
+        );
+        let shown = parser_message(&long);
+        assert!(
+            shown.ends_with("... (527 bytes), expected one of `A`"),
+            "{shown}"
+        );
+    }
 
     #[test]
     fn short_text_is_kept_and_long_text_cut_with_its_length() {
