@@ -256,6 +256,26 @@ fn repeatability_of(
     })
 }
 
+/// The physical checks of every set before they are joined ([`crate::checks`]), and the
+/// age of its TLE: with several sets, a fault or warning names the set's directory and its
+/// own times (joined, the times would be the joint time line's and no set would be named).
+fn check_sets(sets: &[(PathBuf, DatasetMeta, Telemetry)]) -> Result<Vec<String>> {
+    let mut warnings = Vec::new();
+    for (dir, meta, telemetry) in sets {
+        let prefix = if sets.len() > 1 {
+            format!("{}: ", dir.display())
+        } else {
+            String::new()
+        };
+        let found = crate::checks::check_telemetry(telemetry)
+            .map_err(|e| anyhow::anyhow!("{prefix}{e:#}"))?;
+        warnings.extend(found.into_iter().map(|w| format!("{prefix}{w}")));
+        let dataset_ron = dir.join("dataset.ron").display().to_string();
+        warnings.extend(crate::checks::orbit_age(meta, telemetry, &dataset_ron));
+    }
+    Ok(warnings)
+}
+
 /// Rows up to which [`run_dirs`] computes the references once and stores them (176 bytes
 /// a row, 23 MB at most); above, each row's is computed when it is reached, so that memory
 /// does not grow with the rows, at the price of computing it three times (the forward
@@ -457,20 +477,9 @@ pub fn run_sets(
     if let Some((dir, meta, _)) = sets.first() {
         check_photodiode_count(meta.photodiodes.len(), &dir.display().to_string())?;
     }
-    let orbit_ages: Vec<String> = sets
-        .iter()
-        .filter_map(|(dir, meta, telemetry)| {
-            crate::checks::orbit_age(
-                meta,
-                telemetry,
-                &dir.join("dataset.ron").display().to_string(),
-            )
-        })
-        .collect();
+    let mut warnings = check_sets(&sets)?;
     let joint = crate::joint::join(sets)?;
     let mut meta = joint.meta;
-    let mut warnings = crate::checks::check_telemetry(&joint.telemetry)?;
-    warnings.extend(orbit_ages);
     // Prepared (screened) once, here: the mounting check, the Sun-vector metrics and the
     // figures read the telemetry the filter reads, and never see a wild sample.
     let mut prepared = Prepared::new(&meta, Cow::Owned(joint.telemetry), &config.filter)

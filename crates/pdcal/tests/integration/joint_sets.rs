@@ -125,3 +125,40 @@ fn sets_of_another_layout_or_overlapping_are_refused() {
         "{err:#}"
     );
 }
+
+/// A fault of one set of a joint run names that set, on its own time line.
+#[test]
+fn a_fault_of_one_set_names_the_set() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (nov, dec) = two_sets(tmp.path());
+    // December's gyro reads exactly 0 throughout (a dead gyro).
+    let path = dec.join("telemetry.csv");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let dead: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(k, line)| {
+            let mut cells: Vec<&str> = line.split(',').collect();
+            if k > 0 {
+                cells[1..4].copy_from_slice(&["0", "0", "0"]);
+            }
+            cells.join(",")
+        })
+        .collect();
+    std::fs::write(&path, dead.join("\n") + "\n").unwrap();
+    let Err(err) = run_dirs(
+        &[nov, dec.clone()],
+        &tmp.path().join("o"),
+        &RunConfig::default(),
+    ) else {
+        panic!("a dead gyro must be refused");
+    };
+    let shown = format!("{err:#}");
+    assert!(
+        shown.starts_with(&format!(
+            "{}: telemetry.csv (gyro_x_rad_s, gyro_y_rad_s, gyro_z_rad_s): the gyro reads exactly 0",
+            dec.display()
+        )),
+        "{shown}"
+    );
+}
