@@ -201,7 +201,9 @@ fn mounting_flag(
 #[derive(Debug, Clone, Serialize)]
 #[allow(non_snake_case)]
 pub struct PdInitial {
-    /// Maximum measured output referred to 1 AU (each sample divided by `(1 AU / r_sun)^2`), V.
+    /// Maximum measured output referred to 1 AU (each sample divided by `(1 AU / r_sun)^2`),
+    /// V; for a never-lit or dim photodiode the median of the lit ones' maxima
+    /// (`pdcal_filter::init::initial_scales`).
     pub scale_V: f64,
     /// Nominal azimuth, deg.
     pub azimuth_deg: f64,
