@@ -397,13 +397,16 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
     let run = &outcome.run;
     let evidence = Evidence::of_run(run, outcome.consistency.verdict);
     let determination = pdcal_filter::identifiability::judge_photodiodes(&evidence);
-    let bias_status = pdcal_filter::identifiability::judge_gyro_bias(&evidence);
+    let mut bias_status = pdcal_filter::identifiability::judge_gyro_bias(&evidence);
     let mut reported = pdcal_filter::identifiability::reported_calibration(
         &run.initial,
         &run.calibration,
         &determination,
         &bias_status,
     );
+    if let Some(fit) = unheld_bias_fit(run, &outcome.datasets) {
+        floor_bias_sigma(fit, &mut reported, &mut bias_status);
+    }
     reported.status = status_lines(&determination, &bias_status);
     let (normals_rotation, normals_rotation_not_fitted) = match normals_rotation(run) {
         Ok(r) => (Some(r), None),
@@ -623,6 +626,44 @@ fn first_bias_from(
         .iter()
         .filter(|s| s.first_row >= first_row)
         .find_map(|s| s.initial_bias.as_ref())
+}
+
+/// The bias fit at the last data set's first acquisition, when the attitude was never held
+/// since the bias last started from its prior: every update after the fit was then
+/// linearised at an attitude less certain than the held bound (as a photodiode lit only
+/// then, `pdcal_filter::identifiability`), and narrowed the bias by information that is not
+/// the data's.
+fn unheld_bias_fit<'a>(
+    run: &'a pdcal_filter::CalibrationRun,
+    datasets: &[DatasetSummary],
+) -> Option<&'a pdcal_filter::InitialBias> {
+    (run.bias_time_held_s <= 0.0)
+        .then(|| first_bias_from(run, last_set_row(datasets)))
+        .flatten()
+        .filter(|b| b.source == pdcal_filter::BiasSource::Fit)
+}
+
+/// The reported gyro-bias sigma no narrower than `fit`'s on any axis still reported as an
+/// estimate, with the reason added to its status.
+fn floor_bias_sigma(
+    fit: &pdcal_filter::InitialBias,
+    reported: &mut Calibration,
+    status: &mut [pdcal_filter::identifiability::Judged; 3],
+) {
+    for (k, judged) in status.iter_mut().enumerate() {
+        let fit_sigma = fit.sigma_deg_s[k].to_radians();
+        if judged.status == pdcal_filter::identifiability::Status::NotDetermined
+            || reported.gyro_bias_sigma_rad_s[k] >= fit_sigma
+        {
+            continue;
+        }
+        reported.gyro_bias_sigma_rad_s[k] = fit_sigma;
+        judged.reason = format!(
+            "{}; reported with the sigma of its fit at acquisition, {:.3} deg/s: with the \
+             attitude never held, no later update narrowed it by the data",
+            judged.reason, fit.sigma_deg_s[k]
+        );
+    }
 }
 
 /// A warning when the last data set's first acquisition took its bias from the fit and the
