@@ -87,6 +87,12 @@ pub enum ErrorKind {
          (\"OTHER\", -1.0)]`"
     )]
     ColumnOrColumns,
+    /// Two axes of one vector sensor read from the same export data.
+    #[error("reads the same export data as {other}: two axes of one sensor never share a column")]
+    SharedAxis {
+        /// The other axis's map path (`gyro.x`).
+        other: String,
+    },
     /// A `columns` combination that cannot be used.
     #[error("the combination is refused: {reason}")]
     BadCombination {

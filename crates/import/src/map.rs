@@ -481,6 +481,7 @@ pub fn parse_map(file: &Path, bytes: &[u8]) -> Result<ImportMap, ImportError> {
     }
     check_temperatures(&map, &spec)?;
     check_currents(&map, &spec)?;
+    check_shared_axes(&map, &spec)?;
     check_as_dataset(&map, &spec)?;
     if let OrbitMap::Tle { line1, line2 } = &spec.orbit
         && let Err(e) = pdcal_ephem::TleOrbit::from_lines(line1, line2)
@@ -523,6 +524,28 @@ impl ImportMap {
 }
 
 /// Every numeric column of the map: its field path, spec and quantity, in map order.
+/// Two axes of the gyro or the magnetometer that read the same export data (a column
+/// copied from the axis above and not renamed): refused, at the later axis.
+fn check_shared_axes(map: &Locator<'_>, spec: &MapSpec) -> Result<(), ImportError> {
+    for (name, sensor) in [("gyro", &spec.gyro), ("mag", &spec.mag)] {
+        let Some(v) = sensor else { continue };
+        let axes = [("x", &v.x), ("y", &v.y), ("z", &v.z)];
+        for (i, (axis, column)) in axes.iter().enumerate() {
+            let Some((first, _)) = axes[..i].iter().find(|(_, c)| c.terms() == column.terms())
+            else {
+                continue;
+            };
+            let path = format!("{name}.{axis}");
+            let place = map.key_path(&path).map(|o| line_col(map.text, o));
+            let kind = ErrorKind::SharedAxis {
+                other: format!("{name}.{first}"),
+            };
+            return Err(ImportError::maybe_at(map.file, place, kind).named(path));
+        }
+    }
+    Ok(())
+}
+
 pub(crate) fn columns(spec: &MapSpec) -> Vec<(String, Column, Quantity)> {
     let mut out = Vec::new();
     let mut vector = |name: &str, v: &VectorColumns, q: Quantity| {

@@ -443,3 +443,17 @@ fn rows_read(csv: &str) -> usize {
         .t_s
         .len()
 }
+
+/// A gyro axis whose column was copied from the axis above and not renamed is refused.
+#[test]
+fn two_axes_of_one_sensor_never_share_a_column() {
+    let map = map_text("").replace("y: (column: \"wy\"", "y: (column: \"wx\"");
+    let e = match parse_map(Path::new("map.ron"), map.as_bytes()) {
+        Ok(_) => panic!("accepted"),
+        Err(e) => e.to_string(),
+    };
+    assert!(
+        e.starts_with("map.ron:6:9 ") && e.contains("(gyro.y): reads the same export data as gyro.x"),
+        "{e}"
+    );
+}
