@@ -673,13 +673,14 @@ fn with_candidate(
         refine(inputs, &mut spec, config, c.id, run, res)?
     } else {
         let telemetry = spec.corrected_telemetry(inputs.telemetry);
+        let screened = crate::run::screened(inputs, &telemetry, config)?;
         let corrected = spec.albedo_model(inputs.albedo);
         let inputs = &DiagnoseInputs {
             albedo: corrected.as_ref().unwrap_or(inputs.albedo),
             ..*inputs
         };
         let res = residuals(
-            &residual_inputs(inputs, &telemetry, config),
+            &residual_inputs(inputs, screened.telemetry(), config),
             &spec,
             &state.run,
         )?;

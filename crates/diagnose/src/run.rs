@@ -116,15 +116,35 @@ pub fn calibrate_and_residuals(
     config: &DiagnoseConfig,
 ) -> Result<(CalibrationRun, Residuals), DiagnoseError> {
     let telemetry = spec.corrected_telemetry(inputs.telemetry);
-    let run = filter_run(inputs, spec, &config.filter, &telemetry)?;
+    let screened = screened(inputs, &telemetry, config)?;
+    let run = filter_run(inputs, spec, &config.filter, screened.telemetry())?;
     spec.adopt_estimates(&run.calibration);
     let corrected = spec.albedo_model(inputs.albedo);
     let inputs = &DiagnoseInputs {
         albedo: corrected.as_ref().unwrap_or(inputs.albedo),
         ..*inputs
     };
-    let res = residuals(&residual_inputs(inputs, &telemetry, config), spec, &run)?;
+    let res = residuals(
+        &residual_inputs(inputs, screened.telemetry(), config),
+        spec,
+        &run,
+    )?;
     Ok((run, res))
+}
+
+/// `telemetry` screened as the filter screens it: the residuals read the telemetry the
+/// filter read, and a wild sample the screening removed (a gyro reading of 1e300 deg/s) is
+/// no residual of the model.
+pub(crate) fn screened<'a>(
+    inputs: &DiagnoseInputs<'_>,
+    telemetry: &'a Telemetry,
+    config: &DiagnoseConfig,
+) -> Result<Prepared<'a>, DiagnoseError> {
+    Ok(Prepared::new(
+        inputs.meta,
+        Cow::Borrowed(telemetry),
+        &config.filter,
+    )?)
 }
 
 /// One calibration with the model `spec` describes on `telemetry` (already corrected).

@@ -453,7 +453,8 @@ fn two_axes_of_one_sensor_never_share_a_column() {
         Err(e) => e.to_string(),
     };
     assert!(
-        e.starts_with("map.ron:6:9 ") && e.contains("(gyro.y): reads the same export data as gyro.x"),
+        e.starts_with("map.ron:6:9 ")
+            && e.contains("(gyro.y): reads the same export data as gyro.x"),
         "{e}"
     );
 }
