@@ -55,8 +55,9 @@ struct ProbePoint {
 }
 
 /// The time the data informed the calibration: per photodiode, the time its accepted
-/// updates stand for (the step's length for each row it updated the filter at), and the
-/// part of it with the attitude held; and the time the attitude was held since the gyro
+/// updates stand for (for each, the time since the photodiode's previous sample in the
+/// segment: its own cadence, which is the rows' only when it is sampled on every row), and
+/// the part of it with the attitude held; and the time the attitude was held since the gyro
 /// bias last started from its prior. A state learnt while the attitude was tens of degrees
 /// uncertain rests on linearisations at that attitude, and its sigma with them
 /// ([`crate::identifiability`]).
@@ -65,6 +66,8 @@ struct UseTimes {
     used_s: Vec<f64>,
     held_s: Vec<f64>,
     bias_held_s: f64,
+    /// Per photodiode, the time of its last sample in the current segment, s.
+    last_sampled_s: Vec<Option<f64>>,
 }
 
 impl UseTimes {
@@ -73,13 +76,33 @@ impl UseTimes {
             used_s: vec![0.0; photodiodes],
             held_s: vec![0.0; photodiodes],
             bias_held_s: 0.0,
+            last_sampled_s: vec![None; photodiodes],
         }
     }
 
-    fn add_photodiode(&mut self, i: usize, step_s: f64, held: bool) {
-        self.used_s[i] += step_s;
+    /// Photodiode `i`'s accepted update at `t_s`: the time since its previous sample in
+    /// the segment (none on the row that starts one, `fresh`).
+    fn add_photodiode(&mut self, i: usize, t_s: f64, held: bool, fresh: bool) {
+        let since_s = match self.last_sampled_s[i] {
+            Some(t0) if !fresh => t_s - t0,
+            _ => 0.0,
+        };
+        self.used_s[i] += since_s;
         if held {
-            self.held_s[i] += step_s;
+            self.held_s[i] += since_s;
+        }
+    }
+
+    /// The photodiodes sampled at row `k` (`t_s`), after its updates; a row that starts a
+    /// segment (`fresh`) forgets the samples before it.
+    fn note_samples(&mut self, telemetry: &Telemetry, k: usize, t_s: f64, fresh: bool) {
+        for (i, last) in self.last_sampled_s.iter_mut().enumerate() {
+            if fresh {
+                *last = None;
+            }
+            if telemetry.pd_v.get(i).and_then(|c| c.get(k)).is_some() {
+                *last = Some(t_s);
+            }
         }
     }
 }
@@ -803,7 +826,9 @@ impl<'a> ForwardPass<'a> {
             self.repairs.push(repair);
         }
         self.at.held = self.attitude_sigma_deg(k) <= self.config.segments.held_attitude_sigma_deg;
-        self.record_rejections(k, step_s);
+        self.record_rejections(k, t_s);
+        self.use_times
+            .note_samples(tel, k, t_s, !self.at.propagated);
         if self.at.held {
             self.use_times.bias_held_s += step_s;
         }
@@ -917,13 +942,14 @@ impl<'a> ForwardPass<'a> {
 
     /// The gated samples of the last update, counted per sensor (one magnetometer
     /// rejection per row) and in the innovation window.
-    fn record_rejections(&mut self, k: usize, step_s: f64) {
+    fn record_rejections(&mut self, k: usize, t_s: f64) {
         let mut mag_gated = false;
         for r in self.filter.records() {
             self.at.window.push(r.accepted);
             if r.accepted {
                 if let Sensor::Photodiode(i) = r.sensor {
-                    self.use_times.add_photodiode(i, step_s, self.at.held);
+                    let fresh = !self.at.propagated;
+                    self.use_times.add_photodiode(i, t_s, self.at.held, fresh);
                 }
                 continue;
             }

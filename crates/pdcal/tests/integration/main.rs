@@ -24,5 +24,6 @@ mod spikes;
 mod streaming_outputs;
 mod sun_line_half_turn;
 mod sun_only_attitude;
+mod time_used;
 mod truth_is_not_read;
 mod turned_head;
