@@ -19,7 +19,10 @@
 //! (both lines overshoot it) and at a kink (a photodiode's output where the eclipse exit
 //! ramp meets the cosine's decline: one side's line reaches it). `tol = outlier_sigmas *
 //! sigma` (the sensor's noise) plus, for the gyro, the plausible angular acceleration times
-//! the largest time to a neighbour. A sample with fewer than two neighbours within
+//! the largest time to a neighbour, and for the magnetometer and the photodiodes what the
+//! rotation the gyro measures turns the signal by between the neighbours and a line does
+//! not follow (`turn_allowance`): rows seconds apart on a tumbling spacecraft are not a
+//! smooth signal's samples. A sample with fewer than two neighbours within
 //! [`NEIGHBOUR_REACH_S`] is not judged.
 //! A wild neighbour widens the range, so a burst of wild samples hides each one: a value
 //! farther from the column's median than [`ABSURD_FACTOR`] times (the column's robust
@@ -174,12 +177,19 @@ pub fn find_outliers(telemetry: &Telemetry, tol: &ScreenTolerances) -> Vec<(Chan
     flag_vectors(
         t,
         &telemetry.gyro_rad_s,
-        |dt| tol.gyro_rad_s + tol.angular_acceleration_rad_s2 * dt,
+        |_, dt, _| tol.gyro_rad_s + tol.angular_acceleration_rad_s2 * dt,
         &mut flags,
     );
     out.extend(flags.iter().map(|&k| (Channel::Gyro, k)));
+    let rate = |k: usize| measured_rate_rad_s(&telemetry.gyro_rad_s, k);
     if let Some(mag) = &telemetry.mag_nt {
-        flag_vectors(t, mag, |_| tol.mag_nt, &mut flags);
+        let field_nt = median_magnitude(mag);
+        flag_vectors(
+            t,
+            mag,
+            |k, dt, _| tol.mag_nt + turn_allowance(rate(k), dt, field_nt),
+            &mut flags,
+        );
         out.extend(flags.iter().map(|&k| (Channel::Magnetometer, k)));
     }
     for (i, column) in telemetry.pd_v.iter().enumerate() {
@@ -187,12 +197,47 @@ pub fn find_outliers(telemetry: &Telemetry, tol: &ScreenTolerances) -> Vec<(Chan
             t,
             column.len(),
             |k| column.get(k),
-            |_| tol.photodiode_v,
+            |k, dt, output_v| tol.photodiode_v + turn_allowance(rate(k), dt, output_v),
             &mut flags,
         );
         out.extend(flags.iter().map(|&k| (Channel::Photodiode(i), k)));
     }
     out
+}
+
+/// What a line through samples `dt` apart misses of a signal of size `amplitude` that the
+/// body's rotation at `rate_rad_s` turns: a component of a vector turning at `w` curves by
+/// up to `w^2` times its size (a photodiode's `C cos(theta)` by `w^2` times its output), and
+/// the line's error over `dt` is half that times `dt^2`. At 1 Hz and a few deg/s it is a
+/// fraction of the noise; between rows 10 s apart on a tumbling spacecraft it is the
+/// signal itself, which the neighbours then no longer judge.
+fn turn_allowance(rate_rad_s: f64, dt_s: f64, amplitude: f64) -> f64 {
+    0.5 * (rate_rad_s * dt_s).powi(2) * amplitude.abs()
+}
+
+/// The gyro's rate magnitude at row `k`, or at the nearest sampled row within [`WINDOW`];
+/// 0 without one (the neighbours then judge as for a body at rest).
+fn measured_rate_rad_s(gyro: &pdcal_dataset::Vectors, k: usize) -> f64 {
+    (0..=WINDOW)
+        .flat_map(|d| [k.checked_sub(d), Some(k + d)])
+        .flatten()
+        .find_map(|j| gyro.get(j).filter(|w| w.iter().all(|x| x.is_finite())))
+        .map_or(0.0, |w| w.norm())
+}
+
+/// The median magnitude of a vector column's finite samples (the field a magnetometer
+/// sees, robust to its wild samples); 0 for an empty column.
+fn median_magnitude(column: &pdcal_dataset::Vectors) -> f64 {
+    let mut norms: Vec<f64> = (0..column.len())
+        .filter_map(|k| column.get(k))
+        .map(|v| v.norm())
+        .filter(|n| n.is_finite())
+        .collect();
+    if norms.is_empty() {
+        return 0.0;
+    }
+    let mid = norms.len() / 2;
+    *norms.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 /// Empties the cells `outliers` names (from [`find_outliers`]), except a gyro sample
@@ -239,7 +284,7 @@ pub fn remove_outliers(telemetry: &mut Telemetry, outliers: &[(Channel, usize)])
 fn flag_vectors(
     t: &[f64],
     column: &pdcal_dataset::Vectors,
-    tol: impl Fn(f64) -> f64 + Copy,
+    tol: impl Fn(usize, f64, f64) -> f64 + Copy,
     flags: &mut Vec<usize>,
 ) {
     let mut axis_flags = Vec::new();
@@ -259,18 +304,18 @@ fn flag_vectors(
 }
 
 /// Rows of one scalar column (`value(k)`, `len` rows) rejected by the tests of the module
-/// docs, into `flags` (increasing). `tol(dt)` is the tolerance for neighbours up to `dt`
-/// seconds away.
+/// docs, into `flags` (increasing). `tol(k, dt, size)` is the tolerance at row `k` for
+/// neighbours up to `dt` seconds away whose values reach `size` in magnitude.
 fn flag_scalars(
     t: &[f64],
     len: usize,
     value: impl Fn(usize) -> Option<f64>,
-    tol: impl Fn(f64) -> f64,
+    tol: impl Fn(usize, f64, f64) -> f64,
     flags: &mut Vec<usize>,
 ) {
     flags.clear();
     let len = len.min(t.len());
-    let absurd = absurd_bound(len, &value, tol(0.0));
+    let absurd = absurd_bound(len, &value, tol(0, 0.0, 0.0));
     for k in 0..len {
         let Some(v) = value(k) else { continue };
         if !v.is_finite() || absurd.is_some_and(|(centre, bound)| (v - centre).abs() > bound) {
@@ -283,7 +328,11 @@ fn flag_scalars(
             k.checked_sub(1).and_then(&value),
             (k + 1 < len).then(|| value(k + 1)).flatten(),
         ) {
-            let near = tol((t[k] - t[k - 1]).max(t[k + 1] - t[k]));
+            let near = tol(
+                k,
+                (t[k] - t[k - 1]).max(t[k + 1] - t[k]),
+                a.abs().max(b.abs()),
+            );
             if v >= a.min(b) - near && v <= a.max(b) + near {
                 continue;
             }
@@ -300,7 +349,8 @@ fn flag_scalars(
             hi = hi.max(x);
         }
         let reach_s = before.reach_s(t[k]).max(after.reach_s(t[k]));
-        let allowance = tol(reach_s);
+        let size = before.size().max(after.size());
+        let allowance = tol(k, reach_s, size);
         if v < lo - allowance || v > hi + allowance {
             flags.push(k);
         }
@@ -371,6 +421,13 @@ impl Side {
         nearest.into_iter().chain(line)
     }
 
+    /// The largest magnitude of this side's samples.
+    fn size(&self) -> f64 {
+        self.values[..self.count]
+            .iter()
+            .fold(0.0, |m, x| m.max(x.abs()))
+    }
+
     /// The largest time from `t_s` to a sample of this side.
     fn reach_s(&self, t_s: f64) -> f64 {
         self.times[..self.count]
@@ -386,7 +443,7 @@ mod tests {
     fn flagged(values: &[Option<f64>], tol: f64) -> Vec<usize> {
         let t: Vec<f64> = (0..values.len()).map(|k| k as f64).collect();
         let mut flags = Vec::new();
-        flag_scalars(&t, values.len(), |k| values[k], |_| tol, &mut flags);
+        flag_scalars(&t, values.len(), |k| values[k], |_, _, _| tol, &mut flags);
         flags
     }
 
@@ -419,6 +476,56 @@ mod tests {
         values[5..8].fill(Some(1e300));
         values[9] = Some(f64::NAN);
         assert_eq!(flagged(&values, 0.12), vec![5, 6, 7, 9]);
+    }
+
+    /// A field of 40 uT seen from a body turning at 4 deg/s about an axis across it, with
+    /// 320 nT noise: at 1 Hz a 20-sigma spike is flagged and nothing else; sampled every
+    /// 10 s (40 deg between rows) the field is no line between neighbours, and no sample
+    /// is flagged where, judged as a smooth signal, most of them were.
+    fn tumbling_field(step_s: f64, rows: usize, spike: Option<usize>) -> Telemetry {
+        let rate = 4f64.to_radians();
+        let mut noise = 0.0f64;
+        let mut tel = Telemetry {
+            t_s: (0..rows).map(|k| k as f64 * step_s).collect(),
+            gyro_rad_s: (0..rows)
+                .map(|_| Some(nalgebra::Vector3::new(0.0, 0.0, rate)))
+                .collect(),
+            mag_nt: Some(
+                (0..rows)
+                    .map(|k| {
+                        // A deterministic stand-in for noise: a slow pseudo-random walk.
+                        noise = (noise * 1.7 + 0.61).sin();
+                        let a = rate * k as f64 * step_s;
+                        Some(nalgebra::Vector3::new(
+                            40_000.0 * a.cos() + 320.0 * noise,
+                            -40_000.0 * a.sin() - 320.0 * noise,
+                            5_000.0,
+                        ))
+                    })
+                    .collect(),
+            ),
+            ..Telemetry::default()
+        };
+        if let (Some(k), Some(mag)) = (spike, tel.mag_nt.as_mut()) {
+            let mut b = mag.get(k).unwrap();
+            b.x += 20.0 * 320.0;
+            mag.set(k, Some(b));
+        }
+        tel
+    }
+
+    #[test]
+    fn a_field_turned_between_sparse_rows_is_not_an_outlier() {
+        let tol = ScreenTolerances {
+            gyro_rad_s: 0.007,
+            angular_acceleration_rad_s2: 0.01,
+            mag_nt: 8.0 * 320.0,
+            photodiode_v: 0.04,
+        };
+        let dense = find_outliers(&tumbling_field(1.0, 200, Some(100)), &tol);
+        assert_eq!(dense, vec![(Channel::Magnetometer, 100)]);
+        let sparse = find_outliers(&tumbling_field(10.0, 200, None), &tol);
+        assert_eq!(sparse, vec![]);
     }
 
     #[test]
