@@ -193,11 +193,15 @@ pub fn find_outliers(telemetry: &Telemetry, tol: &ScreenTolerances) -> Vec<(Chan
         out.extend(flags.iter().map(|&k| (Channel::Magnetometer, k)));
     }
     for (i, column) in telemetry.pd_v.iter().enumerate() {
+        // The output's size is the photodiode's near its peak, `C`, not the neighbours':
+        // between two neighbours at 40 deg either side of the Sun its output peaks above
+        // both.
+        let peak_v = high_quantile((0..column.len()).filter_map(|k| column.get(k)));
         flag_scalars(
             t,
             column.len(),
             |k| column.get(k),
-            |k, dt, output_v| tol.photodiode_v + turn_allowance(rate(k), dt, output_v),
+            |k, dt, output_v| tol.photodiode_v + turn_allowance(rate(k), dt, output_v.max(peak_v)),
             &mut flags,
         );
         out.extend(flags.iter().map(|&k| (Channel::Photodiode(i), k)));
@@ -223,6 +227,17 @@ fn measured_rate_rad_s(gyro: &pdcal_dataset::Vectors, k: usize) -> f64 {
         .flatten()
         .find_map(|j| gyro.get(j).filter(|w| w.iter().all(|x| x.is_finite())))
         .map_or(0.0, |w| w.norm())
+}
+
+/// The 99th percentile of the magnitudes of `values`' finite members (a column's size near
+/// its peak, robust to a few wild samples); 0 for none.
+fn high_quantile(values: impl Iterator<Item = f64>) -> f64 {
+    let mut sizes: Vec<f64> = values.map(f64::abs).filter(|x| x.is_finite()).collect();
+    if sizes.is_empty() {
+        return 0.0;
+    }
+    let at = ((sizes.len() * 99) / 100).min(sizes.len() - 1);
+    *sizes.select_nth_unstable_by(at, f64::total_cmp).1
 }
 
 /// The median magnitude of a vector column's finite samples (the field a magnetometer
@@ -512,6 +527,39 @@ mod tests {
             mag.set(k, Some(b));
         }
         tel
+    }
+
+    /// A photodiode of `C` = 1 V on a body turning at 4 deg/s, its output `C max(cos, 0)`:
+    /// every 10 s its peaks fall between samples 40 deg from the Sun, above both.
+    fn tumbling_photodiode(step_s: f64, rows: usize, spike: Option<usize>) -> Telemetry {
+        let rate = 4f64.to_radians();
+        let output = |k: usize| (rate * k as f64 * step_s + 0.3).cos().max(0.0);
+        let mut pd = pdcal_dataset::Samples::from_iter((0..rows).map(|k| Some(output(k))));
+        if let Some(k) = spike {
+            pd.set(k, Some(output(k) + 0.2));
+        }
+        Telemetry {
+            t_s: (0..rows).map(|k| k as f64 * step_s).collect(),
+            gyro_rad_s: (0..rows)
+                .map(|_| Some(nalgebra::Vector3::new(0.0, 0.0, rate)))
+                .collect(),
+            pd_v: vec![pd],
+            ..Telemetry::default()
+        }
+    }
+
+    #[test]
+    fn a_photodiode_peak_between_sparse_rows_is_not_an_outlier() {
+        let tol = ScreenTolerances {
+            gyro_rad_s: 0.007,
+            angular_acceleration_rad_s2: 0.01,
+            mag_nt: 2560.0,
+            photodiode_v: 0.04,
+        };
+        let dense = find_outliers(&tumbling_photodiode(1.0, 400, Some(30)), &tol);
+        assert_eq!(dense, vec![(Channel::Photodiode(0), 30)]);
+        let sparse = find_outliers(&tumbling_photodiode(10.0, 200, None), &tol);
+        assert_eq!(sparse, vec![]);
     }
 
     #[test]
