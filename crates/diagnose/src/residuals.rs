@@ -237,6 +237,7 @@ pub fn residuals(
                 let row = RowInputs {
                     model: &model,
                     photodiodes: &photodiodes,
+                    used: &run.used_photodiodes,
                     uncertainty: &uncertainty,
                     offset_s,
                     temperatures,
@@ -292,6 +293,9 @@ fn sun_fraction_at(inputs: &ResidualInputs<'_>, k: usize, offset_s: f64) -> f64 
 struct RowInputs<'a> {
     model: &'a MeasurementModel,
     photodiodes: &'a [Photodiode],
+    /// Which photodiodes the filter used: one it left out (never lit, dead, its data
+    /// contradicting any mounting) has no residual of the model.
+    used: &'a [bool],
     uncertainty: &'a [CalibrationSigma],
     offset_s: f64,
     temperatures: &'a [f64],
@@ -353,6 +357,7 @@ fn row_samples(
     let RowInputs {
         model,
         photodiodes,
+        used,
         uncertainty,
         offset_s,
         temperatures,
@@ -434,6 +439,9 @@ fn row_samples(
         let direct = lit * pd.scale_v * cos;
         known[i] = pre - model_direct(model, i, &scene)?;
         outputs[i] = y;
+        if !used.get(i).copied().unwrap_or(true) {
+            continue;
+        }
         out.pd.push(PdSample {
             row: k,
             pd: i,

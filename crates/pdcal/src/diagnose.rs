@@ -36,9 +36,30 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry, base: BaseModel) -> Result
             telemetry.len()
         );
     }
-    let warnings = crate::checks::check_telemetry(telemetry)?;
+    let mut warnings = crate::checks::check_telemetry(telemetry)?;
+    warnings.extend(crate::checks::orbit_age(meta, telemetry, "dataset.ron"));
     let references = pdcal_filter::step_references(meta, telemetry)?;
     let albedo = crate::calibrate::albedo_model()?;
+    // The data as calibrate reads them: a photodiode that reads reversed is negated and one
+    // whose data contradict any mounting is left out, each said, before the diagnosis, so
+    // that no effect is sought in what a wiring fault explains.
+    let mountings = crate::mounting::check(
+        meta,
+        telemetry,
+        (&references).into(),
+        &pdcal_filter::FilterConfig::default(),
+        &albedo,
+    )?;
+    warnings.extend(mountings.iter().map(|f| f.message()));
+    let corrected = (!mountings.is_empty()).then(|| {
+        let (mut meta, mut telemetry) = (meta.clone(), telemetry.clone());
+        crate::mounting::apply(&mountings, &mut meta, &mut telemetry);
+        (meta, telemetry)
+    });
+    let (meta, telemetry) = match &corrected {
+        Some((meta, telemetry)) => (meta, telemetry),
+        None => (meta, telemetry),
+    };
     let albedo_map = crate::calibrate::ALBEDO_MAP.to_string();
     let inputs = DiagnoseInputs {
         meta,

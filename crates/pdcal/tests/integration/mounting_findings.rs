@@ -153,3 +153,38 @@ fn a_flipped_mounting_and_a_reversed_polarity_are_findings_and_the_run_ends_norm
         "calibrated-from-supported"
     );
 }
+
+/// `diagnose` reads the data as calibrate does: the reversed photodiode negated and the
+/// flipped mounting corrected, each said, before any effect is sought; no residual of
+/// pd03 or pd06 is left for an effect to explain.
+#[test]
+fn diagnose_reads_the_data_as_calibrate_does() {
+    let (meta, telemetry) = broken();
+    let outcome =
+        pdcal::diagnose::run(&meta, &telemetry, pdcal_diagnose::BaseModel::Paper).unwrap();
+    let said = outcome.warnings.join("\n");
+    assert!(
+        said.contains("pd03") && said.contains("polarity reversed"),
+        "{said}"
+    );
+    assert!(said.contains("pd06"), "{said}");
+    let misfit = &outcome.diagnosis.misfit;
+    for pd in [2, 5] {
+        let rms = pdcal_diagnose::residuals::rms(
+            outcome
+                .diagnosis
+                .final_residuals
+                .pd
+                .iter()
+                .filter(|p| p.pd == pd && p.direct_v > 0.0)
+                .map(|p| p.residual_v),
+        );
+        assert!(rms < 0.1, "pd{:02}: lit residual RMS {rms} V", pd + 1);
+    }
+    assert!(
+        !misfit.concentrated_in.contains("photodiode 3")
+            && !misfit.concentrated_in.contains("photodiode 6"),
+        "{}",
+        misfit.concentrated_in
+    );
+}
