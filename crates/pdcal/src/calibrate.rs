@@ -177,11 +177,7 @@ pub fn run_with_references(
         albedo,
     )?;
     warnings.extend(mountings.iter().map(|f| f.message()));
-    let corrected = (!mountings.is_empty()).then(|| {
-        let (mut meta, mut telemetry) = (meta.clone(), telemetry.clone());
-        crate::mounting::apply(&mountings, &mut meta, &mut telemetry);
-        (meta, telemetry)
-    });
+    let corrected = crate::mounting::corrected(&mountings, meta, telemetry);
     let (meta, telemetry) = match &corrected {
         Some((meta, telemetry)) => (meta, telemetry),
         None => (meta, telemetry),

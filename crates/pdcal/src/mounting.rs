@@ -29,3 +29,17 @@ pub fn check(
     )
     .context("mounting check")
 }
+
+/// `meta` and `telemetry` with `findings` applied ([`apply`]), copied only when there are
+/// findings; `None` when there are none (read the originals).
+pub fn corrected(
+    findings: &[MountingFinding],
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+) -> Option<(DatasetMeta, Telemetry)> {
+    (!findings.is_empty()).then(|| {
+        let (mut meta, mut telemetry) = (meta.clone(), telemetry.clone());
+        apply(findings, &mut meta, &mut telemetry);
+        (meta, telemetry)
+    })
+}
