@@ -486,6 +486,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
                     .and_then(|b| bias_beyond_fit(b, &run.calibration)),
             )
             .chain(about_sun_line_undecided(&run.segments))
+            .chain(attitude_losses(&run.segments))
             .chain(normals_rotation.as_ref().and_then(|r| r.warning()))
             .collect(),
         segment_rules: run.segment_rules,
@@ -563,6 +564,24 @@ fn normals_rotation(
         ));
     }
     Ok(r)
+}
+
+/// A warning when the attitude was lost (a segment ended because its sigma in the observed
+/// directions outgrew the bound, or its innovations went wrong): how often, and the first
+/// reason. Each loss restarts the attitude from the data; a run that loses it often is one
+/// whose model and data disagree, or whose data hold the attitude only briefly.
+fn attitude_losses(segments: &[pdcal_filter::SegmentReport]) -> Option<String> {
+    let mut lost = segments.iter().filter_map(|s| s.lost.as_deref());
+    let first = lost.next()?;
+    let count = 1 + lost.count();
+    Some(format!(
+        "the attitude was lost {count} time(s) in {} segments (first: {first}); each loss \
+         restarts the attitude from the data, and states learnt across losses rest on the \
+         stretches between them: a run that loses it often has a model and data that \
+         disagree, or data that hold the attitude only briefly (the segment table lists \
+         each)",
+        segments.len()
+    ))
 }
 
 /// A warning naming the Sun-only segments whose attitude the data did not tell from its

@@ -96,3 +96,30 @@ fn a_gyro_bias_never_held_keeps_the_sigma_of_its_fit() {
         );
     }
 }
+
+/// A run that lost its attitude says so among its warnings, with the count and the first
+/// reason (seed 10's first downlink: one loss, across the Sun line).
+#[test]
+fn a_lost_attitude_is_a_warning() {
+    let (summary, _, _) = calibrate(10);
+    let lost: Vec<&str> = summary
+        .segments
+        .iter()
+        .filter_map(|s| s.lost.as_deref())
+        .collect();
+    assert!(!lost.is_empty(), "seed 10 no longer loses its attitude");
+    let warning = summary
+        .warnings
+        .iter()
+        .find(|w| w.starts_with("the attitude was lost"))
+        .expect("a warning");
+    assert!(
+        warning.starts_with(&format!(
+            "the attitude was lost {} time(s) in {} segments (first: {})",
+            lost.len(),
+            summary.segments.len(),
+            lost[0]
+        )),
+        "{warning}"
+    );
+}
