@@ -336,7 +336,15 @@ pub fn find_start(
             conditional_cov,
         }));
     }
-    Ok(Err(REASONS[furthest].to_owned()))
+    // Without the magnetometer no attitude comes from it in eclipse either: the reason
+    // says what this run lacks, not what a run with a magnetometer would.
+    let reason = match (furthest, inputs.use_mag) {
+        (0, false) => {
+            "no sample in full Sun (in eclipse throughout: no photodiode to calibrate from, and the Sun is the only vector of this run)"
+        }
+        _ => REASONS[furthest],
+    };
+    Ok(Err(reason.to_owned()))
 }
 
 /// The photodiodes of `sampled` that see the Sun itself at row `k`: their output exceeds

@@ -53,6 +53,28 @@ struct Checked {
 /// The forward filter over the rows `keep` of the fixture, asserting after every row that
 /// the state is finite and the covariance symmetric with a Cholesky factor; `corrupt` may
 /// change the pass after a row.
+/// The rows of `telemetry` that `keep` keeps, with their references.
+fn kept(telemetry: &Telemetry, keep: &dyn Fn(usize) -> bool) -> (Telemetry, Vec<Reference>) {
+    let f = fixture();
+    let references = (0..f.references.len())
+        .filter(|&k| keep(k))
+        .map(|k| f.references[k])
+        .collect();
+    (telemetry.select_rows(keep), references)
+}
+
+/// The fixture's run inputs over `telemetry` and its `references`.
+fn inputs_of<'a>(telemetry: &'a Telemetry, references: &'a [Reference]) -> RunInputs<'a> {
+    let f = fixture();
+    RunInputs {
+        meta: &f.meta,
+        telemetry,
+        references: references.into(),
+        albedo: Some(&f.albedo),
+        set_first_rows: &[],
+    }
+}
+
 fn run_checked(
     telemetry: &Telemetry,
     keep: &dyn Fn(usize) -> bool,
@@ -60,18 +82,8 @@ fn run_checked(
     mut corrupt: impl FnMut(usize, &mut ForwardPass),
 ) -> Checked {
     let f = fixture();
-    let telemetry = telemetry.select_rows(keep);
-    let references: Vec<Reference> = (0..f.references.len())
-        .filter(|&k| keep(k))
-        .map(|k| f.references[k])
-        .collect();
-    let inputs = RunInputs {
-        meta: &f.meta,
-        telemetry: &telemetry,
-        references: (&references).into(),
-        albedo: Some(&f.albedo),
-        set_first_rows: &[],
-    };
+    let (telemetry, references) = kept(telemetry, keep);
+    let inputs = inputs_of(&telemetry, &references);
     let pds = f
         .meta
         .photodiodes
@@ -167,6 +179,32 @@ fn settled_attitude_rms_deg(estimates: &[StepEstimate], settle_s: f64) -> (f64, 
 fn on_off(k: usize) -> bool {
     let t = fixture().telemetry.t_s[k];
     (t + 240.0).rem_euclid(1200.0) < 600.0
+}
+
+/// Without the magnetometer a pass in eclipse throughout says that the Sun is this run's
+/// only vector, not what a run with a magnetometer would lack.
+#[test]
+fn a_sun_only_pass_in_eclipse_says_what_this_run_lacks() {
+    let (telemetry, references) = kept(&fixture().telemetry, &on_off);
+    let inputs = inputs_of(&telemetry, &references);
+    let config = FilterConfig {
+        ensemble: pdcal_filter::EnsembleRuns::Off,
+        ..forward_only()
+    };
+    let run = pdcal_filter::calibrate(&inputs, &config, &Mode::PhotodiodeOnly).unwrap();
+    let dark: Vec<&str> = run
+        .segments
+        .iter()
+        .filter_map(|s| s.skipped.as_deref())
+        .filter(|r| r.contains("in eclipse throughout"))
+        .collect();
+    assert_eq!(dark.len(), 3, "{:#?}", run.segments);
+    for reason in dark {
+        assert!(
+            reason.ends_with("the Sun is the only vector of this run)"),
+            "{reason}"
+        );
+    }
 }
 
 #[test]
