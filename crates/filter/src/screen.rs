@@ -233,11 +233,7 @@ fn measured_rate_rad_s(gyro: &pdcal_dataset::Vectors, k: usize) -> f64 {
 /// its peak, robust to a few wild samples); 0 for none.
 fn high_quantile(values: impl Iterator<Item = f64>) -> f64 {
     let mut sizes: Vec<f64> = values.map(f64::abs).filter(|x| x.is_finite()).collect();
-    if sizes.is_empty() {
-        return 0.0;
-    }
-    let at = ((sizes.len() * 99) / 100).min(sizes.len() - 1);
-    *sizes.select_nth_unstable_by(at, f64::total_cmp).1
+    order_statistic(&mut sizes, 99, 100).unwrap_or(0.0)
 }
 
 /// The median magnitude of a vector column's finite samples (the field a magnetometer
@@ -248,11 +244,14 @@ fn median_magnitude(column: &pdcal_dataset::Vectors) -> f64 {
         .map(|v| v.norm())
         .filter(|n| n.is_finite())
         .collect();
-    if norms.is_empty() {
-        return 0.0;
-    }
-    let mid = norms.len() / 2;
-    *norms.select_nth_unstable_by(mid, f64::total_cmp).1
+    order_statistic(&mut norms, 1, 2).unwrap_or(0.0)
+}
+
+/// The value at rank `len * per / of` (at most the last) of `values` in increasing order,
+/// reordering them; `None` for none.
+fn order_statistic(values: &mut [f64], per: usize, of: usize) -> Option<f64> {
+    let at = (values.len() * per / of).min(values.len().checked_sub(1)?);
+    Some(*values.select_nth_unstable_by(at, f64::total_cmp).1)
 }
 
 /// Empties the cells `outliers` names (from [`find_outliers`]), except a gyro sample
@@ -380,15 +379,11 @@ fn absurd_bound(len: usize, value: &impl Fn(usize) -> Option<f64>, tol: f64) -> 
         .filter_map(value)
         .filter(|x| x.is_finite())
         .collect();
-    if values.is_empty() {
-        return None;
-    }
-    let mid = values.len() / 2;
-    let median = *values.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let median = order_statistic(&mut values, 1, 2)?;
     for x in &mut values {
         *x = (*x - median).abs();
     }
-    let mad = *values.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let mad = order_statistic(&mut values, 1, 2)?;
     Some((median, ABSURD_FACTOR * (1.4826 * mad + tol)))
 }
 

@@ -215,7 +215,11 @@ impl<R: Read> Records<R> {
                     Ok(true) if record.len() == 1 && record[0].is_empty() => continue,
                     Ok(true) => {
                         let line = record.position().map_or(1, |p| line_of(p.line()));
-                        if let Some(column) = record.iter().position(|c| c.contains(['\n', '\r'])) {
+                        // One scan of the record's text; the cell only when there is one.
+                        let spans = |c: &str| c.contains(['\n', '\r']);
+                        if spans(record.as_slice())
+                            && let Some(column) = record.iter().position(spans)
+                        {
                             return Err(open_quote(&self.file, line, column + 1, &record[column]));
                         }
                         break Ok(Some(line));

@@ -177,11 +177,8 @@ pub fn run_with_references(
         albedo,
     )?;
     warnings.extend(mountings.iter().map(|f| f.message()));
-    let corrected = crate::mounting::corrected(&mountings, meta, telemetry);
-    let (meta, telemetry) = match &corrected {
-        Some((meta, telemetry)) => (meta, telemetry),
-        None => (meta, telemetry),
-    };
+    let (meta, telemetry) = crate::mounting::corrected(&mountings, meta, telemetry);
+    let (meta, telemetry) = (meta.as_ref(), telemetry.as_ref());
     let later_sets: Vec<usize> = sets.iter().skip(1).map(|s| s.first_row).collect();
     let inputs = RunInputs {
         meta,

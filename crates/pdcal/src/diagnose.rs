@@ -40,6 +40,7 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry, base: BaseModel) -> Result
     warnings.extend(crate::checks::orbit_age(meta, telemetry, "dataset.ron"));
     let references = pdcal_filter::step_references(meta, telemetry)?;
     let albedo = crate::calibrate::albedo_model()?;
+    let config = DiagnoseConfig::default();
     // The data as calibrate reads them: a photodiode that reads reversed is negated and one
     // whose data contradict any mounting is left out, each said, before the diagnosis, so
     // that no effect is sought in what a wiring fault explains.
@@ -47,15 +48,12 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry, base: BaseModel) -> Result
         meta,
         telemetry,
         (&references).into(),
-        &pdcal_filter::FilterConfig::default(),
+        &config.filter,
         &albedo,
     )?;
     warnings.extend(mountings.iter().map(|f| f.message()));
-    let corrected = crate::mounting::corrected(&mountings, meta, telemetry);
-    let (meta, telemetry) = match &corrected {
-        Some((meta, telemetry)) => (meta, telemetry),
-        None => (meta, telemetry),
-    };
+    let (meta, telemetry) = crate::mounting::corrected(&mountings, meta, telemetry);
+    let (meta, telemetry) = (meta.as_ref(), telemetry.as_ref());
     let albedo_map = crate::calibrate::ALBEDO_MAP.to_string();
     let inputs = DiagnoseInputs {
         meta,
@@ -65,8 +63,7 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry, base: BaseModel) -> Result
         albedo_map: &albedo_map,
     };
     let start = Instant::now();
-    let diagnosis =
-        pdcal_diagnose::diagnose(&inputs, base, &DiagnoseConfig::default()).context("diagnosis")?;
+    let diagnosis = pdcal_diagnose::diagnose(&inputs, base, &config).context("diagnosis")?;
     Ok(DiagnoseOutcome {
         diagnosis,
         runtime_s: start.elapsed().as_secs_f64(),

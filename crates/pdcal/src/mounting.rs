@@ -3,6 +3,8 @@
 //! the warnings and `summary.json` `mounting_findings`, and calibrated from what the data
 //! support.
 
+use std::borrow::Cow;
+
 use anyhow::{Context, Result};
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_filter::mounting::{MountingFinding, check_mountings};
@@ -30,16 +32,17 @@ pub fn check(
     .context("mounting check")
 }
 
-/// `meta` and `telemetry` with `findings` applied ([`apply`]), copied only when there are
-/// findings; `None` when there are none (read the originals).
-pub fn corrected(
+/// `meta` and `telemetry` with `findings` applied ([`apply`]): borrowed as they are when
+/// there are none, copied and corrected otherwise.
+pub fn corrected<'a>(
     findings: &[MountingFinding],
-    meta: &DatasetMeta,
-    telemetry: &Telemetry,
-) -> Option<(DatasetMeta, Telemetry)> {
-    (!findings.is_empty()).then(|| {
-        let (mut meta, mut telemetry) = (meta.clone(), telemetry.clone());
-        apply(findings, &mut meta, &mut telemetry);
-        (meta, telemetry)
-    })
+    meta: &'a DatasetMeta,
+    telemetry: &'a Telemetry,
+) -> (Cow<'a, DatasetMeta>, Cow<'a, Telemetry>) {
+    if findings.is_empty() {
+        return (Cow::Borrowed(meta), Cow::Borrowed(telemetry));
+    }
+    let (mut meta, mut telemetry) = (meta.clone(), telemetry.clone());
+    apply(findings, &mut meta, &mut telemetry);
+    (Cow::Owned(meta), Cow::Owned(telemetry))
 }
