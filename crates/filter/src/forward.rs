@@ -42,6 +42,13 @@ pub(crate) struct PassCheckpoint {
     pub(crate) at: Cursor,
     closed_segments: usize,
     current: SegmentReport,
+    /// The data sets not yet entered: a replay from a checkpoint before a set's first
+    /// acquisition must restart the gyro bias there as the pass did.
+    sets_ahead: Vec<usize>,
+    /// The temperatures held at the row (a temperature-dependent model reads them).
+    temperatures_c: Vec<f64>,
+    /// The linearisation points of the window after the segment's Sun-only acquisition.
+    nominals: std::collections::BTreeMap<usize, Nominal>,
 }
 
 /// A [`ForwardPass`] before a probe ([`ForwardPass::choose_about_sun_line`]): a
@@ -49,7 +56,6 @@ pub(crate) struct PassCheckpoint {
 struct ProbePoint {
     pass: PassCheckpoint,
     use_times: UseTimes,
-    temperatures_c: Vec<f64>,
     rejections: Rejections,
     repairs: RepairLog,
 }
@@ -925,7 +931,6 @@ impl<'a> ForwardPass<'a> {
         ProbePoint {
             pass: self.checkpoint(),
             use_times: self.use_times.clone(),
-            temperatures_c: self.temperatures_c.clone(),
             rejections: self.rejections.clone(),
             repairs: self.repairs.clone(),
         }
@@ -934,7 +939,6 @@ impl<'a> ForwardPass<'a> {
     fn back_to(&mut self, point: &ProbePoint) -> Result<(), FilterError> {
         self.restore(&point.pass)?;
         self.use_times.clone_from(&point.use_times);
-        self.temperatures_c.clone_from(&point.temperatures_c);
         self.rejections.clone_from(&point.rejections);
         self.repairs.clone_from(&point.repairs);
         Ok(())
@@ -1140,6 +1144,9 @@ impl<'a> ForwardPass<'a> {
             at: self.at.clone(),
             closed_segments: self.segments.len(),
             current: self.current.clone(),
+            sets_ahead: self.sets_ahead.clone(),
+            temperatures_c: self.temperatures_c.clone(),
+            nominals: self.nominals.clone(),
         }
     }
 
@@ -1150,6 +1157,9 @@ impl<'a> ForwardPass<'a> {
         self.at.clone_from(&checkpoint.at);
         self.segments.truncate(checkpoint.closed_segments);
         self.current.clone_from(&checkpoint.current);
+        self.sets_ahead.clone_from(&checkpoint.sets_ahead);
+        self.temperatures_c.clone_from(&checkpoint.temperatures_c);
+        self.nominals.clone_from(&checkpoint.nominals);
         Ok(())
     }
 

@@ -20,6 +20,7 @@ mod reliability_inputs;
 mod repeatability;
 mod skcube_honesty;
 mod skcube_import;
+mod smoothed_joint;
 mod spikes;
 mod streaming_outputs;
 mod sun_line_half_turn;
