@@ -198,13 +198,19 @@ pub struct Diagnosis {
 }
 
 /// The shared consistency verdict of a filter run's residuals.
-pub fn run_consistency(run: &CalibrationRun) -> Consistency {
-    pdcal_filter::consistency::judge(
+pub fn run_consistency(
+    inputs: &DiagnoseInputs<'_>,
+    run: &CalibrationRun,
+) -> Result<Consistency, DiagnoseError> {
+    let mut c = pdcal_filter::consistency::judge(
         &run.residuals,
         run.used_photodiodes.len(),
         run.sensor_sigmas.photodiode_v,
         run.sensor_sigmas.mag_nt,
-    )
+    );
+    let references = inputs.references.into();
+    pdcal_filter::dark::judge(&mut c, inputs.telemetry, &references, run)?;
+    Ok(c)
 }
 
 impl Diagnosis {
@@ -396,7 +402,7 @@ pub fn diagnose_from(
     check_config(config)?;
     let base = spec.base;
     let (run, res) = calibrate_and_residuals(inputs, &mut spec, config)?;
-    let base_consistency = run_consistency(&run);
+    let base_consistency = run_consistency(inputs, &run)?;
     let initial_residuals = res.clone();
     let mut state = State { spec, run, res };
     let (initial_dropped, _) = drop_unsupported(inputs, config, &mut state, None)?;
@@ -418,7 +424,7 @@ pub fn diagnose_from(
                 candidates,
                 rejected,
                 initial_residuals,
-            );
+            )?;
             d.initial_dropped = initial_dropped;
             d.base_consistency = base_consistency;
             return Ok(d);
@@ -493,10 +499,10 @@ fn finish(
     final_candidates: Vec<CandidateFit>,
     final_rejected: Vec<Rejected>,
     initial_residuals: Residuals,
-) -> Diagnosis {
+) -> Result<Diagnosis, DiagnoseError> {
     let misfit = misfit(&state.res, inputs.references, albedo_gain(&state.spec));
-    let consistency = run_consistency(&state.run);
-    Diagnosis {
+    let consistency = run_consistency(inputs, &state.run)?;
+    Ok(Diagnosis {
         base_consistency: consistency.clone(),
         consistency,
         base_model: base,
@@ -511,7 +517,7 @@ fn finish(
         final_residuals: state.res,
         misfit,
         threshold: config.threshold,
-    }
+    })
 }
 
 /// Every candidate of the current model, scored, best first (`time-offset` by refit).

@@ -113,6 +113,10 @@ pub struct Consistency {
     pub sensors: Vec<ChannelConsistency>,
     /// Per photodiode, pdNN order.
     pub photodiodes: Vec<ChannelConsistency>,
+    /// Per photodiode with samples in the Earth's umbra, what it read there
+    /// ([`crate::dark`]); empty when not checked.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub dark: Vec<crate::dark::DarkLevel>,
 }
 
 /// Bins per decade of the histogram of `|residual| / noise`.
@@ -318,6 +322,7 @@ impl ConsistencyAccumulator {
             max_rms_over_noise: MAX_RMS_NOISE_RATIO,
             sensors,
             photodiodes,
+            dark: Vec::new(),
         }
     }
 }

@@ -1530,6 +1530,19 @@ impl Filter {
         &self.layout
     }
 
+    /// Each photodiode's output the model predicts with no light at all (in the Earth's
+    /// umbra, no albedo): its additive terms at their current values, V; 0 where the model
+    /// cannot say.
+    pub fn umbra_outputs(&self) -> Vec<f64> {
+        let Ok(scene) = Scene::new(Matrix3::identity(), &Vector3::x()) else {
+            return vec![0.0; self.model.photodiodes().len()];
+        };
+        let dark = scene.with_sun_fraction(0.0);
+        (0..self.model.photodiodes().len())
+            .map(|i| self.model.evaluate(i, &dark).unwrap_or(0.0))
+            .collect()
+    }
+
     /// The measurement model with the current estimates.
     pub fn model(&self) -> &MeasurementModel {
         &self.model

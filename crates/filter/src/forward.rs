@@ -1193,6 +1193,7 @@ impl<'a> ForwardPass<'a> {
             propagation: self.propagation,
             ensemble: None,
             dispersion: None,
+            umbra_output_v: self.filter.umbra_outputs(),
         }
     }
 }

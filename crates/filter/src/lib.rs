@@ -95,6 +95,7 @@ pub mod calibration;
 pub mod common_rotation;
 pub mod config;
 pub mod consistency;
+pub mod dark;
 pub mod dense;
 pub mod ensemble;
 mod error;

@@ -158,6 +158,10 @@ pub struct CalibrationRun {
     /// The variance factor the reported covariances were scaled by
     /// ([`crate::consistency::Dispersion`]); absent when the configuration turns it off.
     pub dispersion: Option<crate::consistency::DispersionReport>,
+    /// Each photodiode's output the final model predicts with no light at all (the Earth's
+    /// umbra: its additive terms, a dark offset), V; what [`crate::dark`] tests the umbra
+    /// samples against.
+    pub umbra_output_v: Vec<f64>,
 }
 
 /// The estimate at one row from a state and its covariance (the forward filter's or the

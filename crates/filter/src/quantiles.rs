@@ -9,6 +9,13 @@ pub fn chi_square_quantile_wh(k: f64, z: f64) -> f64 {
     k * (1.0 - a + z * a.sqrt()).powi(3)
 }
 
+/// Sidak's two-sided threshold on `|z|` that holds the family-wise false-alarm rate of
+/// `tests` independent tests at `family_rate` (at most that rate for correlated ones).
+pub fn sidak_threshold(family_rate: f64, tests: usize) -> f64 {
+    let per_test = -((-family_rate).ln_1p() / tests.max(1) as f64).exp_m1();
+    normal_quantile(1.0 - per_test / 2.0)
+}
+
 /// The standard normal quantile (Acklam's rational approximation, relative error < 1.2e-9).
 pub fn normal_quantile(p: f64) -> f64 {
     const A: [f64; 6] = [

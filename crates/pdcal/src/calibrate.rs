@@ -205,6 +205,8 @@ pub fn run_with_references(
         run.sensor_sigmas.photodiode_v,
         run.sensor_sigmas.mag_nt,
     );
+    pdcal_filter::dark::judge(&mut consistency, telemetry, &inputs.references, &run)
+        .context("the photodiodes in the umbra")?;
     let repeatability = repeatability_of(meta, telemetry, &references, sets, config, albedo);
     if let Some(r) = &repeatability {
         r.apply(&mut consistency, &mut warnings);
@@ -548,6 +550,8 @@ pub fn run_sets(
     )?;
     streamed.attitudes.remove()?;
     let mut consistency = streamed.consistency;
+    pdcal_filter::dark::judge(&mut consistency, telemetry, &inputs.references, &run)
+        .context("the photodiodes in the umbra")?;
     let repeatability = match stored.as_deref() {
         Some(stored) => repeatability_of(&meta, telemetry, stored, &joint.sets, config, &albedo),
         None => None,

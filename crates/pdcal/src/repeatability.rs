@@ -37,7 +37,7 @@
 
 use pdcal_filter::Calibration;
 use pdcal_filter::identifiability::{Judged, PdIdentifiability, Status};
-use pdcal_filter::quantiles::normal_quantile;
+pub use pdcal_filter::quantiles::sidak_threshold;
 use serde::Serialize;
 
 /// The nominal family-wise false-alarm rate of a run's repeatability tests: the two-sided
@@ -205,13 +205,6 @@ impl Repeatability {
             self.differing.join(", ")
         ));
     }
-}
-
-/// Sidak's two-sided threshold on `|z|` that holds the family-wise false-alarm rate of
-/// `tests` tests at `family_rate`.
-pub fn sidak_threshold(family_rate: f64, tests: usize) -> f64 {
-    let per_test = -((-family_rate).ln_1p() / tests.max(1) as f64).exp_m1();
-    normal_quantile(1.0 - per_test / 2.0)
 }
 
 /// `(a - b) / sqrt(var_a + var_b + walk_var)`.
@@ -881,6 +874,7 @@ mod tests {
             max_rms_over_noise: 3.0,
             sensors: Vec::new(),
             photodiodes: Vec::new(),
+            dark: Vec::new(),
         };
         let run = |c3: f64| {
             let sets = [

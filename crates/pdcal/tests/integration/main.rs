@@ -4,6 +4,7 @@
 mod bias_per_set;
 mod common;
 mod consistency_verdict;
+mod dark_offset;
 mod files_contract;
 mod hand_made_dataset;
 mod import_command;
