@@ -111,6 +111,7 @@ mod tests {
             accepted: true,
             post_fit: residual,
             attitude_held: true,
+            contradicted: false,
         }
     }
 

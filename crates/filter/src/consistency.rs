@@ -94,6 +94,17 @@ pub struct ChannelConsistency {
     /// Fraction of the held updates inside their 3-sigma bound (gated ones outside).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fraction_within_3sigma: Option<f64>,
+    /// Samples outside the field of view at the estimate that read more light than they
+    /// could get anywhere within the gate's sigmas of it ([`crate::Filter::contradicted`]).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub contradicted: usize,
+    /// The largest of their excesses over that most light, V.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contradicted_excess_max: Option<f64>,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 /// The verdict with its figures and reasons (`summary.json` `consistency`).
@@ -187,6 +198,8 @@ struct Sums {
     held_accepted: usize,
     held_nis: f64,
     held_inside: usize,
+    contradicted: usize,
+    contradicted_excess_max: f64,
 }
 
 impl Sums {
@@ -199,6 +212,10 @@ impl Sums {
     }
 
     fn push(&mut self, r: &ResidualRecord, noise_sigma: f64) {
+        if r.contradicted {
+            self.contradicted += 1;
+            self.contradicted_excess_max = self.contradicted_excess_max.max(r.residual);
+        }
         if r.accepted {
             self.push_spread(r.residual, noise_sigma);
             self.sum_sq += r.residual * r.residual;
@@ -236,6 +253,9 @@ impl Sums {
             nis_band: nis.map(|_| nis_band(self.held_accepted)),
             fraction_within_3sigma: (self.held > 0)
                 .then(|| self.held_inside as f64 / self.held as f64),
+            contradicted: self.contradicted,
+            contradicted_excess_max: (self.contradicted > 0)
+                .then_some(self.contradicted_excess_max),
         }
     }
 }
@@ -298,6 +318,7 @@ impl ConsistencyAccumulator {
         for c in sensors.iter().chain(&photodiodes) {
             reasons.extend(channel_problems(c));
         }
+        reasons.extend(photodiodes.iter().filter_map(contradiction_problem));
         let judged = sensors.iter().any(|c| c.updates >= MIN_JUDGED_UPDATES);
         if !judged {
             reasons.push(format!(
@@ -470,6 +491,24 @@ fn channel_problems(c: &ChannelConsistency) -> Vec<String> {
     out
 }
 
+/// A sentence when a photodiode has at least [`MIN_JUDGED_UPDATES`] samples that read more
+/// light than they could get anywhere within the gate's sigmas of the estimate. One such
+/// sample is beyond the gate in the noise and in the estimate's uncertainty at once; ten
+/// are no chance.
+fn contradiction_problem(c: &ChannelConsistency) -> Option<String> {
+    (c.contradicted >= MIN_JUDGED_UPDATES).then(|| {
+        format!(
+            "{}: {} samples outside its field of view at the estimate read more light than \
+             they could get within the gate's sigmas of the attitude, normal and scale (by up \
+             to {:.3} V over the direct Sun there and a white Earth filling the view): a \
+             swapped or misnamed column, a wrong mounting, or an attitude the data contradict",
+            c.channel,
+            c.contradicted,
+            c.contradicted_excess_max.unwrap_or(0.0),
+        )
+    })
+}
+
 /// A sentence when a sensor class's mean NIS over its held updates lies below its band.
 fn conservative_note(c: &ChannelConsistency) -> Option<String> {
     let (nis, [low, _]) = (c.nis_mean?, c.nis_band?);
@@ -550,6 +589,7 @@ mod tests {
             accepted: residual.abs() <= 5.0 * sigma,
             post_fit: residual,
             attitude_held: held,
+            contradicted: false,
         }
     }
 
@@ -699,6 +739,7 @@ mod tests {
             .into_iter()
             .map(|r| ResidualRecord {
                 attitude_held: false,
+                contradicted: false,
                 ..r
             })
             .collect();
@@ -718,5 +759,35 @@ mod tests {
         let c = judge(&records, 3, 0.01, 300.0);
         assert_eq!(c.verdict, Verdict::Inconsistent);
         assert!(c.reasons[0].contains("nothing to judge"));
+    }
+
+    #[test]
+    fn ten_contradicted_samples_of_a_photodiode_make_the_run_inconsistent() {
+        let judged = |n: usize| {
+            let mut acc = ConsistencyAccumulator::new(2, 0.01, 100.0);
+            for k in 0..200 {
+                acc.push(&record(Sensor::Photodiode(k % 2), 0.005, 0.01, true));
+            }
+            for _ in 0..n {
+                acc.push(&ResidualRecord {
+                    accepted: false,
+                    residual: 0.3,
+                    contradicted: true,
+                    attitude_held: false,
+                    ..record(Sensor::Photodiode(1), 0.3, 0.01, false)
+                });
+            }
+            acc.finish()
+        };
+        let few = judged(MIN_JUDGED_UPDATES - 1);
+        assert_eq!(few.verdict, Verdict::Consistent, "{few:?}");
+        assert_eq!(few.photodiodes[1].contradicted, MIN_JUDGED_UPDATES - 1);
+        let many = judged(MIN_JUDGED_UPDATES);
+        assert_eq!(many.verdict, Verdict::Inconsistent, "{many:?}");
+        assert!(
+            many.reasons
+                .iter()
+                .any(|r| r.starts_with("pd02: 10 samples outside"))
+        );
     }
 }

@@ -640,6 +640,7 @@ mod tests {
             accepted,
             post_fit: residual,
             attitude_held: true,
+            contradicted: false,
         }
     }
 

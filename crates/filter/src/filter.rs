@@ -159,6 +159,10 @@ pub struct SensorCounts {
     pub outside_fov: usize,
     /// Photodiode samples not used: the photodiode never lit in the data set.
     pub unused_sensor: usize,
+    /// Photodiode samples outside the field of view (by the estimate) that read more than
+    /// any light from there could give ([`Filter::contradicted`]); counted here, not in
+    /// `outside_fov`.
+    pub contradicted: usize,
 }
 
 /// Counts per sensor class.
@@ -247,6 +251,8 @@ pub struct Filter {
     initial_variance: Vec<f64>,
     scratch: Scratch,
     records: Vec<UpdateRecord>,
+    /// This step's photodiode samples the estimate contradicts ([`Filter::contradicted`]).
+    contradicted: Vec<UpdateRecord>,
     counts: UpdateCounts,
     last: Option<Propagation>,
     /// The Sun is the only vector ([`Filter::set_sun_only`]).
@@ -432,6 +438,7 @@ impl Filter {
             initial_variance: p.diagonal().iter().copied().collect(),
             p,
             records: Vec::with_capacity(3 + m),
+            contradicted: Vec::new(),
             counts: UpdateCounts::default(),
             last: None,
             sun_only: false,
@@ -943,6 +950,7 @@ impl Filter {
         albedo: Option<&dyn AlbedoIrradiance>,
     ) -> Result<(), FilterError> {
         self.records.clear();
+        self.contradicted.clear();
         self.scratch.rows.clear();
         self.scratch.sources.clear();
         let attitude = self.q.attitude_matrix();
@@ -1188,6 +1196,7 @@ impl Filter {
         sun_body: &Vector3<f64>,
     ) {
         let lit = reference.sun_fraction >= self.noise.min_sun_fraction;
+        let (sigma_v, gate) = (self.noise.photodiode_sigma_v, self.noise.gate_sigmas);
         let counts = &mut self.counts.photodiode;
         let selected = &mut self.scratch.selected;
         selected.clear();
@@ -1212,7 +1221,28 @@ impl Filter {
                 .fov_half_angle_rad
                 .map_or(self.noise.cos_fov, |fov| self.noise.cos_fov.max(fov.cos()));
             if cos_incidence < cos_fov {
-                counts.outside_fov += 1;
+                // Only a sample beyond the gate in the noise can be beyond any light.
+                let record = (y > gate * sigma_v)
+                    .then(|| {
+                        let sample = OutsideSample {
+                            scale_v: pd.scale_v,
+                            n_body: pd.n_body,
+                            y,
+                        };
+                        let spread = Spread::of(&self.p, &self.layout, i);
+                        contradiction(&sample, *sun_body, reference, spread, (sigma_v, gate))
+                    })
+                    .flatten();
+                match record {
+                    Some(record) => {
+                        counts.contradicted += 1;
+                        self.contradicted.push(UpdateRecord {
+                            sensor: Sensor::Photodiode(i),
+                            ..record
+                        });
+                    }
+                    None => counts.outside_fov += 1,
+                }
                 continue;
             }
             selected.push(Selected {
@@ -1543,6 +1573,19 @@ impl Filter {
             .collect()
     }
 
+    /// The photodiode samples of the last step that the estimate contradicts: outside the
+    /// field of view at the prior attitude, so never an update, yet reading more than
+    /// the direct Sun at that incidence and a white Earth filling the view could give
+    /// together, by more than the gate's sigmas of noise. Each a record with
+    /// `accepted: false`, its residual the excess over that bound and its bound the
+    /// noise's 3 sigma: the consistency verdict counts it outside 3 sigma, where a sample
+    /// left out would have said nothing (a swapped pair of columns on a four-photodiode
+    /// head, the attitude held by the magnetometer 78 deg from the truth, had every
+    /// photodiode sample left out and the run called consistent).
+    pub fn contradicted(&self) -> &[UpdateRecord] {
+        &self.contradicted
+    }
+
     /// The measurement model with the current estimates.
     pub fn model(&self) -> &MeasurementModel {
         &self.model
@@ -1664,6 +1707,77 @@ impl StateView<'_> {
             status: Vec::new(),
         }
     }
+}
+
+/// A photodiode sample outside the field of view at the estimate.
+struct OutsideSample {
+    scale_v: f64,
+    n_body: Vector3<f64>,
+    y: f64,
+}
+
+/// The estimate's uncertainty a sample's light could hide in: the attitude error
+/// covariance, the normal's tangent variance (its trace) and the scale factor's sigma.
+struct Spread {
+    p_aa: Matrix3<f64>,
+    normal_var: f64,
+    scale_sigma_v: f64,
+}
+
+impl Spread {
+    fn of(p: &DMatrix<f64>, layout: &StateLayout, i: usize) -> Self {
+        let normal_var = layout
+            .normal(i)
+            .map_or(0.0, |k| (p[(k, k)] + p[(k + 1, k + 1)]).max(0.0));
+        let sc = layout.scale(i);
+        Spread {
+            p_aa: p.fixed_view::<3, 3>(ATTITUDE, ATTITUDE).into_owned(),
+            normal_var,
+            scale_sigma_v: p[(sc, sc)].max(0.0).sqrt(),
+        }
+    }
+}
+
+/// The record of a sample outside the field of view that reads more light than it could
+/// get anywhere within `gate` sigmas of the estimate (the attitude turned towards the
+/// normal, the normal towards the Sun, the scale factor up), by more than `gate` sigmas of
+/// the noise `sigma_v`: the direct Sun at the closest incidence so reached, and the albedo
+/// of a white Earth filling the view, whose irradiance on any plate is at most the Sun's
+/// times the view factor of the whole disc, `(R_E / r)^2` (Lambertian, reflectivity 1).
+/// `None` when it does not.
+fn contradiction(
+    sample: &OutsideSample,
+    sun_body: Vector3<f64>,
+    reference: &Reference,
+    spread: Spread,
+    (sigma_v, gate): (f64, f64),
+) -> Option<UpdateRecord> {
+    let r_km = reference.r_gcrf_km.norm();
+    let s = sun_body.try_normalize(1e-12)?;
+    // Inside the Earth, or a position not a number: no bound to judge by.
+    let view_factor = Some(pdcal_ephem::eclipse::EARTH_RADIUS_KM / r_km)
+        .filter(|ratio| (0.0..1.0).contains(ratio))?
+        .powi(2);
+    // The turn that brings the Sun towards the normal is about `s x n` (any axis across
+    // the Sun line when they are opposite: the widest).
+    let attitude_var = match s.cross(&sample.n_body).try_normalize(1e-12) {
+        Some(axis) => (axis.transpose() * spread.p_aa * axis)[(0, 0)],
+        None => spread.p_aa.symmetric_eigenvalues().max(),
+    };
+    let turn_var = attitude_var + spread.normal_var;
+    let incidence = sample.n_body.dot(&s).clamp(-1.0, 1.0).acos();
+    let closest = (incidence - gate * turn_var.max(0.0).sqrt()).max(0.0);
+    let scale_v = sample.scale_v + gate * spread.scale_sigma_v;
+    let most_v = scale_v * reference.sun_distance_factor() * (closest.cos().max(0.0) + view_factor);
+    let excess = sample.y - most_v;
+    (excess > gate * sigma_v).then_some(UpdateRecord {
+        sensor: Sensor::Photodiode(0),
+        measured: sample.y,
+        residual: excess,
+        bound_3sigma: 3.0 * sigma_v,
+        accepted: false,
+        post_fit: excess,
+    })
 }
 
 #[cfg(test)]
@@ -1813,5 +1927,56 @@ mod tests {
         f.reacquire(Quat::IDENTITY, &(Matrix3::identity() * 1e-4), 1e5);
         assert!((f.p[(g, g)] - 0.04).abs() < 1e-15);
         assert!(f.albedo_gain.abs() < 1e-100);
+    }
+
+    /// A reference 7000 km from the Earth's centre with the Sun along +x at 1 AU.
+    fn reference_at_7000_km() -> Reference {
+        let sun_gcrf_km = Vector3::new(1.495_978_707e8, 0.0, 0.0);
+        Reference {
+            r_gcrf_km: Vector3::new(0.0, 7000.0, 0.0),
+            sun_gcrf_km,
+            sun_gcrf_unit: Vector3::x(),
+            b_gcrf_nt: Vector3::zeros(),
+            sun_fraction: 1.0,
+            gcrf_to_itrf: Matrix3::identity(),
+        }
+    }
+
+    fn spread(attitude_sigma_rad: f64) -> Spread {
+        Spread {
+            p_aa: Matrix3::identity() * attitude_sigma_rad.powi(2),
+            normal_var: 0.0,
+            scale_sigma_v: 0.01,
+        }
+    }
+
+    #[test]
+    fn a_sample_behind_its_photodiode_reading_the_sun_is_contradicted_only_if_the_estimate_is_sure()
+    {
+        let reference = reference_at_7000_km();
+        // Normal along -x, the Sun along +x: behind it. A white Earth filling the view
+        // gives at most (6378.137 / 7000)^2 = 0.83 of C.
+        let sample = |y| OutsideSample {
+            scale_v: 1.0,
+            n_body: -Vector3::x(),
+            y,
+        };
+        let tilted = OutsideSample {
+            n_body: Vector3::new(-1.0, 0.2, 0.0).normalize(),
+            ..sample(1.0)
+        };
+        let sun_body = Vector3::x();
+        let gate = (0.005, 5.0);
+        let sure = || spread(1f64.to_radians());
+        // It reads the full Sun: no light from behind gives that.
+        let r = contradiction(&sample(1.0), sun_body, &reference, sure(), gate).unwrap();
+        assert!(!r.accepted && r.residual > 0.0, "{r:?}");
+        assert!(contradiction(&tilted, sun_body, &reference, sure(), gate).is_some());
+        // What the brightest Earth could give is no contradiction.
+        assert!(contradiction(&sample(0.8), sun_body, &reference, sure(), gate).is_none());
+        // Nor is the full Sun when the attitude is uncertain by 40 deg: within 5 sigmas it
+        // may face the Sun.
+        let unsure = spread(40f64.to_radians());
+        assert!(contradiction(&sample(1.0), sun_body, &reference, unsure, gate).is_none());
     }
 }

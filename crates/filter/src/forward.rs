@@ -1094,17 +1094,22 @@ impl<'a> ForwardPass<'a> {
     /// The scalar updates of the last step as residual records.
     pub fn residual_records(&self) -> impl Iterator<Item = ResidualRecord> + '_ {
         let (index, t_s) = self.last_row();
-        self.filter.records().iter().map(move |r| ResidualRecord {
-            index,
-            t_s,
-            sensor: r.sensor,
-            measured: r.measured,
-            residual: r.residual,
-            bound_3sigma: r.bound_3sigma,
-            accepted: r.accepted,
-            post_fit: r.post_fit,
-            attitude_held: self.at.held,
-        })
+        let records = self.filter.records().iter().map(|r| (r, false));
+        let contradicted = self.filter.contradicted().iter().map(|r| (r, true));
+        records
+            .chain(contradicted)
+            .map(move |(r, contradicted)| ResidualRecord {
+                index,
+                t_s,
+                sensor: r.sensor,
+                measured: r.measured,
+                residual: r.residual,
+                bound_3sigma: r.bound_3sigma,
+                accepted: r.accepted,
+                post_fit: r.post_fit,
+                attitude_held: self.at.held,
+                contradicted,
+            })
     }
 
     /// The estimate after the last step.

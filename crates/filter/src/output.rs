@@ -86,6 +86,9 @@ pub struct ResidualRecord {
     /// most `segments.held_attitude_sigma_deg`): the rows whose bounds the consistency
     /// verdict judges ([`crate::consistency`]).
     pub attitude_held: bool,
+    /// A photodiode sample outside the field of view at the estimate that read more than
+    /// any light from there could give ([`crate::Filter::contradicted`]); never applied.
+    pub contradicted: bool,
 }
 
 /// The mode a run actually used.

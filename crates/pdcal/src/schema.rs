@@ -763,6 +763,7 @@ fn counts_json(run: &CalibrationRun) -> serde_json::Value {
         serde_json::json!({
             "accepted": c.accepted, "gated": c.gated, "not_sampled": c.not_sampled,
             "shadowed": c.shadowed, "outside_fov": c.outside_fov, "unused_sensor": c.unused_sensor,
+            "contradicted": c.contradicted,
         })
     };
     serde_json::json!({
