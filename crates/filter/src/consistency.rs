@@ -101,6 +101,13 @@ pub struct ChannelConsistency {
     /// The largest of their excesses over that most light, V.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub contradicted_excess_max: Option<f64>,
+    /// Samples of a photodiode the run did not use (never lit) that read less than the
+    /// direct Sun would give anywhere within the gate's sigmas of the estimate.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub unlit: usize,
+    /// The largest output among them, V.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unlit_measured_max: Option<f64>,
 }
 
 fn is_zero(n: &usize) -> bool {
@@ -200,6 +207,8 @@ struct Sums {
     held_inside: usize,
     contradicted: usize,
     contradicted_excess_max: f64,
+    unlit: usize,
+    unlit_measured_max: f64,
 }
 
 impl Sums {
@@ -212,6 +221,13 @@ impl Sums {
     }
 
     fn push(&mut self, r: &ResidualRecord, noise_sigma: f64) {
+        if r.contradicted && r.residual < 0.0 {
+            // An unused photodiode dark where it must be lit: its own warning, not the
+            // verdict's (nothing of it was calibrated).
+            self.unlit += 1;
+            self.unlit_measured_max = self.unlit_measured_max.max(r.measured);
+            return;
+        }
         if r.contradicted {
             self.contradicted += 1;
             self.contradicted_excess_max = self.contradicted_excess_max.max(r.residual);
@@ -256,6 +272,8 @@ impl Sums {
             contradicted: self.contradicted,
             contradicted_excess_max: (self.contradicted > 0)
                 .then_some(self.contradicted_excess_max),
+            unlit: self.unlit,
+            unlit_measured_max: (self.unlit > 0).then_some(self.unlit_measured_max),
         }
     }
 }
@@ -507,6 +525,28 @@ fn contradiction_problem(c: &ChannelConsistency) -> Option<String> {
             c.contradicted_excess_max.unwrap_or(0.0),
         )
     })
+}
+
+impl Consistency {
+    /// One warning per photodiode with at least [`MIN_JUDGED_UPDATES`] samples dark where
+    /// the estimate says the Sun shone on it (`unlit`): a dead, blocked or unconnected
+    /// channel, which the run could only call never lit.
+    pub fn unlit_warnings(&self) -> Vec<String> {
+        (self.photodiodes.iter())
+            .filter(|c| c.unlit >= MIN_JUDGED_UPDATES)
+            .map(|c| {
+                format!(
+                    "{}: never lit, yet in {} samples the attitude and its nominal normal, \
+                     within the gate's sigmas, put the Sun on it, where it read at most {:.3} \
+                     V: a dead, blocked or unconnected channel, or a normal far from the \
+                     nominal one",
+                    c.channel,
+                    c.unlit,
+                    c.unlit_measured_max.unwrap_or(0.0)
+                )
+            })
+            .collect()
+    }
 }
 
 /// A sentence when a sensor class's mean NIS over its held updates lies below its band.
@@ -789,5 +829,26 @@ mod tests {
                 .iter()
                 .any(|r| r.starts_with("pd02: 10 samples outside"))
         );
+    }
+
+    #[test]
+    fn an_unused_photodiode_dark_in_the_sun_is_a_warning_not_a_reason() {
+        let mut acc = ConsistencyAccumulator::new(2, 0.01, 100.0);
+        for k in 0..200 {
+            acc.push(&record(Sensor::Photodiode(0), 0.005, 0.01, true));
+            if k < MIN_JUDGED_UPDATES {
+                acc.push(&ResidualRecord {
+                    accepted: false,
+                    measured: 0.01,
+                    contradicted: true,
+                    ..record(Sensor::Photodiode(1), -0.5, 0.01, true)
+                });
+            }
+        }
+        let c = acc.finish();
+        assert_eq!(c.verdict, Verdict::Consistent, "{c:?}");
+        assert_eq!(c.photodiodes[1].unlit, MIN_JUDGED_UPDATES);
+        let warnings = c.unlit_warnings();
+        assert!(warnings.len() == 1 && warnings[0].starts_with("pd02: never lit"));
     }
 }

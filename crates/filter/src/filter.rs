@@ -1212,6 +1212,19 @@ impl Filter {
             let pd = &self.model.photodiodes()[i];
             if !self.used[i] || pd.scale_v <= 0.0 {
                 counts.unused_sensor += 1;
+                let sample = OutsideSample {
+                    scale_v: pd.scale_v,
+                    n_body: pd.n_body,
+                    y,
+                };
+                let spread = Spread::of(&self.p, &self.layout, i);
+                let sun = (*sun_body, reference.sun_distance_factor());
+                if let Some(record) = unlit(&sample, sun, spread, (sigma_v, gate)) {
+                    self.contradicted.push(UpdateRecord {
+                        sensor: Sensor::Photodiode(i),
+                        ..record
+                    });
+                }
                 continue;
             }
             let cos_incidence = pd.n_body.dot(sun_body);
@@ -1709,7 +1722,8 @@ impl StateView<'_> {
     }
 }
 
-/// A photodiode sample outside the field of view at the estimate.
+/// A photodiode sample the filter does not update with: outside the field of view at the
+/// estimate, or of a photodiode it does not use.
 struct OutsideSample {
     scale_v: f64,
     n_body: Vector3<f64>,
@@ -1736,6 +1750,52 @@ impl Spread {
             scale_sigma_v: p[(sc, sc)].max(0.0).sqrt(),
         }
     }
+
+    /// The sigma of the angle between the Sun `s` and the normal `n` (unit, body): the
+    /// attitude's about `s x n` (any axis across the Sun line when they are opposite: the
+    /// widest) and the normal's.
+    fn turn_sigma(&self, s: &Vector3<f64>, n: &Vector3<f64>) -> f64 {
+        let attitude_var = match s.cross(n).try_normalize(1e-12) {
+            Some(axis) => (axis.transpose() * self.p_aa * axis)[(0, 0)],
+            None => self.p_aa.symmetric_eigenvalues().max(),
+        };
+        (attitude_var + self.normal_var).max(0.0).sqrt()
+    }
+}
+
+/// The record of a sample of an unused photodiode (never lit in the data) that reads less
+/// than a working one of its assumed scale (the others' median output when it never lit)
+/// would get anywhere within `gate` sigmas of the estimate (the attitude turned away from
+/// the normal, the normal away from the Sun), by more than `gate` sigmas of the noise
+/// `sigma_v`: the direct Sun alone at the farthest incidence so reached, at the Sun's
+/// distance (`sun_distance_factor`). Its residual is negative, the shortfall. `None` when
+/// it does not, or when a photodiode so turned could face away. With the prior's 10 deg
+/// per normal axis this takes the Sun within about 20 deg of its nominal normal with the
+/// attitude held. The scale is not lowered by its sigma: a scale near zero is what a dead
+/// channel is, and the record says the photodiode did not read what one of its kind would.
+fn unlit(
+    sample: &OutsideSample,
+    (sun_body, sun_distance_factor): (Vector3<f64>, f64),
+    spread: Spread,
+    (sigma_v, gate): (f64, f64),
+) -> Option<UpdateRecord> {
+    let s = sun_body.try_normalize(1e-12)?;
+    let turn_sigma = spread.turn_sigma(&s, &sample.n_body);
+    let incidence = sample.n_body.dot(&s).clamp(-1.0, 1.0).acos();
+    let farthest = incidence + gate * turn_sigma;
+    if farthest >= std::f64::consts::FRAC_PI_2 || sample.scale_v <= 0.0 {
+        return None;
+    }
+    let least_v = sample.scale_v * sun_distance_factor * farthest.cos();
+    let shortfall = sample.y - least_v;
+    (shortfall < -gate * sigma_v).then_some(UpdateRecord {
+        sensor: Sensor::Photodiode(0),
+        measured: sample.y,
+        residual: shortfall,
+        bound_3sigma: 3.0 * sigma_v,
+        accepted: false,
+        post_fit: shortfall,
+    })
 }
 
 /// The record of a sample outside the field of view that reads more light than it could
@@ -1758,15 +1818,8 @@ fn contradiction(
     let view_factor = Some(pdcal_ephem::eclipse::EARTH_RADIUS_KM / r_km)
         .filter(|ratio| (0.0..1.0).contains(ratio))?
         .powi(2);
-    // The turn that brings the Sun towards the normal is about `s x n` (any axis across
-    // the Sun line when they are opposite: the widest).
-    let attitude_var = match s.cross(&sample.n_body).try_normalize(1e-12) {
-        Some(axis) => (axis.transpose() * spread.p_aa * axis)[(0, 0)],
-        None => spread.p_aa.symmetric_eigenvalues().max(),
-    };
-    let turn_var = attitude_var + spread.normal_var;
     let incidence = sample.n_body.dot(&s).clamp(-1.0, 1.0).acos();
-    let closest = (incidence - gate * turn_var.max(0.0).sqrt()).max(0.0);
+    let closest = (incidence - gate * spread.turn_sigma(&s, &sample.n_body)).max(0.0);
     let scale_v = sample.scale_v + gate * spread.scale_sigma_v;
     let most_v = scale_v * reference.sun_distance_factor() * (closest.cos().max(0.0) + view_factor);
     let excess = sample.y - most_v;
@@ -1978,5 +2031,28 @@ mod tests {
         // may face the Sun.
         let unsure = spread(40f64.to_radians());
         assert!(contradiction(&sample(1.0), sun_body, &reference, unsure, gate).is_none());
+    }
+
+    #[test]
+    fn an_unused_photodiode_dark_in_the_sun_is_unlit_only_if_the_estimate_is_sure() {
+        // Its nominal normal 5 deg from the Sun, a scale of 1 V assumed.
+        let n_body = Vector3::new(5f64.to_radians().cos(), 5f64.to_radians().sin(), 0.0);
+        let sample = |y| OutsideSample {
+            scale_v: 1.0,
+            n_body,
+            y,
+        };
+        let sun = (Vector3::x(), 1.0);
+        let gate = (0.005, 5.0);
+        let sure = || Spread {
+            normal_var: 2.0 * 10f64.to_radians().powi(2),
+            ..spread(1f64.to_radians())
+        };
+        let r = unlit(&sample(0.0), sun, sure(), gate).unwrap();
+        assert!(!r.accepted && r.residual < 0.0, "{r:?}");
+        // Lit as a working one would be: nothing to say.
+        assert!(unlit(&sample(0.9), sun, sure(), gate).is_none());
+        // The attitude uncertain by 40 deg: it may have faced away.
+        assert!(unlit(&sample(0.0), sun, spread(40f64.to_radians()), gate).is_none());
     }
 }

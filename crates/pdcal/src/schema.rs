@@ -487,6 +487,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
             )
             .chain(about_sun_line_undecided(&run.segments))
             .chain(attitude_losses(&run.segments))
+            .chain(outcome.consistency.unlit_warnings())
             .chain(normals_rotation.as_ref().and_then(|r| r.warning()))
             .collect(),
         segment_rules: run.segment_rules,
