@@ -387,7 +387,7 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
             r.len()
         );
     }
-    let silent: Vec<&SeedResult> = r
+    let quiet: Vec<&SeedResult> = r
         .iter()
         .filter(|x| {
             x.verdict == "consistent"
@@ -397,7 +397,27 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
         .collect();
     let _ = writeln!(
         s,
-        "| runs that say nothing (`consistent`, not `not-repeatable`, no turned normals) | {} / {} | - | - |",
+        "| runs `consistent`, not `not-repeatable`, with no turned normals found | {} / {} | - | - |",
+        quiet.len(),
+        r.len()
+    );
+    let unchecked = quiet
+        .iter()
+        .filter(|x| x.mounting_warning.is_some())
+        .count();
+    let _ = writeln!(
+        s,
+        "| of those, runs that warn their mounting was not checked, or that the normals turned together beyond their prior | {unchecked} / {} | - | - |",
+        quiet.len()
+    );
+    let silent: Vec<&SeedResult> = quiet
+        .iter()
+        .copied()
+        .filter(|x| x.mounting_warning.is_none())
+        .collect();
+    let _ = writeln!(
+        s,
+        "| runs that say nothing (the above, and no such warning) | {} / {} | - | - |",
         silent.len(),
         r.len()
     );
@@ -412,22 +432,6 @@ pub fn table(scenario: &str, mode: &str, r: &[SeedResult]) -> String {
     let _ = writeln!(
         s,
         "| of those, runs that give a `calibrated` or `weakly-determined` state outside its 3-sigma | {wrong} / {} | - | 0 |",
-        silent.len()
-    );
-    // A quiet run whose data left the normals' common turn at its prior
-    // (`normals_rotation_not_fitted`), or fitted it without determining it, says that a
-    // turned head would go unseen.
-    let untested = silent
-        .iter()
-        .filter(|x| {
-            x.normals_rotation
-                .as_ref()
-                .is_none_or(|f| f.chi_square <= f.chi_square_threshold)
-        })
-        .count();
-    let _ = writeln!(
-        s,
-        "| of those, runs that say a turned head would go unseen (`normals_rotation_not_fitted`, or a turn fitted and not determined) | {untested} / {} | - | - |",
         silent.len()
     );
     let with_dynamics = r.iter().filter(|x| x.dynamics.0).count();

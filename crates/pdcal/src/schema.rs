@@ -408,7 +408,9 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         floor_bias_sigma(fit, &mut reported, &mut bias_status);
     }
     reported.status = status_lines(&determination, &bias_status);
-    let (normals_rotation, normals_rotation_not_fitted) = match normals_rotation(run) {
+    let rotation = normals_rotation(run);
+    let mounting_warning = mounting_warning(run, &rotation);
+    let (normals_rotation, normals_rotation_not_fitted) = match rotation {
         Ok(r) => (Some(r), None),
         Err(why) => (None, Some(why)),
     };
@@ -488,7 +490,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
             .chain(about_sun_line_undecided(&run.segments))
             .chain(attitude_losses(&run.segments))
             .chain(outcome.consistency.unlit_warnings())
-            .chain(normals_rotation.as_ref().and_then(|r| r.warning()))
+            .chain(mounting_warning)
             .collect(),
         segment_rules: run.segment_rules,
         propagation: run.propagation,
@@ -504,6 +506,67 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
     }
 }
 
+/// The largest prior sigma of a used photodiode's normal, deg: the mounting uncertainty
+/// the user stated.
+fn normals_prior_deg(run: &pdcal_filter::CalibrationRun) -> f64 {
+    run.initial
+        .photodiodes
+        .iter()
+        .zip(&run.used_photodiodes)
+        .filter(|(_, used)| **used)
+        .map(|(p, _)| p.elevation_sigma_deg)
+        .fold(0.0, f64::max)
+}
+
+/// The warning of what the normals' common turn says of the mounting, judged against the
+/// normals' prior sigma (the mounting uncertainty the user stated): a finding
+/// ([`pdcal_filter::CommonRotation::warning`]); a determined turn larger than that prior
+/// that is no finding (independent mounting errors could share it); or, when the data did
+/// not determine the turn, a turn larger than that prior that they would leave unseen
+/// (the residuals and the comparison of downlinks cannot see it either: a head turned
+/// about the Sun line moves nothing they test). A run whose data check the mounting to
+/// within its prior says nothing.
+pub fn mounting_warning(
+    run: &pdcal_filter::CalibrationRun,
+    rotation: &Result<pdcal_filter::CommonRotation, String>,
+) -> Option<String> {
+    let prior_deg = normals_prior_deg(run);
+    let r = match rotation {
+        Ok(r) if r.finding => return r.warning(),
+        Ok(r) => r,
+        Err(why) => {
+            let used = run.used_photodiodes.iter().filter(|u| **u).count();
+            let untested = why.contains("would go unseen")
+                || (why.contains("with the attitude held")
+                    && used >= pdcal_filter::common_rotation::MIN_PHOTODIODES);
+            return untested.then(|| format!("the mounting was not checked: {why}"));
+        }
+    };
+    if r.chi_square > r.chi_square_threshold {
+        return (r.angle_deg > prior_deg).then(|| {
+            format!(
+                "the normals are turned together by more than their prior sigma ({prior_deg:.1} \
+                 deg): {}; check the mounting",
+                r.describe()
+            )
+        });
+    }
+    (r.unseen_turn_deg > prior_deg).then(|| {
+        format!(
+            "the mounting was not checked: a turn of the head by up to about {:.0} deg, more \
+             than the normals' prior sigma ({prior_deg:.1} deg), would go unseen by the \
+             normals' common turn, the residuals and the comparison of downlinks ({})",
+            r.unseen_turn_deg,
+            r.describe()
+        )
+    })
+}
+
+/// [`mounting_warning`] of `run`'s own common rotation.
+pub fn mounting_warning_of(run: &pdcal_filter::CalibrationRun) -> Option<String> {
+    mounting_warning(run, &normals_rotation(run))
+}
+
 /// The common rotation of the used photodiodes' estimated normals from the nominal
 /// mounting, when the data determined it, or why not. Every normal used with the attitude
 /// held for some of its time takes part, a `not-determined` one too: the fit weighs each by the joint final covariance, so a
@@ -517,14 +580,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
 fn normals_rotation(
     run: &pdcal_filter::CalibrationRun,
 ) -> Result<pdcal_filter::CommonRotation, String> {
-    let prior_deg = run
-        .initial
-        .photodiodes
-        .iter()
-        .zip(&run.used_photodiodes)
-        .filter(|(_, used)| **used)
-        .map(|(p, _)| p.elevation_sigma_deg)
-        .fold(0.0, f64::max);
+    let prior_deg = normals_prior_deg(run);
     // A normal learnt with the attitude never held has a covariance from updates
     // linearised far from the truth (`identifiability`): it does not take part.
     let fitted: Vec<bool> = run

@@ -76,6 +76,9 @@ pub struct SeedResult {
     /// The common rotation of the normals from the nominal mounting (`summary.json`
     /// `normals_rotation`); `None` when not fitted.
     pub normals_rotation: Option<pdcal_filter::CommonRotation>,
+    /// The summary's warning of the mounting ([`crate::schema::mounting_warning`]): a
+    /// turned head found, or one the data could not check.
+    pub mounting_warning: Option<String>,
     /// The factor every reported sigma was multiplied by (`summary.json` `dispersion`);
     /// 1 when the configuration turns it off.
     pub sigma_factor: f64,
@@ -517,6 +520,7 @@ pub fn run_seed(
             s.propagation.gyro_rate_test.map(|t| t.chi_square_per_dof),
         ),
         normals_rotation: s.normals_rotation.clone(),
+        mounting_warning: crate::schema::mounting_warning_of(&outcome.run),
         sigma_factor: s.dispersion.map_or(1.0, |d| d.sigma_factor),
     };
     Ok(SeedRun {

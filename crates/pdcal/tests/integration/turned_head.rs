@@ -53,10 +53,36 @@ fn a_head_turned_about_its_boresight_is_found_where_the_verdicts_see_nothing() {
     let [x, y, _] = r.rotation_body_deg;
     assert!(about_boresight.abs() > x.abs().max(y.abs()), "{r:?}");
 
+    let warning = turned.mounting_warning.as_deref().unwrap_or("");
+    assert!(warning.contains("are turned together"), "{warning}");
+
     let unturned = run("pyramid-head", 7);
     assert_eq!(unturned.verdict, "consistent", "{unturned:?}");
     let r = unturned.normals_rotation.expect("the rotation is fitted");
     assert!(!r.finding, "{r:?}");
+    // Its data cannot tell a turn larger than the normals' prior from none: said, never
+    // called a turn.
+    let warning = unturned.mounting_warning.as_deref().unwrap_or("");
+    assert!(
+        warning.starts_with("the mounting was not checked"),
+        "{warning}"
+    );
+}
+
+/// A turn the data determined beyond the normals' prior (10 deg) that explains less than
+/// most of their changes is no finding, yet no run may stay silent about it: the turned
+/// head's seed 1 (16.6 deg about the boresight, 49 % explained) warns.
+#[test]
+fn a_determined_turn_beyond_the_prior_is_a_warning_though_no_finding() {
+    let turned = run("pyramid-head-rotated", 1);
+    let r = turned.normals_rotation.expect("the rotation is fitted");
+    assert!(!r.finding && r.chi_square > r.chi_square_threshold, "{r:?}");
+    assert!(r.angle_deg > 10.0, "{r:?}");
+    let warning = turned.mounting_warning.as_deref().unwrap_or("");
+    assert!(
+        warning.starts_with("the normals are turned together by more than their prior"),
+        "{warning}"
+    );
 }
 
 /// A downlink whose data cannot test the normals' common turn: the run says that a head
@@ -102,4 +128,13 @@ fn a_run_that_cannot_see_a_turned_head_says_so() {
     let html = std::fs::read_to_string(out.join("index.html")).unwrap();
     // index.html escapes the apostrophe.
     assert!(html.contains("not fitted: 4 photodiodes used, 2 of them with the attitude held"));
+    // And a warning says the mounting was not checked.
+    assert!(
+        summary
+            .warnings
+            .iter()
+            .any(|w| w == &format!("the mounting was not checked: {why}")),
+        "{:?}",
+        summary.warnings
+    );
 }
