@@ -229,8 +229,11 @@ impl Sums {
             return;
         }
         if r.contradicted {
+            // Its own rule ([`contradiction_problem`]): never an update, so not one of the
+            // held updates whose bounds the fraction inside 3 sigma judges.
             self.contradicted += 1;
             self.contradicted_excess_max = self.contradicted_excess_max.max(r.residual);
+            return;
         }
         if r.accepted {
             self.push_spread(r.residual, noise_sigma);
@@ -519,7 +522,8 @@ fn contradiction_problem(c: &ChannelConsistency) -> Option<String> {
             "{}: {} samples outside its field of view at the estimate read more light than \
              they could get within the gate's sigmas of the attitude, normal and scale (by up \
              to {:.3} V over the direct Sun there and a white Earth filling the view): a \
-             swapped or misnamed column, a wrong mounting, or an attitude the data contradict",
+             swapped or misnamed column, a wrong mounting, an output stage the model lacks, time tags \
+             off, or an attitude the data contradict",
             c.channel,
             c.contradicted,
             c.contradicted_excess_max.unwrap_or(0.0),
@@ -813,8 +817,10 @@ mod tests {
                     accepted: false,
                     residual: 0.3,
                     contradicted: true,
-                    attitude_held: false,
-                    ..record(Sensor::Photodiode(1), 0.3, 0.01, false)
+                    // Held: yet no held update, or nine would sink the fraction inside 3
+                    // sigma of pd02's 100 below the Gaussian's.
+                    attitude_held: true,
+                    ..record(Sensor::Photodiode(1), 0.3, 0.01, true)
                 });
             }
             acc.finish()
@@ -822,6 +828,7 @@ mod tests {
         let few = judged(MIN_JUDGED_UPDATES - 1);
         assert_eq!(few.verdict, Verdict::Consistent, "{few:?}");
         assert_eq!(few.photodiodes[1].contradicted, MIN_JUDGED_UPDATES - 1);
+        assert_eq!(few.photodiodes[1].held_updates, 100);
         let many = judged(MIN_JUDGED_UPDATES);
         assert_eq!(many.verdict, Verdict::Inconsistent, "{many:?}");
         assert!(

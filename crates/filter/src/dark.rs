@@ -154,7 +154,8 @@ pub fn apply(
         let said = format!(
             "{}: a median {:.4} V over {} samples in the Earth's umbra, where no light reaches \
              it and the model predicts {:.4} V ({:.1} of its standard errors): an offset the \
-             model lacks (a dark current, an ADC or reference offset)",
+             model lacks (a dark current, an ADC or reference offset; or time tags that put lit rows \
+             in the umbra)",
             l.channel, l.median_v, l.samples, l.predicted_v, l.z
         );
         let used = used.get(l.index).copied().unwrap_or(false);

@@ -28,7 +28,9 @@ pub enum Command {
         seed: u64,
         /// Which downlink of the seed's spacecraft: the same hardware (scale factors and
         /// mountings) as every downlink of the seed, its own noise, start attitude and gyro
-        /// bias. Several downlinks of one seed are data sets for a joint calibration.
+        /// bias, at the scenario's own `epoch_utc`. Several downlinks of one seed, each from
+        /// the scenario with a later `epoch_utc` (they must not overlap in time), are data
+        /// sets for a joint calibration.
         #[arg(long, default_value_t = 0)]
         downlink: u64,
         /// Output dataset directory.
