@@ -546,7 +546,8 @@ pub fn mounting_warning(
         return (r.angle_deg > prior_deg).then(|| {
             format!(
                 "the normals are turned together by more than their prior sigma ({prior_deg:.1} \
-                 deg): {}; check the mounting",
+                 deg): {}: a head mounted turned, independent mounting errors that share a \
+                 turn, or an attitude error the normals took up; check the mounting",
                 r.describe()
             )
         });
