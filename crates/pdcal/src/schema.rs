@@ -473,7 +473,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
             }
         },
         residuals: outcome.residuals,
-        consistency: outcome.consistency.clone(),
+        consistency: with_mounting_note(&outcome.consistency, mounting_warning.as_deref()),
         updates: counts_json(run),
         rejected_samples: rejected_summary(run),
         covariance_repairs: repairs_summary(run),
@@ -490,7 +490,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
             .chain(about_sun_line_undecided(&run.segments))
             .chain(attitude_losses(&run.segments))
             .chain(outcome.consistency.unlit_warnings())
-            .chain(mounting_warning)
+            .chain(mounting_warning.clone())
             .collect(),
         segment_rules: run.segment_rules,
         propagation: run.propagation,
@@ -561,6 +561,17 @@ pub fn mounting_warning(
             r.describe()
         )
     })
+}
+
+/// `consistency` with the mounting warning among its notes: what the verdict did not test
+/// (a head turned about the Sun line moves nothing the residuals test), or found beside it.
+fn with_mounting_note(
+    consistency: &pdcal_filter::Consistency,
+    mounting_warning: Option<&str>,
+) -> pdcal_filter::Consistency {
+    let mut c = consistency.clone();
+    c.notes.extend(mounting_warning.map(str::to_owned));
+    c
 }
 
 /// [`mounting_warning`] of `run`'s own common rotation.

@@ -128,13 +128,17 @@ fn a_run_that_cannot_see_a_turned_head_says_so() {
     let html = std::fs::read_to_string(out.join("index.html")).unwrap();
     // index.html escapes the apostrophe.
     assert!(html.contains("not fitted: 4 photodiodes used, 2 of them with the attitude held"));
-    // And a warning says the mounting was not checked.
+    // And a warning says the mounting was not checked, and so does the consistency
+    // verdict's note: what it could not test.
+    let unchecked = format!("the mounting was not checked: {why}");
     assert!(
-        summary
-            .warnings
-            .iter()
-            .any(|w| w == &format!("the mounting was not checked: {why}")),
+        summary.warnings.contains(&unchecked),
         "{:?}",
         summary.warnings
+    );
+    assert!(
+        summary.consistency.notes.contains(&unchecked),
+        "{:?}",
+        summary.consistency.notes
     );
 }
