@@ -138,6 +138,7 @@ def test_equals_xtask_sim_calibrate(client, tmp_path):
             ],
             "dynamics": [row["dynamics"], row["gyro_rate_chi_square_per_dof"]],
             "sigma_factor": row["sigma_factor"],
+            "mounting_warning": row["mounting_warning"],
         }
         rotation = want["normals_rotation"]
         assert [

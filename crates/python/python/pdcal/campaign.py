@@ -114,6 +114,7 @@ FIGURES = [
     "normals_rotation_chi_square",
     "normals_rotation_explained",
     "normals_turned",
+    "mounting_warning",
     "sigma_factor",
 ]
 
@@ -500,6 +501,9 @@ def _flatten(result: dict) -> dict:
         "normals_rotation_chi_square": None if rotation is None else rotation["chi_square"],
         "normals_rotation_explained": None if rotation is None else rotation["explained"],
         "normals_turned": None if rotation is None else bool(rotation["finding"]),
+        # The summary's warning of the mounting: a turned head found, or one the data could
+        # not check; None when the run says nothing of it.
+        "mounting_warning": result["mounting_warning"],
         # The factor every reported sigma was multiplied by (summary.json dispersion).
         "sigma_factor": result["sigma_factor"],
     }
