@@ -412,7 +412,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
     let mounting_warning = mounting_warning(run, &rotation);
     let (normals_rotation, normals_rotation_not_fitted) = match rotation {
         Ok(r) => (Some(r), None),
-        Err(why) => (None, Some(why)),
+        Err(why) => (None, Some(why.to_string())),
     };
     let photodiodes = reported
         .photodiodes
@@ -528,18 +528,16 @@ fn normals_prior_deg(run: &pdcal_filter::CalibrationRun) -> f64 {
 /// within its prior says nothing.
 pub fn mounting_warning(
     run: &pdcal_filter::CalibrationRun,
-    rotation: &Result<pdcal_filter::CommonRotation, String>,
+    rotation: &Result<pdcal_filter::CommonRotation, NotFitted>,
 ) -> Option<String> {
     let prior_deg = normals_prior_deg(run);
     let r = match rotation {
         Ok(r) if r.finding => return r.warning(),
         Ok(r) => r,
         Err(why) => {
-            let used = run.used_photodiodes.iter().filter(|u| **u).count();
-            let untested = why.contains("would go unseen")
-                || (why.contains("with the attitude held")
-                    && used >= pdcal_filter::common_rotation::MIN_PHOTODIODES);
-            return untested.then(|| format!("the mounting was not checked: {why}"));
+            return why
+                .unchecked()
+                .then(|| format!("the mounting was not checked: {why}"));
         }
     };
     if r.chi_square > r.chi_square_threshold {
@@ -591,7 +589,7 @@ pub fn mounting_warning_of(run: &pdcal_filter::CalibrationRun) -> Option<String>
 /// reason then says so, with that sigma.
 fn normals_rotation(
     run: &pdcal_filter::CalibrationRun,
-) -> Result<pdcal_filter::CommonRotation, String> {
+) -> Result<pdcal_filter::CommonRotation, NotFitted> {
     let prior_deg = normals_prior_deg(run);
     // A normal learnt with the attitude never held has a covariance from updates
     // linearised far from the truth (`identifiability`): it does not take part.
@@ -611,28 +609,87 @@ fn normals_rotation(
         &run.layout,
         &fitted,
     )
-    .ok_or_else(|| match held < minimum {
-        true => format!(
-            "{used} photodiodes used, {held} of them with the attitude held, fewer than the \
-             {minimum} a common turn of the normals is fitted to: a head mounted turned is \
-             not tested"
-        ),
-        false => "the normals' covariance is not positive definite: a head mounted turned is \
-                  not tested"
-            .to_owned(),
+    .ok_or(match held < minimum {
+        true => NotFitted::TooFewHeld { used, held },
+        false => NotFitted::NotPositiveDefinite,
     })?;
-    let bound = NOT_DETERMINED_SIGMA_RATIO * prior_deg;
-    let s = r.sigma_body_deg;
-    if s.iter().any(|s| *s > bound) {
-        return Err(format!(
-            "the normals' common turn has a sigma of {:.1}, {:.1}, {:.1} deg about body x, y, \
-             z, above {bound:.1} deg ({NOT_DETERMINED_SIGMA_RATIO} of the normals' prior): \
-             the prior's, not the data's; a head mounted turned by up to about {:.0} deg \
-             would go unseen",
-            s[0], s[1], s[2], r.unseen_turn_deg
-        ));
+    let bound_deg = NOT_DETERMINED_SIGMA_RATIO * prior_deg;
+    if r.sigma_body_deg.iter().any(|s| *s > bound_deg) {
+        return Err(NotFitted::PriorSigma {
+            sigma_body_deg: r.sigma_body_deg,
+            bound_deg,
+            unseen_turn_deg: r.unseen_turn_deg,
+        });
     }
     Ok(r)
+}
+
+/// Why the normals' common turn is not reported (`normals_rotation_not_fitted`).
+#[derive(Debug, Clone, PartialEq)]
+pub enum NotFitted {
+    /// Fewer than [`pdcal_filter::common_rotation::MIN_PHOTODIODES`] normals held.
+    TooFewHeld {
+        /// Photodiodes used.
+        used: usize,
+        /// Of them, lit with the attitude held.
+        held: usize,
+    },
+    /// The normals' covariance or the fit's normal matrix is not positive definite.
+    NotPositiveDefinite,
+    /// Its sigma about some axis is the prior's, not the data's.
+    PriorSigma {
+        /// Its sigma per body axis, deg.
+        sigma_body_deg: [f64; 3],
+        /// The bound it passed ([`NOT_DETERMINED_SIGMA_RATIO`] of the normals' prior), deg.
+        bound_deg: f64,
+        /// The turn the data would leave unseen, deg.
+        unseen_turn_deg: f64,
+    },
+}
+
+impl NotFitted {
+    /// Whether the data left the mounting unchecked (not a fault of the covariance), and
+    /// there were normals enough to check it with.
+    fn unchecked(&self) -> bool {
+        match self {
+            NotFitted::TooFewHeld { used, .. } => {
+                *used >= pdcal_filter::common_rotation::MIN_PHOTODIODES
+            }
+            NotFitted::NotPositiveDefinite => false,
+            NotFitted::PriorSigma { .. } => true,
+        }
+    }
+}
+
+impl std::fmt::Display for NotFitted {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let minimum = pdcal_filter::common_rotation::MIN_PHOTODIODES;
+        match self {
+            NotFitted::TooFewHeld { used, held } => write!(
+                f,
+                "{used} photodiodes used, {held} of them with the attitude held, fewer than the \
+                 {minimum} a common turn of the normals is fitted to: a head mounted turned is \
+                 not tested"
+            ),
+            NotFitted::NotPositiveDefinite => write!(
+                f,
+                "the normals' covariance is not positive definite: a head mounted turned is not \
+                 tested"
+            ),
+            NotFitted::PriorSigma {
+                sigma_body_deg: s,
+                bound_deg,
+                unseen_turn_deg,
+            } => write!(
+                f,
+                "the normals' common turn has a sigma of {:.1}, {:.1}, {:.1} deg about body x, \
+                 y, z, above {bound_deg:.1} deg ({NOT_DETERMINED_SIGMA_RATIO} of the normals' \
+                 prior): the prior's, not the data's; a head mounted turned by up to about \
+                 {unseen_turn_deg:.0} deg would go unseen",
+                s[0], s[1], s[2]
+            ),
+        }
+    }
 }
 
 /// A warning when the attitude was lost (a segment ended because its sigma in the observed
