@@ -1217,13 +1217,11 @@ impl Filter {
                     n_body: pd.n_body,
                     y,
                 };
-                let spread = Spread::of(&self.p, &self.layout, i);
+                let spread = || Spread::of(&self.p, &self.layout, i);
                 let sun = (*sun_body, reference.sun_distance_factor());
-                if let Some(record) = unlit(&sample, sun, spread, (sigma_v, gate)) {
-                    self.contradicted.push(UpdateRecord {
-                        sensor: Sensor::Photodiode(i),
-                        ..record
-                    });
+                if let Some(shortfall) = missing_light(&sample, sun, spread, (sigma_v, gate)) {
+                    self.contradicted
+                        .push(contradicted_record(i, y, shortfall, sigma_v));
                 }
                 continue;
             }
@@ -1234,25 +1232,17 @@ impl Filter {
                 .fov_half_angle_rad
                 .map_or(self.noise.cos_fov, |fov| self.noise.cos_fov.max(fov.cos()));
             if cos_incidence < cos_fov {
-                // Only a sample beyond the gate in the noise can be beyond any light.
-                let record = (y > gate * sigma_v)
-                    .then(|| {
-                        let sample = OutsideSample {
-                            scale_v: pd.scale_v,
-                            n_body: pd.n_body,
-                            y,
-                        };
-                        let spread = || Spread::of(&self.p, &self.layout, i);
-                        contradiction(&sample, *sun_body, reference, spread, (sigma_v, gate))
-                    })
-                    .flatten();
-                match record {
-                    Some(record) => {
+                let sample = OutsideSample {
+                    scale_v: pd.scale_v,
+                    n_body: pd.n_body,
+                    y,
+                };
+                let spread = || Spread::of(&self.p, &self.layout, i);
+                match excess_light(&sample, *sun_body, reference, spread, (sigma_v, gate)) {
+                    Some(excess) => {
                         counts.contradicted += 1;
-                        self.contradicted.push(UpdateRecord {
-                            sensor: Sensor::Photodiode(i),
-                            ..record
-                        });
+                        self.contradicted
+                            .push(contradicted_record(i, y, excess, sigma_v));
                     }
                     None => counts.outside_fov += 1,
                 }
@@ -1763,55 +1753,69 @@ impl Spread {
     }
 }
 
-/// The record of a sample of an unused photodiode (never lit in the data) that reads less
+/// Photodiode `i`'s sample `y` that the estimate contradicts by `residual` (an excess over
+/// the most light it could get, or a shortfall below the least), with the noise's 3-sigma
+/// bound: never applied ([`Filter::contradicted`]).
+fn contradicted_record(i: usize, y: f64, residual: f64, sigma_v: f64) -> UpdateRecord {
+    UpdateRecord {
+        sensor: Sensor::Photodiode(i),
+        measured: y,
+        residual,
+        bound_3sigma: 3.0 * sigma_v,
+        accepted: false,
+        post_fit: residual,
+    }
+}
+
+/// The shortfall of a sample of an unused photodiode (never lit in the data) that reads less
 /// than a working one of its assumed scale (the others' median output when it never lit)
 /// would get anywhere within `gate` sigmas of the estimate (the attitude turned away from
 /// the normal, the normal away from the Sun), by more than `gate` sigmas of the noise
 /// `sigma_v`: the direct Sun alone at the farthest incidence so reached, at the Sun's
-/// distance (`sun_distance_factor`). Its residual is negative, the shortfall. `None` when
+/// distance (`sun_distance_factor`). The shortfall is negative. `None` when
 /// it does not, or when a photodiode so turned could face away. With the prior's 10 deg
 /// per normal axis this takes the Sun within about 20 deg of its nominal normal with the
 /// attitude held. The scale is not lowered by its sigma: a scale near zero is what a dead
 /// channel is, and the record says the photodiode did not read what one of its kind would.
-fn unlit(
+fn missing_light(
     sample: &OutsideSample,
     (sun_body, sun_distance_factor): (Vector3<f64>, f64),
-    spread: Spread,
+    spread: impl FnOnce() -> Spread,
     (sigma_v, gate): (f64, f64),
-) -> Option<UpdateRecord> {
+) -> Option<f64> {
     let s = sun_body.try_normalize(1e-12)?;
-    let turn_sigma = spread.turn_sigma(&s, &sample.n_body);
-    let incidence = sample.n_body.dot(&s).clamp(-1.0, 1.0).acos();
-    let farthest = incidence + gate * turn_sigma;
+    let cos_incidence = sample.n_body.dot(&s).clamp(-1.0, 1.0);
+    // Not short of the light at the estimate itself: not short of less.
+    let at_estimate_v = sample.scale_v * sun_distance_factor * cos_incidence.max(0.0);
+    if sample.y - at_estimate_v >= -gate * sigma_v {
+        return None;
+    }
+    let farthest = cos_incidence.acos() + gate * spread().turn_sigma(&s, &sample.n_body);
     if farthest >= std::f64::consts::FRAC_PI_2 || sample.scale_v <= 0.0 {
         return None;
     }
-    let least_v = sample.scale_v * sun_distance_factor * farthest.cos();
-    let shortfall = sample.y - least_v;
-    (shortfall < -gate * sigma_v).then_some(UpdateRecord {
-        sensor: Sensor::Photodiode(0),
-        measured: sample.y,
-        residual: shortfall,
-        bound_3sigma: 3.0 * sigma_v,
-        accepted: false,
-        post_fit: shortfall,
-    })
+    let shortfall = sample.y - sample.scale_v * sun_distance_factor * farthest.cos();
+    (shortfall < -gate * sigma_v).then_some(shortfall)
 }
 
-/// The record of a sample outside the field of view that reads more light than it could
+/// The excess of a sample outside the field of view that reads more light than it could
 /// get anywhere within `gate` sigmas of the estimate (the attitude turned towards the
 /// normal, the normal towards the Sun, the scale factor up), by more than `gate` sigmas of
 /// the noise `sigma_v`: the direct Sun at the closest incidence so reached, and the albedo
 /// of a white Earth filling the view, whose irradiance on any plate is at most the Sun's
 /// times the view factor of the whole disc, `(R_E / r)^2` (Lambertian, reflectivity 1).
 /// `None` when it does not.
-fn contradiction(
+fn excess_light(
     sample: &OutsideSample,
     sun_body: Vector3<f64>,
     reference: &Reference,
     spread: impl FnOnce() -> Spread,
     (sigma_v, gate): (f64, f64),
-) -> Option<UpdateRecord> {
+) -> Option<f64> {
+    // Only a sample beyond the gate in the noise can be beyond any light.
+    if sample.y <= gate * sigma_v {
+        return None;
+    }
     let r_km = reference.r_gcrf_km.norm();
     let s = sun_body.try_normalize(1e-12)?;
     // Inside the Earth, or a position not a number: no bound to judge by.
@@ -1831,14 +1835,7 @@ fn contradiction(
     let scale_v = sample.scale_v + gate * spread.scale_sigma_v;
     let most_v = scale_v * sun_v * (closest.cos().max(0.0) + view_factor);
     let excess = sample.y - most_v;
-    (excess > gate * sigma_v).then_some(UpdateRecord {
-        sensor: Sensor::Photodiode(0),
-        measured: sample.y,
-        residual: excess,
-        bound_3sigma: 3.0 * sigma_v,
-        accepted: false,
-        post_fit: excess,
-    })
+    (excess > gate * sigma_v).then_some(excess)
 }
 
 #[cfg(test)]
@@ -1988,6 +1985,29 @@ mod tests {
         f.reacquire(Quat::IDENTITY, &(Matrix3::identity() * 1e-4), 1e5);
         assert!((f.p[(g, g)] - 0.04).abs() < 1e-15);
         assert!(f.albedo_gain.abs() < 1e-100);
+    }
+
+    /// [`excess_light`] as the record the filter keeps.
+    fn contradiction(
+        sample: &OutsideSample,
+        sun_body: Vector3<f64>,
+        reference: &Reference,
+        spread: impl FnOnce() -> Spread,
+        noise: (f64, f64),
+    ) -> Option<UpdateRecord> {
+        let excess = excess_light(sample, sun_body, reference, spread, noise)?;
+        Some(contradicted_record(0, sample.y, excess, noise.0))
+    }
+
+    /// [`missing_light`] as the record the filter keeps.
+    fn unlit(
+        sample: &OutsideSample,
+        sun: (Vector3<f64>, f64),
+        spread: Spread,
+        noise: (f64, f64),
+    ) -> Option<UpdateRecord> {
+        let shortfall = missing_light(sample, sun, || spread, noise)?;
+        Some(contradicted_record(0, sample.y, shortfall, noise.0))
     }
 
     /// A reference 7000 km from the Earth's centre with the Sun along +x at 1 AU.

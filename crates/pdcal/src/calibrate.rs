@@ -273,8 +273,9 @@ fn check_sets(sets: &[(PathBuf, DatasetMeta, Telemetry)]) -> Result<Vec<String>>
 
 /// Rows up to which [`run_dirs`] computes the references once and stores them (176 bytes
 /// a row, 23 MB at most); above, each row's is computed when it is reached, so that memory
-/// does not grow with the rows, at the price of computing it three times (the forward
-/// pass, the smoother's replay, the Sun-vector metrics). The same values either way. A
+/// does not grow with the rows, at the price of computing it four times (the forward
+/// pass, the smoother's replay, the Sun-vector metrics, the umbra levels of
+/// [`pdcal_filter::dark`]). The same values either way. A
 /// joint calibration of several sets stores them always (each set has its own orbit).
 pub const STORED_REFERENCE_ROWS: usize = 1 << 17;
 
