@@ -290,11 +290,11 @@ impl<T: Real> Cap<T> {
 }
 
 fn libm_floor(x: f64) -> i64 {
-    num_traits::Float::floor(x) as i64
+    libm::floor(x) as i64
 }
 
 fn libm_ceil(x: f64) -> i64 {
-    num_traits::Float::ceil(x) as i64
+    libm::ceil(x) as i64
 }
 
 /// Albedo irradiance over the Sun's on each photodiode of `normals_body` (unit normals,

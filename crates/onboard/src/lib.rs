@@ -25,7 +25,8 @@
 //! the albedo `E_i` recomputed at each new estimate (a fixed number of passes).
 //!
 //! Arithmetic is generic over [`Real`] (`f32` for FPUs without double precision, `f64`);
-//! the tests check one against the other.
+//! the tests check one against the other. Square roots and trigonometry come from the
+//! `libm` crate in every build, so the flight library and a ground tool agree to the bit.
 //!
 //! Written here rather than taken from a crate: nalgebra's fixed-size types are `no_std`
 //! but panic on some inputs (indexing, `unwrap` in decompositions), and the core needs only

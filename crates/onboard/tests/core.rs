@@ -1,5 +1,11 @@
 //! The core against its model: exact recovery without noise, the albedo against
 //! `pdcal-albedo`'s cell model, f32 against f64, and totality on hostile inputs.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::indexing_slicing,
+    clippy::panic
+)]
 
 use nalgebra::{Matrix3, Vector3};
 use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView, MapChoice};
@@ -105,8 +111,10 @@ fn without_noise_or_albedo_the_sun_is_recovered_exactly() {
     for _ in 0..500 {
         let sun = unit(&mut rng);
         let y = outputs(&cal, sun, &[0.0; 17], 0.0, &mut rng);
-        let mut options = Options::default();
-        options.albedo_bound = 0.0;
+        let options = Options {
+            albedo_bound: 0.0,
+            ..Options::default()
+        };
         let e = estimate_sun(&y, &cal, None, &options);
         if e.validity == Validity::Valid {
             valid += 1;
@@ -135,8 +143,10 @@ fn the_cone_describes_the_errors_of_noisy_outputs() {
     for _ in 0..2000 {
         let sun = unit(&mut rng);
         let y = outputs(&cal, sun, &[0.0; 17], NOISE_V, &mut rng);
-        let mut options = Options::default();
-        options.albedo_bound = 0.0;
+        let options = Options {
+            albedo_bound: 0.0,
+            ..Options::default()
+        };
         let e = estimate_sun(&y, &cal, None, &options);
         if e.validity != Validity::Valid {
             continue;
@@ -241,8 +251,10 @@ fn albedo_compensation_removes_the_bias_of_an_earth_facing_head() {
         albedo_ratios(sun, &earth, 0.3, &normals, &mut albedo);
         let y = outputs(&cal, sun, &albedo, NOISE_V, &mut rng);
         let compensated = estimate_sun(&y, &cal, Some(&earth), &Options::default());
-        let mut plain = Options::default();
-        plain.albedo_bound = 0.0;
+        let plain = Options {
+            albedo_bound: 0.0,
+            ..Options::default()
+        };
         let raw = estimate_sun(&y, &cal, None, &plain);
         if compensated.validity != Validity::Valid || raw.validity == Validity::InvalidInput {
             continue;
@@ -345,8 +357,10 @@ fn contradicting_outputs_are_flagged() {
     for _ in 0..200 {
         let sun = unit(&mut rng);
         let mut y = outputs(&cal, sun, &[0.0; 17], NOISE_V, &mut rng);
-        let mut options = Options::default();
-        options.albedo_bound = 0.0;
+        let options = Options {
+            albedo_bound: 0.0,
+            ..Options::default()
+        };
         if estimate_sun(&y, &cal, None, &options).n_used < 5 {
             continue;
         }
