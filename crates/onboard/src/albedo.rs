@@ -141,33 +141,35 @@ pub(crate) fn albedo_into<T: Real>(
     let cap = Cap::new(sight, n_lat, n_lon);
     for row in 0..n_lat {
         let Some(band) = cap.band(row) else { continue };
+        let mut longitude = Longitude::new(&cap, band.first);
         for column in band.columns() {
             let rho = match sight.surface {
                 Surface::Grid(g) => g.reflectivity(row, column),
                 Surface::Uniform(v) => v,
             };
             if rho > T::zero() {
-                add_cell(sight, &cap, &band, column, rho, sun_frame, sensors, out);
+                let r_hat = [
+                    band.cos_lat * longitude.cos,
+                    band.cos_lat * longitude.sin,
+                    band.sin_lat,
+                ];
+                add_cell(sight, band.area_km2, r_hat, rho, sun_frame, sensors, out);
             }
+            longitude.step(&cap);
         }
     }
 }
 
 /// One cell's contribution (Basilisk's `f1 f2 dA / (pi d^2)` times the photodiode's cosine).
-#[allow(clippy::too_many_arguments)]
 fn add_cell<T: Real>(
     sight: &Sight<'_, T>,
-    cap: &Cap<T>,
-    band: &Band<T>,
-    column: usize,
+    area_km2: T,
+    r_hat: V3<T>,
     rho: T,
     sun_frame: V3<T>,
     sensors: &[Option<Checked<T>>],
     out: &mut [T],
 ) {
-    let lon = cap.lon0 + (T::of(column as f64) + T::of(0.5)) * cap.dlon;
-    let (sin_lon, cos_lon) = lon.sin_cos();
-    let r_hat = [band.cos_lat * cos_lon, band.cos_lat * sin_lon, band.sin_lat];
     // Lit: the Sun above the cell's horizon.
     let f1 = dot(r_hat, sun_frame);
     if !(f1 > T::zero()) {
@@ -187,13 +189,49 @@ fn add_cell<T: Real>(
     }
     let inv_d = d.recip();
     let f2 = rise * inv_d;
-    let weight = rho * band.area_km2 * f1 * f2 * inv_d * inv_d / T::of(core::f64::consts::PI);
+    let weight = rho * area_km2 * f1 * f2 * inv_d * inv_d / T::of(core::f64::consts::PI);
     let u_body = mul(&sight.body_from_frame, scale(to_cell, inv_d));
     for (sensor, e) in sensors.iter().zip(out.iter_mut()) {
         let Some(s) = sensor else { continue };
         let c = dot(s.normal, u_body);
         if c > T::zero() && c >= s.cos_fov {
             *e = *e + weight * c;
+        }
+    }
+}
+
+/// The sine and cosine of a column's centre longitude, stepped column by column by the
+/// angle-sum rule (a `sin_cos` per cell was half the cost of a fine grid) and recomputed
+/// every [`Longitude::EXACT_EVERY`] columns so that rounding cannot build up.
+struct Longitude<T> {
+    index: i64,
+    steps: u32,
+    sin: T,
+    cos: T,
+}
+
+impl<T: Real> Longitude<T> {
+    const EXACT_EVERY: u32 = 16;
+
+    fn new(cap: &Cap<T>, index: i64) -> Self {
+        let (sin, cos) = cap.centre(index).sin_cos();
+        Longitude {
+            index,
+            steps: 0,
+            sin,
+            cos,
+        }
+    }
+
+    fn step(&mut self, cap: &Cap<T>) {
+        self.index = self.index.wrapping_add(1);
+        self.steps = self.steps.wrapping_add(1);
+        if self.steps.is_multiple_of(Self::EXACT_EVERY) {
+            (self.sin, self.cos) = cap.centre(self.index).sin_cos();
+        } else {
+            let (s, c) = (self.sin, self.cos);
+            self.sin = s * cap.cos_dlon + c * cap.sin_dlon;
+            self.cos = c * cap.cos_dlon - s * cap.sin_dlon;
         }
     }
 }
@@ -207,6 +245,8 @@ struct Cap<T> {
     dlat: T,
     dlon: T,
     lon0: T,
+    sin_dlon: T,
+    cos_dlon: T,
     n_lon: usize,
 }
 
@@ -237,16 +277,24 @@ impl<T: Real> Cap<T> {
         let sin_lat = z.max(-T::one()).min(T::one());
         let cos_lat = (x * x + y * y).sqrt();
         let ratio = (T::of(EARTH_RADIUS_KM) / sight.radius_km).min(T::one());
+        let dlon = T::of(2.0) * pi / T::of(n_lon as f64);
         Cap {
             sin_lat,
             cos_lat,
             lon: y.atan2(x),
             cos_radius: ratio,
             dlat: pi / T::of(n_lat as f64),
-            dlon: T::of(2.0) * pi / T::of(n_lon as f64),
+            dlon,
             lon0: -pi,
+            sin_dlon: dlon.sin(),
+            cos_dlon: dlon.cos(),
             n_lon,
         }
+    }
+
+    /// Centre longitude of column `index` (unwrapped: any integer).
+    fn centre(&self, index: i64) -> T {
+        self.lon0 + (T::of(index as f64) + T::of(0.5)) * self.dlon
     }
 
     /// Row `row`'s cells whose centres the spacecraft can see, when any.

@@ -327,14 +327,16 @@ impl<'o, T: Real> Problem<'o, T> {
         let mut solution = self.least_squares(None, bound);
         if let Some(sight) = sight {
             let sensors = self.sensors();
+            let mut previous: Option<V3<T>> = None;
             for _ in 0..self.options.albedo_passes {
                 let Ok(current) = solution else { break };
                 let direction = scale(current.s, norm(current.s).recip());
-                if !is_finite(direction) {
+                if !is_finite(direction) || previous.is_some_and(|p| settled(p, direction)) {
                     break;
                 }
                 albedo_into(sight, direction, &sensors, &mut self.albedo);
                 solution = self.least_squares(Some(direction), T::zero());
+                previous = Some(direction);
             }
         }
         match solution {
@@ -506,6 +508,13 @@ impl<'o, T: Real> Problem<'o, T> {
             Validity::Valid
         }
     }
+}
+
+/// Whether two unit directions agree to 2e-6 rad (0.0001 deg): another albedo pass would
+/// move the estimate by less than that again.
+fn settled<T: Real>(a: V3<T>, b: V3<T>) -> bool {
+    let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    dot(d, d) < T::of(4e-12)
 }
 
 /// `(I - s s^T) P (I - s s^T) / m^2`: the covariance of the normalised vector.
