@@ -46,6 +46,7 @@ pub const PDCAL: Rules = Rules {
         ("pdcal-ephem", &["pdcal-text"]),
         ("pdcal-albedo", &[]),
         ("pdcal-report", &[]),
+        ("pdcal-onboard", &[]),
         (
             "pdcal-photodiode",
             &["pdcal-effects", "pdcal-attitude", "pdcal-albedo"],
