@@ -859,7 +859,7 @@ impl Filter {
 
     /// All measurement updates of one sample: magnetometer axes, then photodiodes, as
     /// sequential scalar updates all linearised at the prior (the paper's EKF; the
-    /// structured algebra runs the recursion in its Cholesky form, see `sequential`), then
+    /// structured algebra runs the serial recursion of `sequential`), then
     /// the multiplicative reset. Records of this sample: [`Filter::records`]. On an error
     /// the state and covariance are left as they were.
     pub fn update(
