@@ -47,6 +47,7 @@ pub const PDCAL: Rules = Rules {
         ("pdcal-albedo", &[]),
         ("pdcal-report", &[]),
         ("pdcal-onboard", &[]),
+        ("pdcal-axes", &["pdcal-onboard"]),
         (
             "pdcal-photodiode",
             &["pdcal-effects", "pdcal-attitude", "pdcal-albedo"],
