@@ -169,6 +169,10 @@ pub fn run_with_references(
 ) -> Result<Outcome> {
     let mut warnings = crate::checks::check_telemetry(telemetry)?;
     warnings.extend(crate::checks::orbit_age(meta, telemetry, "dataset.ron"));
+    let axes = crate::axes::check(meta, telemetry, &(&references).into(), &config.filter)?;
+    warnings.extend(axes.finding.iter().map(crate::axes::message));
+    let (meta, telemetry) = crate::axes::corrected(&axes, meta, telemetry);
+    let (meta, telemetry) = (meta.as_ref(), telemetry.as_ref());
     let mountings = crate::mounting::check(
         meta,
         telemetry,
@@ -221,6 +225,7 @@ pub fn run_with_references(
         datasets: Vec::new(),
         mountings,
         repeatability,
+        axes,
     })
 }
 
@@ -489,6 +494,18 @@ pub fn run_sets(
         }
         None => None,
     };
+    let axes = crate::axes::check(
+        &meta,
+        prepared.telemetry(),
+        &references_of(
+            stored.as_deref(),
+            &reference_model,
+            &prepared.telemetry().t_s,
+        ),
+        &config.filter,
+    )?;
+    crate::axes::apply(&axes, &mut meta, prepared.telemetry_mut());
+    warnings.extend(axes.finding.iter().map(crate::axes::message));
     let mountings = crate::mounting::check(
         &meta,
         prepared.telemetry(),
@@ -587,6 +604,7 @@ pub fn run_sets(
         },
         mountings,
         repeatability,
+        axes,
     };
     let summary = crate::schema::summary(&meta, &outcome);
     crate::files::write_summary_and_figures(dir, telemetry, &outcome, &summary, None)?;

@@ -4,6 +4,7 @@
 //! One of the few crates that touch files (docs/ARCHITECTURE.md, "Layering", lists them).
 //! Every output directory is written whole or not at all ([`output::OutputDir`]).
 
+pub mod axes;
 pub mod calibrate;
 pub mod checks;
 pub mod cli;

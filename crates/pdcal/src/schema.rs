@@ -99,6 +99,9 @@ pub struct Summary {
     /// Photodiodes whose data contradict their nominal mounting or polarity: what dataset.ron
     /// says, what the data support, and what the calibration did (`crate::mounting`).
     pub mounting_findings: Vec<pdcal_filter::mounting::MountingFinding>,
+    /// Sensors whose axes the data found other than stated, one entry per finding (empty
+    /// when none), each applied to the data before calibrating ([`crate::axes`]).
+    pub sensor_axes: Vec<crate::axes::SensorAxesEntry>,
     /// The one rotation that carries the nominal normals onto the calibrated ones, fitted
     /// to the photodiodes whose normals the data moved, with its sigma and whether it is a
     /// finding (`pdcal_filter::common_rotation`); null when fewer than 4 were.
@@ -473,7 +476,13 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
             }
         },
         residuals: outcome.residuals,
-        consistency: with_mounting_note(&outcome.consistency, mounting_warning.as_deref()),
+        consistency: with_notes(
+            &outcome.consistency,
+            mounting_warning
+                .iter()
+                .cloned()
+                .chain(crate::axes::notes(&outcome.axes)),
+        ),
         updates: counts_json(run),
         rejected_samples: rejected_summary(run),
         covariance_repairs: repairs_summary(run),
@@ -500,6 +509,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         datasets: outcome.datasets.clone(),
         repeatability: outcome.repeatability.clone(),
         mounting_findings: outcome.mountings.clone(),
+        sensor_axes: crate::axes::entries(&outcome.axes),
         normals_rotation,
         normals_rotation_not_fitted,
         reported,
@@ -561,14 +571,15 @@ pub fn mounting_warning(
     })
 }
 
-/// `consistency` with the mounting warning among its notes: what the verdict did not test
-/// (a head turned about the Sun line moves nothing the residuals test), or found beside it.
-fn with_mounting_note(
+/// `consistency` with `notes` among its notes: what the verdict did not test (a head turned
+/// about the Sun line moves nothing the residuals test; sensor axes the data could not
+/// check), or found beside it.
+fn with_notes(
     consistency: &pdcal_filter::Consistency,
-    mounting_warning: Option<&str>,
+    notes: impl Iterator<Item = String>,
 ) -> pdcal_filter::Consistency {
     let mut c = consistency.clone();
-    c.notes.extend(mounting_warning.map(str::to_owned));
+    c.notes.extend(notes);
     c
 }
 
@@ -921,6 +932,8 @@ pub struct Outcome {
     /// With several data sets, whether their own estimates agree
     /// ([`crate::repeatability`]).
     pub repeatability: Option<crate::repeatability::Repeatability>,
+    /// The sensor-axes check before the filter ([`crate::axes`]).
+    pub axes: pdcal_axes::AxesCheck,
 }
 
 /// One data set of a calibration and the statistics of its own photodiode residuals

@@ -123,6 +123,7 @@ pub const PDCAL: Rules = Rules {
                 "pdcal-diagnose",
                 "pdcal-report",
                 "pdcal-magcal",
+                "pdcal-axes",
             ],
         ),
         (
