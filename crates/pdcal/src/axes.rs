@@ -194,16 +194,14 @@ fn fix_text(finding: &Finding) -> String {
                 .filter_map(|r| {
                     let c = (0..3).find(|&c| m[r][c] != 0)?;
                     let same = c == r && m[r][c] > 0;
-                    (!same).then(|| {
-                        let sign = if m[r][c] < 0 {
-                            " with its gain negated"
-                        } else {
-                            ""
-                        };
-                        format!(
-                            "{section}.{} reads what {section}.{} read{sign}",
-                            AXES[r], AXES[c]
-                        )
+                    (!same).then(|| match (c == r, m[r][c] < 0) {
+                        (true, _) => format!("{section}.{}: negate its gain", AXES[r]),
+                        (false, negated) => format!(
+                            "{section}.{} reads the column {section}.{} read{}",
+                            AXES[r],
+                            AXES[c],
+                            if negated { ", its gain negated" } else { "" }
+                        ),
                     })
                 })
                 .collect();

@@ -19,6 +19,7 @@ mod output_replace;
 mod pyramid_head_bias;
 mod reliability_inputs;
 mod repeatability;
+mod sensor_axes;
 mod skcube_honesty;
 mod skcube_import;
 mod smoothed_joint;
