@@ -12,6 +12,7 @@
 //! - `make-import-fixture`: rewrites `fixtures/import/` (export.csv and its maps) from the
 //!   simulator, seeded (`xtask::import_fixture`).
 
+mod axes_validate;
 mod diagnose_demo;
 mod magcal_validate;
 mod monte_carlo;
@@ -68,6 +69,19 @@ enum Task {
         /// instead of stopping the run: for weak-data scenarios whose filter may fail.
         #[arg(long)]
         keep_going: bool,
+    },
+    /// The sensor-axes check on simulated data: every wrong signed permutation of the
+    /// gyro, the magnetometer and the photodiode table, and false findings on clean data.
+    AxesValidate {
+        /// Built-in scenario name or RON file.
+        #[arg(long, default_value = "rax2-like")]
+        scenario: String,
+        /// Clean seeds (1..=N), each full, photodiode-only and cut into passes.
+        #[arg(long, default_value_t = 30)]
+        clean_seeds: u64,
+        /// Seeds (1..=N) with each of the 141 wrong permutations.
+        #[arg(long, default_value_t = 3)]
+        permuted_seeds: u64,
     },
     /// Magnetometer calibration over seeds against the simulator's truth (docs/magcal.md):
     /// parameters within 3 sigma, residual against the noise, regressors kept and missed.
@@ -127,6 +141,11 @@ fn main() -> ExitCode {
             every_s,
             export,
         } => magcal_validate::run(seeds, &scenario, duration_s, every_s, export.as_deref()),
+        Task::AxesValidate {
+            scenario,
+            clean_seeds,
+            permuted_seeds,
+        } => axes_validate::run(&scenario, clean_seeds, permuted_seeds),
         Task::DiagnoseDemo => diagnose_demo::run(std::path::Path::new("out/diagnose-demo")),
         Task::Bench => bench(),
         Task::MakeImportFixture => make_import_fixture(),

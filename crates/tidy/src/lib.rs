@@ -143,6 +143,8 @@ pub const PDCAL: Rules = Rules {
                 "pdcal",
                 "pdcal-effects",
                 "pdcal-ephem",
+                "pdcal-axes",
+                "pdcal-attitude",
                 "pdcal-dataset",
                 "pdcal-import",
                 "pdcal-sim",
