@@ -39,13 +39,13 @@ impl Tally {
     fn row(&self, name: &str) -> String {
         let mut e = self.errors_deg.clone();
         e.sort_by(f64::total_cmp);
-        let mean = e.iter().sum::<f64>() / e.len().max(1) as f64;
+        let valid = 100.0 * self.valid as f64 / self.sunlit.max(1) as f64;
+        let Some(max) = e.last() else {
+            return format!("| {name} | - | - | - | {valid:.1} % |");
+        };
+        let mean = e.iter().sum::<f64>() / e.len() as f64;
         let p95 = percentile(&e, 0.95);
-        format!(
-            "| {name} | {mean:.3} | {p95:.3} | {:.3} | {:.1} % |",
-            e.last().copied().unwrap_or(f64::NAN),
-            100.0 * self.valid as f64 / self.sunlit.max(1) as f64
-        )
+        format!("| {name} | {mean:.3} | {p95:.3} | {max:.3} | {valid:.1} % |")
     }
 }
 
