@@ -268,6 +268,18 @@ pub fn build(cal_dir: &Path, dataset: Option<&Path>, grid_deg: f64) -> Result<On
     build_from(&cal, cal_dir, &dataset_dir, &meta, grid_deg)
 }
 
+/// [`build`] with the data set's metadata in memory (`dataset_dir` names it in messages
+/// and the provenance).
+pub fn build_with_meta(
+    cal_dir: &Path,
+    dataset_dir: &Path,
+    meta: &DatasetMeta,
+    grid_deg: f64,
+) -> Result<OnboardCalibration> {
+    let cal = read_calibration_dir(cal_dir)?;
+    build_from(&cal, cal_dir, dataset_dir, meta, grid_deg)
+}
+
 fn build_from(
     cal: &CalibrationDir,
     cal_dir: &Path,
@@ -521,12 +533,18 @@ pub fn run_to_dir(
 ) -> Result<OnboardCalibration> {
     let dir = OutputDir::create_forced(out, "export-onboard", force)?;
     let export = build(cal_dir, dataset, grid_deg)?;
-    write_file(&dir.file(HEADER), c_header(&export).as_bytes())?;
-    let ron = ron::ser::to_string_pretty(&export, ron::ser::PrettyConfig::default())
+    write_export(dir, &export)?;
+    Ok(export)
+}
+
+/// Writes the header and `onboard.ron` of `export` into `dir` (created before the
+/// computation) and publishes it.
+pub fn write_export(dir: OutputDir, export: &OnboardCalibration) -> Result<()> {
+    write_file(&dir.file(HEADER), c_header(export).as_bytes())?;
+    let ron = ron::ser::to_string_pretty(export, ron::ser::PrettyConfig::default())
         .context("onboard.ron")?;
     write_file(&dir.file(RON), ron.as_bytes())?;
-    dir.commit()?;
-    Ok(export)
+    dir.commit()
 }
 
 /// Reads an `onboard.ron` back.

@@ -216,15 +216,27 @@ pub fn run_to_file(
     grid_deg: f64,
     out: &Path,
 ) -> Result<Vec<RowEstimate>> {
-    let export = crate::export_onboard::build(cal_dir, Some(dataset), grid_deg)?;
     let meta = pdcal_dataset::read_meta(dataset)?;
     let telemetry = pdcal_dataset::read_telemetry(dataset, &meta)?;
-    let attitudes = read_attitudes(cal_dir)?;
-    let rows = row_inputs(&meta, &telemetry, &attitudes)?;
-    let estimates = estimate_rows::<f32>(&rows, &export)?;
-    let csv = csv_text(&rows, &estimates)?;
+    let (csv, estimates) = sun_vector_csv(&meta, &telemetry, dataset, cal_dir, grid_deg)?;
     crate::output::write_file_atomic(out, csv.as_bytes())?;
     Ok(estimates)
+}
+
+/// The CSV text of `pdcal sun-vector` and its rows' estimates for a data set in memory
+/// (`dataset_dir` names it in messages and the export's provenance).
+pub fn sun_vector_csv(
+    meta: &DatasetMeta,
+    telemetry: &Telemetry,
+    dataset_dir: &Path,
+    cal_dir: &Path,
+    grid_deg: f64,
+) -> Result<(String, Vec<RowEstimate>)> {
+    let export = crate::export_onboard::build_with_meta(cal_dir, dataset_dir, meta, grid_deg)?;
+    let attitudes = read_attitudes(cal_dir)?;
+    let rows = row_inputs(meta, telemetry, &attitudes)?;
+    let estimates = estimate_rows::<f32>(&rows, &export)?;
+    Ok((csv_text(&rows, &estimates)?, estimates))
 }
 
 /// The core in `T` on every row, with the Earth where the row has one.
