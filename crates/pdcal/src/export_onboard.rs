@@ -735,3 +735,53 @@ fn c_comment(text: &str) -> String {
 fn c_comment_text(text: &str) -> String {
     text.replace("*/", "* /").replace(['\n', '\r'], " ")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 1 x 1.25 deg map (TOMS's layout) of 1 north of 30 N and 0 elsewhere.
+    fn north_cap() -> ReflectivityMap {
+        let text: String = (0..288)
+            .map(|_| {
+                // TOMS lines are longitude bands; columns run from the north.
+                (0..180)
+                    .map(|col| if col < 60 { "100" } else { "0" })
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+        ReflectivityMap::parse_toms_dat("cap", &text).unwrap()
+    }
+
+    #[test]
+    fn the_grid_is_the_maps_area_mean_from_the_south_pole() {
+        let g = grid(&north_cap(), 10.0).unwrap();
+        assert_eq!((g.n_lat, g.n_lon, g.bytes), (18, 36, 648));
+        // Rows 0..12 cover -90..30 deg (dark); 12..18 cover 30..90 (white).
+        for (row, cells) in g.cells.chunks(36).enumerate() {
+            let want = if row >= 12 { 255 } else { 0 };
+            assert!(cells.iter().all(|&c| c == want), "row {row}: {cells:?}");
+        }
+        // A cell straddling the edge takes the white part's share of its area.
+        let g = grid(&north_cap(), 45.0).unwrap();
+        let sin = |deg: f64| deg.to_radians().sin();
+        let lower = (sin(45.0) - sin(30.0)) / sin(45.0);
+        assert_eq!(g.cells[3 * 8], 255, "45..90 N: all white");
+        assert_eq!(
+            g.cells[2 * 8],
+            (lower * 255.0).round() as u8,
+            "0..45 N by area"
+        );
+    }
+
+    #[test]
+    fn a_cell_size_that_does_not_divide_180_is_refused() {
+        let map = north_cap();
+        assert!(grid(&map, 7.0).is_err());
+        assert!(grid(&map, 0.0).is_err());
+        assert!(grid(&map, f64::NAN).is_err());
+        assert_eq!(grid(&map, 1.25).unwrap().bytes, 144 * 288);
+    }
+}
