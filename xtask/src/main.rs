@@ -8,6 +8,9 @@
 //! - `magcal-validate [--seeds N] [--scenario FILE] [--duration-s S] [--every-s S]`: the
 //!   magnetometer calibration over seeds against the simulator's truth (docs/magcal.md);
 //!   `--export DIR` writes each seed's samples, truth and estimate for `tools/magyc_compare.py`.
+//! - `onboard-validate [--seeds N] [--scenario NAME]`: the onboard Sun-vector core against
+//!   the truth over seeds, beside the same core without the Earth and `cssWlsEst`
+//!   (docs/validation.md, "Onboard Sun vector"); work files in `out/onboard-validate/`.
 //! - `bench`: runs the criterion benches that `docs/performance.md` quotes.
 //! - `make-import-fixture`: rewrites `fixtures/import/` (export.csv and its maps) from the
 //!   simulator, seeded (`xtask::import_fixture`).
@@ -16,6 +19,7 @@ mod axes_validate;
 mod diagnose_demo;
 mod magcal_validate;
 mod monte_carlo;
+mod onboard_validate;
 
 use std::process::ExitCode;
 
@@ -103,6 +107,16 @@ enum Task {
         #[arg(long)]
         export: Option<std::path::PathBuf>,
     },
+    /// The onboard Sun-vector core against the truth over seeds: simulate, calibrate,
+    /// `pdcal sun-vector`, beside the core without the Earth and `cssWlsEst`.
+    OnboardValidate {
+        /// Number of seeds (1..=N).
+        #[arg(long, default_value_t = 20)]
+        seeds: u64,
+        /// Built-in scenario name or RON file.
+        #[arg(long, default_value = "rax2-like")]
+        scenario: String,
+    },
     /// Simulate rax2-like with albedo and dark offsets hidden, diagnose from `cosine`.
     DiagnoseDemo,
     /// Run the criterion benches quoted in docs/performance.md.
@@ -146,6 +160,7 @@ fn main() -> ExitCode {
             clean_seeds,
             permuted_seeds,
         } => axes_validate::run(&scenario, clean_seeds, permuted_seeds),
+        Task::OnboardValidate { seeds, scenario } => onboard_validate::run(seeds, &scenario),
         Task::DiagnoseDemo => diagnose_demo::run(std::path::Path::new("out/diagnose-demo")),
         Task::Bench => bench(),
         Task::MakeImportFixture => make_import_fixture(),

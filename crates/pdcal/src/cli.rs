@@ -125,6 +125,43 @@ pub enum Command {
         #[arg(long)]
         force: bool,
     },
+    /// Export a calibration for the onboard Sun-vector core: pdcal_calibration.h (a const
+    /// pdcal_calibration and the reflectivity grid) and onboard.ron (the same values with
+    /// their provenance and statuses) in OUT.
+    ExportOnboard {
+        /// The calibrate command's output directory.
+        cal_dir: PathBuf,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+        /// Cell size of the reflectivity grid, deg (it must divide 180: 10, 5, 2.5, 1.25...).
+        #[arg(long, default_value_t = crate::export_onboard::DEFAULT_GRID_DEG)]
+        grid_deg: f64,
+        /// The data set the calibration was made from (its noise and fields of view); by
+        /// default the one summary.json names (a joint calibration's first set).
+        #[arg(long)]
+        dataset: Option<PathBuf>,
+        /// Replace an earlier output of this command in OUT even where its files were
+        /// changed since pdcal wrote them (never files pdcal did not write).
+        #[arg(long)]
+        force: bool,
+    },
+    /// Run the onboard Sun-vector core on every telemetry row with a calibration, the Earth
+    /// from the calibration's attitude estimates: one CSV row per telemetry row.
+    SunVector {
+        /// Dataset directory (dataset.ron, telemetry.csv).
+        dataset: PathBuf,
+        /// The calibrate command's output directory (calibration.ron, summary.json,
+        /// estimates.csv).
+        #[arg(long)]
+        calibration: PathBuf,
+        /// Output CSV file.
+        #[arg(long)]
+        out: PathBuf,
+        /// Cell size of the reflectivity grid, deg.
+        #[arg(long, default_value_t = crate::export_onboard::DEFAULT_GRID_DEG)]
+        grid_deg: f64,
+    },
 }
 
 /// Where the default run writes (relative to the working directory).
@@ -239,6 +276,55 @@ pub fn run(cli: Cli) -> Result<()> {
                 }
             );
             eprintln!("magcal -> {}", out.display());
+            Ok(())
+        }
+        Some(Command::ExportOnboard {
+            cal_dir,
+            out,
+            grid_deg,
+            dataset,
+            force,
+        }) => {
+            let export = crate::export_onboard::run_to_dir(
+                &cal_dir,
+                dataset.as_deref(),
+                grid_deg,
+                &out,
+                force,
+            )?;
+            let disabled = export.photodiodes.iter().filter(|p| !p.enabled).count();
+            let nominal = export
+                .photodiodes
+                .iter()
+                .flat_map(|p| &p.status)
+                .filter(|s| s.nominal && s.parameter != "dark")
+                .count();
+            println!(
+                "exported {} photodiodes ({disabled} disabled, {nominal} parameters at their nominal value), grid {} x {} ({} bytes) -> {}",
+                export.photodiodes.len(),
+                export.grid.n_lat,
+                export.grid.n_lon,
+                export.grid.bytes,
+                out.display()
+            );
+            Ok(())
+        }
+        Some(Command::SunVector {
+            dataset,
+            calibration,
+            out,
+            grid_deg,
+        }) => {
+            let rows = crate::onboard_sun::run_to_file(&dataset, &calibration, grid_deg, &out)?;
+            let valid = rows
+                .iter()
+                .filter(|r| r.validity == pdcal_onboard::Validity::Valid)
+                .count();
+            println!(
+                "sun-vector: {} rows, {valid} valid -> {}",
+                rows.len(),
+                out.display()
+            );
             Ok(())
         }
         Some(Command::Evaluate { dataset, out }) => {

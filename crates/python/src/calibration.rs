@@ -36,7 +36,7 @@ pub struct Calibration {
 
 impl Calibration {
     /// The output directory, as `pdcal calibrate --out` would have written it.
-    fn out(&self) -> PathBuf {
+    pub fn out(&self) -> PathBuf {
         self.tmp.path().join("calibration")
     }
 
@@ -59,7 +59,7 @@ impl Calibration {
 
 /// A CSV of the output as a dict of columns: numbers as float64 arrays (empty cells NaN),
 /// a column with text as a numpy array of str.
-fn csv_columns<'py>(py: Python<'py>, path: &Path) -> PyResult<Bound<'py, PyDict>> {
+pub fn csv_columns<'py>(py: Python<'py>, path: &Path) -> PyResult<Bound<'py, PyDict>> {
     let mut reader = csv::Reader::from_path(path).map_err(py_err)?;
     let header: Vec<String> = reader
         .headers()

@@ -18,6 +18,7 @@ mod dataset;
 mod diagnosis;
 mod errors;
 mod magcal;
+mod onboard;
 
 /// The module `pdcal._pdcal`.
 #[pymodule]
@@ -33,6 +34,8 @@ fn _pdcal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calibration::evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(diagnosis::diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(magcal::magcal, m)?)?;
+    m.add_function(wrap_pyfunction!(onboard::export_onboard, m)?)?;
+    m.add_function(wrap_pyfunction!(onboard::sun_vector, m)?)?;
     m.add_function(wrap_pyfunction!(campaign::sim_calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(campaign::ron_to_json, m)?)?;
     Ok(())

@@ -124,6 +124,7 @@ pub const PDCAL: Rules = Rules {
                 "pdcal-report",
                 "pdcal-magcal",
                 "pdcal-axes",
+                "pdcal-onboard",
             ],
         ),
         (
@@ -145,6 +146,7 @@ pub const PDCAL: Rules = Rules {
                 "pdcal-ephem",
                 "pdcal-axes",
                 "pdcal-attitude",
+                "pdcal-onboard",
                 "pdcal-dataset",
                 "pdcal-import",
                 "pdcal-sim",

@@ -14,6 +14,7 @@ mod mag_align_photodiodes;
 mod magcal_command;
 mod mounting_findings;
 mod never_held;
+mod onboard_commands;
 mod output_faults;
 mod output_replace;
 mod pyramid_head_bias;

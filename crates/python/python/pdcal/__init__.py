@@ -13,9 +13,11 @@ from ._pdcal import (
     calibrate,
     diagnose,
     evaluate,
+    export_onboard,
     magcal,
     scenario,
     simulate,
+    sun_vector,
 )
 
 __all__ = [
@@ -27,7 +29,9 @@ __all__ = [
     "calibrate",
     "diagnose",
     "evaluate",
+    "export_onboard",
     "magcal",
     "scenario",
     "simulate",
+    "sun_vector",
 ]
