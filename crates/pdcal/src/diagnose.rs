@@ -41,9 +41,15 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry, base: BaseModel) -> Result
     let references = pdcal_filter::step_references(meta, telemetry)?;
     let albedo = crate::calibrate::albedo_model()?;
     let config = DiagnoseConfig::default();
-    // The data as calibrate reads them: a photodiode that reads reversed is negated and one
-    // whose data contradict any mounting is left out, each said, before the diagnosis, so
-    // that no effect is sought in what a wiring fault explains.
+    // The data as calibrate reads them: a sensor's axes found other than stated are turned
+    // into the body frame, a photodiode that reads reversed is negated and one whose data
+    // contradict any mounting is left out, each said, before the diagnosis, so that no
+    // effect is sought in what a wiring fault explains.
+    let axes = crate::axes::check(meta, telemetry, &(&references).into(), &config.filter)?;
+    warnings.extend(axes.finding.iter().map(crate::axes::message));
+    warnings.extend(crate::axes::notes(&axes));
+    let (meta, telemetry) = crate::axes::corrected(&axes, meta, telemetry);
+    let (meta, telemetry) = (meta.as_ref(), telemetry.as_ref());
     let mountings = crate::mounting::check(
         meta,
         telemetry,

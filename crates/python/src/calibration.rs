@@ -119,6 +119,14 @@ impl Calibration {
         json_loads(py, &self.summary_json)
     }
 
+    /// The sensor-axes findings (`summary.json` `sensor_axes`): a list of dicts with
+    /// `sensor`, `body_from_sensor` (3x3 of -1/0/1, `v_body = M v_sensor`), `evidence` and
+    /// `applied`; empty when every sensor's axes are as stated.
+    #[getter]
+    fn sensor_axes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.summary(py)?.get_item("sensor_axes")
+    }
+
     /// Calibrated scale factors (output at 1 AU, normal incidence), V, (M,).
     #[getter]
     #[allow(non_snake_case)]
