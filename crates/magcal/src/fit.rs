@@ -85,7 +85,7 @@ pub struct MagCalibration {
     pub rejected_rows: Vec<usize>,
     /// The rows screened out before the fit, with their causes (also in `rejected_rows`).
     pub screened: Vec<ScreenedRow>,
-    /// RMS of `|m| - |H|` over every row, nT.
+    /// RMS of `|m| - |H|` over every row the screening kept, nT.
     pub residual_rms_before_nt: f64,
     /// RMS of `|B| - |H|` over the rows used, nT.
     pub residual_rms_after_nt: f64,
