@@ -222,6 +222,21 @@ pub(crate) fn config(result: anyhow::Result<()>, path: &Path, bytes: &[u8]) -> V
     anyhow_verdict(&e, path, bytes, position)
 }
 
+/// A magcal.ron's rejection: a syntax or field error is `PATH:LINE:COLUMN: ...`, a value
+/// checked after parsing names its field.
+pub(crate) fn magcal(result: anyhow::Result<()>, path: &Path, bytes: &[u8]) -> Verdict {
+    let Err(e) = result else {
+        return Verdict::Accepted;
+    };
+    let message = format!("{e:#}");
+    let shown = format!("{}:", path.display());
+    let position = match message.strip_prefix(&shown) {
+        Some(rest) if rest.starts_with(|c: char| c.is_ascii_digit()) => Some(ron_position(rest)),
+        _ => Some(None),
+    };
+    anyhow_verdict(&e, path, bytes, position)
+}
+
 /// `position`: `None` when the error is not a RON one (an I/O error: the file is enough),
 /// `Some(None)` for a value error that names its field, `Some(Some(..))` for a syntax error,
 /// whose line and column must be in the file. A RON syntax error whose position could not be

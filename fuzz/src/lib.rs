@@ -43,11 +43,13 @@ pub enum Target {
     /// An import column map through `pdcal::import::import_files` (`pdcal import --map`),
     /// run on a fixed small export (`seeds/fixed/export.csv`).
     ImportMap,
+    /// A magcal.ron through `pdcal::magcal::load` (`calibrate --mag-cal FILE`).
+    MagcalRon,
 }
 
 impl Target {
     /// Every target, in the order of `fuzz/README.md`.
-    pub const ALL: [Target; 7] = [
+    pub const ALL: [Target; 8] = [
         Target::DatasetPair,
         Target::DatasetRon,
         Target::TelemetryCsv,
@@ -55,6 +57,7 @@ impl Target {
         Target::ScenarioRon,
         Target::ConfigRon,
         Target::ImportMap,
+        Target::MagcalRon,
     ];
 
     /// The name on the command line and of the seed directory `fuzz/seeds/NAME`.
@@ -67,6 +70,7 @@ impl Target {
             Target::ScenarioRon => "scenario-ron",
             Target::ConfigRon => "config-ron",
             Target::ImportMap => "import-map",
+            Target::MagcalRon => "magcal-ron",
         }
     }
 
@@ -98,6 +102,7 @@ impl Target {
                 include_bytes!("../seeds/import-map/map-positions.ron"),
                 include_bytes!("../seeds/import-map/map-shapes.ron"),
             ],
+            Target::MagcalRon => vec![include_bytes!("../seeds/magcal-ron/magcal.ron")],
         }
     }
 }
@@ -114,6 +119,12 @@ impl Target {
                 include_bytes!("../hostile/config-ron/prior-scale-zero.ron"),
                 include_bytes!("../hostile/config-ron/prior-scale-nan.ron"),
                 include_bytes!("../hostile/config-ron/prior-scale-1e300.ron"),
+            ],
+            Target::MagcalRon => vec![
+                include_bytes!("../hostile/magcal-ron/variance-nan.ron"),
+                include_bytes!("../hostile/magcal-ron/variance-negative.ron"),
+                include_bytes!("../hostile/magcal-ron/matrix-stretched.ron"),
+                include_bytes!("../hostile/magcal-ron/bias-4.5e6.ron"),
             ],
             _ => Vec::new(),
         }
@@ -215,6 +226,11 @@ pub fn exercise(target: Target, input: &[u8], scratch: &Path) -> Verdict {
             ];
             let result = pdcal::import::import_files(&files[1].0, &files[0].0).map(drop);
             check::import(result, &files)
+        }
+        Target::MagcalRon => {
+            let path = write("magcal.ron", input);
+            let result = pdcal::magcal::load(&path).map(drop);
+            check::magcal(result, &path, input)
         }
     }
 }

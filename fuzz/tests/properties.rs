@@ -238,6 +238,16 @@ fn scenario_ron_errors_quote_at_most_the_limit() {
 }
 
 #[test]
+fn magcal_ron_never_panics_and_places_errors() {
+    assert_holds(Target::MagcalRon, Promises::Placement);
+}
+
+#[test]
+fn magcal_ron_errors_quote_at_most_the_limit() {
+    assert_holds(Target::MagcalRon, Promises::Quoting);
+}
+
+#[test]
 fn config_ron_errors_quote_at_most_the_limit() {
     assert_holds(Target::ConfigRon, Promises::Quoting);
 }

@@ -148,7 +148,7 @@ impl Telemetry {
 /// Column indices of one telemetry.csv header.
 struct Layout {
     t: usize,
-    gyro: [usize; 3],
+    gyro: Option<[usize; 3]>,
     mag: Option<[usize; 3]>,
     pd: Vec<usize>,
     r: Option<[usize; 3]>,
@@ -241,6 +241,11 @@ fn layout<R: Read>(rows: &CsvRows<'_, R>, meta: &DatasetMeta) -> Result<Layout, 
             return Err(rows.header_error(col, kind));
         }
     }
+    // Absent columns mean no such sensor, as empty cells in every row do.
+    let gyro = match columns::GYRO.map(|name| find(rows, name)) {
+        [Ok(None), Ok(None), Ok(None)] => None,
+        _ => Some(require3(rows, columns::GYRO)?),
+    };
     let mag = match columns::MAG.map(|name| find(rows, name)) {
         [Ok(None), Ok(None), Ok(None)] => None,
         _ => Some(require3(rows, columns::MAG)?),
@@ -257,7 +262,7 @@ fn layout<R: Read>(rows: &CsvRows<'_, R>, meta: &DatasetMeta) -> Result<Layout, 
     };
     Ok(Layout {
         t: require(rows, columns::T_S, "")?,
-        gyro: require3(rows, columns::GYRO)?,
+        gyro,
         mag,
         // Looked up in the header's map, not scanned for: linear in the photodiode count.
         pd: (1..=n)
@@ -527,7 +532,10 @@ fn visit_rows<R: Read>(
         rows.increasing(line, lay.t, previous, t)?;
         previous = Some(t);
         row.t_s = t;
-        row.gyro_rad_s = rows.vec3(line, lay.gyro)?;
+        row.gyro_rad_s = match lay.gyro {
+            Some(cols) => rows.vec3(line, cols)?,
+            None => None,
+        };
         row.mag_nt = match lay.mag {
             Some(cols) => rows.vec3(line, cols)?,
             None => None,

@@ -68,6 +68,11 @@ impl<'a> Prepared<'a> {
                 screened.push_screened(channel, k);
             }
         }
+        // Magnetometer columns without a sample are no magnetometer: the run is the
+        // photodiodes' alone, as without the columns.
+        if (telemetry.mag_nt.as_ref()).is_some_and(|m| (0..m.len()).all(|k| m.get(k).is_none())) {
+            telemetry.to_mut().mag_nt = None;
+        }
         if telemetry.is_empty() {
             return Err(FilterError::NoInitialSample {
                 reason: "the telemetry has no rows".to_owned(),

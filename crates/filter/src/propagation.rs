@@ -23,6 +23,12 @@
 //! chi-square with three degrees of freedom per residual. Samples further apart than the
 //! gyro hold are not compared: the segments break there ([`crate::segments`]).
 //!
+//! A gyro that falls silent beyond its hold while rows go on (or starts after them) leaves
+//! the gyro-driven filter nothing to carry the attitude with: those rows would be skipped
+//! and each silence would end a segment. With the inertia given the dynamics run instead
+//! ([`PropagationReason::GyroSilent`]), the gyro a measurement where it has samples, so the
+//! attitude is carried through the silence by Euler's equations.
+//!
 //! The test asks what the propagation needs: a gyro at 1 Hz on a spacecraft tumbling at
 //! 4 deg/s changes its rate between samples by more than its noise, but that change is
 //! close to linear over a second, so the interpolated rate carries it; ten seconds apart
@@ -64,6 +70,9 @@ pub enum PropagationReason {
     /// `dynamics: Auto`, the inertia given and too few gyro samples close enough together
     /// to test whether they carry the rate.
     GyroUntested,
+    /// `dynamics: Auto`, the inertia given, and rows farther than the gyro hold from the
+    /// latest gyro sample (a gyro that stops or starts late): the dynamics carry on there.
+    GyroSilent,
     /// `dynamics: Auto`: the gyro's rate changes between its samples by more than its
     /// noise explains ([`GyroRateTest`] beyond its threshold).
     RateChanges,
@@ -139,6 +148,9 @@ impl PropagationChoice {
             PropagationReason::GyroUntested => {
                 "too few gyro samples to test whether they carry the rate".to_owned()
             }
+            PropagationReason::GyroSilent => {
+                "the gyro is silent beyond its hold on some rows: the dynamics carry the attitude there".to_owned()
+            }
             PropagationReason::RateChanges | PropagationReason::RateCarried => {
                 let verb = if self.reason == PropagationReason::RateChanges {
                     "changes by more than"
@@ -187,6 +199,13 @@ pub fn choose(
     if gyro_samples(telemetry).next().is_none() {
         return choice(PropagationKind::Dynamics, PropagationReason::NoGyro, None);
     }
+    if has_silent_rows(telemetry, gyro_hold_s) {
+        return choice(
+            PropagationKind::Dynamics,
+            PropagationReason::GyroSilent,
+            None,
+        );
+    }
     let model = if config.average_gyro {
         GyroRateModel::Linear
     } else {
@@ -213,6 +232,23 @@ pub fn choose(
             Some(test),
         ),
     }
+}
+
+/// Whether a row lies farther than `hold_s` after the latest gyro sample, or before the
+/// first: where the gyro-driven filter has no rate to carry the attitude with.
+fn has_silent_rows(telemetry: &Telemetry, hold_s: f64) -> bool {
+    let Some((first_t, _)) = gyro_samples(telemetry).next() else {
+        return false;
+    };
+    let mut latest = first_t;
+    for (&t, g) in telemetry.t_s.iter().zip(&telemetry.gyro_rad_s) {
+        if g.is_some() {
+            latest = t;
+        } else if t - latest > hold_s || first_t - t > hold_s {
+            return true;
+        }
+    }
+    false
 }
 
 /// A gyro sample: its time, s, and rate, rad/s.

@@ -6,6 +6,7 @@ use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
 use crate::MagCalError;
 use crate::model::{MatrixForm, Params};
+use crate::screen::{ScreenedRow, check_field_size, few_rows_reason, not_physical, screen};
 use crate::start::{Row, linear_start, sphere_start};
 
 /// One telemetry row for the calibration.
@@ -80,9 +81,11 @@ pub struct MagCalibration {
     pub noise_sigma_nt: f64,
     /// Rows used.
     pub rows_used: usize,
-    /// Telemetry rows rejected by the gate.
+    /// Telemetry rows rejected: screened before the fit or by the gate (increasing).
     pub rejected_rows: Vec<usize>,
-    /// RMS of `|m| - |H|` over every row, nT.
+    /// The rows screened out before the fit, with their causes (also in `rejected_rows`).
+    pub screened: Vec<ScreenedRow>,
+    /// RMS of `|m| - |H|` over every row the screening kept, nT.
     pub residual_rms_before_nt: f64,
     /// RMS of `|B| - |H|` over the rows used, nT.
     pub residual_rms_after_nt: f64,
@@ -163,6 +166,7 @@ impl MagCalibration {
             noise_sigma_nt: 0.0,
             rows_used: 0,
             rejected_rows: Vec::new(),
+            screened: Vec::new(),
             residual_rms_before_nt: 0.0,
             residual_rms_after_nt: 0.0,
             decisions: Vec::new(),
@@ -220,7 +224,9 @@ fn correction_jacobian(params: &Params, mag_nt: &Vector3<f64>, u: &[f64]) -> DMa
 }
 
 /// Calibrates the magnetometer from `samples`, testing the regressors `names` (one value
-/// per name in each sample's `u`).
+/// per name in each sample's `u`): the field's size checked against the reference, the
+/// rows no calibration could explain screened out ([`crate::screen`]), the fit, and its
+/// result refused when it is no magnetometer's.
 pub fn calibrate(
     samples: &[Sample],
     names: &[String],
@@ -235,10 +241,35 @@ pub fn calibrate(
             });
         }
     }
+    check_field_size(samples)?;
+    let screened = screen(samples, names);
+    let kept: Vec<Sample> = (samples.iter())
+        .filter(|s| screened.binary_search_by_key(&s.row, |r| r.row).is_err())
+        .cloned()
+        .collect();
+    let mut cal = calibrate_screened(&kept, names, config)?;
+    let coeffs: Vec<(String, Vector3<f64>)> = (cal.regressors.iter().cloned())
+        .zip(cal.params.coeff_nt.iter().copied())
+        .collect();
+    if let Some(why) = not_physical(&cal.matrix, &cal.params.bias_nt, &coeffs) {
+        return Err(MagCalError::NotPhysical(why));
+    }
+    cal.rejected_rows.extend(screened.iter().map(|r| r.row));
+    cal.rejected_rows.sort_unstable();
+    cal.screened = screened;
+    Ok(cal)
+}
+
+/// [`calibrate`] on the screened samples.
+fn calibrate_screened(
+    samples: &[Sample],
+    names: &[String],
+    config: &MagCalConfig,
+) -> Result<MagCalibration, MagCalError> {
     let mut decisions = Vec::new();
     let mut active: Vec<usize> = Vec::new();
     for (j, name) in names.iter().enumerate() {
-        match constant_reason(samples, j) {
+        match constant_reason(samples, j).or_else(|| few_rows_reason(samples, j)) {
             Some(reason) => decisions.push(RegressorDecision {
                 name: name.clone(),
                 kept: false,
@@ -445,6 +476,7 @@ fn fit_with(
             .filter(|(_, k)| !**k)
             .map(|(s, _)| s.row)
             .collect(),
+        screened: Vec::new(),
         residual_rms_before_nt: 0.0,
         residual_rms_after_nt: after,
         decisions: Vec::new(),

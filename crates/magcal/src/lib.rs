@@ -22,12 +22,14 @@ pub mod align;
 mod error;
 pub mod fit;
 pub mod model;
+pub mod screen;
 pub(crate) mod start;
 
 pub use align::{AlignSample, Misalignment};
 pub use error::MagCalError;
 pub use fit::{MagCalConfig, MagCalibration, RegressorDecision, Sample, calibrate};
 pub use model::{MatrixForm, Params, RowFit};
+pub use screen::{ScreenedRow, not_physical};
 
 use nalgebra::Vector3;
 use pdcal_ephem::ReferenceModel;

@@ -27,6 +27,8 @@ pub struct RunConfig {
     pub mode: Mode,
     /// A magnetometer calibration (`--mag-cal`) applied to the telemetry before the filter.
     pub mag_cal: Option<pdcal_magcal::MagCalibration>,
+    /// The file `mag_cal` was read from, named in every message about it.
+    pub mag_cal_file: Option<PathBuf>,
     /// Calibrate the magnetometer from each run's own data first (`pdcal magcal`) and apply
     /// that (the Monte Carlo's `--magcal`); ignored when `mag_cal` is given.
     pub fit_mag_cal: bool,
@@ -58,6 +60,7 @@ impl Default for RunConfig {
             filter: FilterConfig::default(),
             mode: Mode::Full,
             mag_cal: None,
+            mag_cal_file: None,
             fit_mag_cal: false,
             mag_align_passes: 0,
             mag_align: MagAlign::default(),
@@ -332,7 +335,8 @@ pub fn run_dirs_kept(
     force: bool,
     file_telemetry_bytes: u64,
 ) -> Result<(Outcome, crate::schema::Summary)> {
-    let dir = OutputDir::create_forced(out, "calibrate", force)?;
+    let inputs: Vec<&Path> = datasets.iter().map(PathBuf::as_path).collect();
+    let dir = OutputDir::create_reading(out, "calibrate", force, &inputs)?;
     // Only meta and telemetry: calibrate never reads truth.*.
     let mut sets = crate::joint::read_kept(datasets, Some((dir.path(), file_telemetry_bytes)))?;
     let Some(cal) = &config.mag_cal else {
@@ -341,8 +345,17 @@ pub fn run_dirs_kept(
     let mut config = config.clone();
     let mut worst_sigma_nt: f64 = 0.0;
     for (path, meta, telemetry) in &mut sets {
-        let sigma = with_mag_cal(&config, cal, meta, telemetry)
-            .with_context(|| format!("--mag-cal on {}", path.display()))?;
+        let file = config
+            .mag_cal_file
+            .as_deref()
+            .unwrap_or(Path::new("magcal.ron"));
+        let sigma = with_mag_cal(&config, cal, meta, telemetry).with_context(|| {
+            format!(
+                "--mag-cal {} on {}",
+                pdcal_text::clip(&file.display().to_string()),
+                path.display()
+            )
+        })?;
         worst_sigma_nt = worst_sigma_nt.max(sigma);
     }
     if config.mag_align == MagAlign::Photodiodes {

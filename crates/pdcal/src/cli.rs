@@ -230,6 +230,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 None => crate::calibrate::RunConfig::default(),
             };
             config.mag_cal = mag_cal.as_deref().map(crate::magcal::load).transpose()?;
+            config.mag_cal_file = mag_cal;
             config.mag_align = mag_align;
             let (outcome, summary) =
                 crate::calibrate::run_dirs_forced(&datasets, &out, &config, force)?;

@@ -95,7 +95,7 @@ pub fn run_dir_forced(
     base: BaseModel,
     force: bool,
 ) -> Result<DiagnoseOutcome> {
-    let dir = OutputDir::create_forced(out, "diagnose", force)?;
+    let dir = OutputDir::create_reading(out, "diagnose", force, &[dataset])?;
     let meta = pdcal_dataset::read_meta(dataset)?;
     let telemetry = pdcal_dataset::read_telemetry(dataset, &meta)?;
     let outcome = run(&meta, &telemetry, base)?;

@@ -152,6 +152,7 @@ pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
 /// `OUT_DIR/evaluation.json`.
 pub fn run_dir(dataset: &Path, out: &Path) -> Result<Evaluation> {
     let meta = pdcal_dataset::read_meta(dataset)?;
+    check_same_data(dataset, &meta, out)?;
     let Some((truth, constants)) = pdcal_dataset::read_truth(dataset, &meta)? else {
         bail!(
             "{}: evaluate needs truth.csv and truth.ron (a simulated dataset)",
@@ -165,6 +166,60 @@ pub fn run_dir(dataset: &Path, out: &Path) -> Result<Evaluation> {
         serde_json::to_string_pretty(&evaluation)?.as_bytes(),
     )?;
     Ok(evaluation)
+}
+
+/// Refuses a data set the calibration in `out` was not made from: its summary.json lists
+/// every set it read (name, epoch, rows), and another set's truth, even of the same layout,
+/// describes other times (its attitude errors would be meaningless). An output without
+/// summary.json (written by hand or by an older pdcal) is not judged.
+fn check_same_data(dataset: &Path, meta: &pdcal_dataset::DatasetMeta, out: &Path) -> Result<()> {
+    let path = out.join("summary.json");
+    let Ok(bytes) = std::fs::read(&path) else {
+        return Ok(());
+    };
+    let summary: serde_json::Value = serde_json::from_slice(&bytes).with_context(|| {
+        format!(
+            "{}: not the summary.json of pdcal calibrate",
+            path.display()
+        )
+    })?;
+    // One set: the summary's own name and epoch; several: each set's.
+    let sets: Vec<serde_json::Value> = match summary["datasets"].as_array() {
+        Some(sets) => sets.clone(),
+        None if summary["epoch_utc"].is_string() => vec![serde_json::json!({
+            "name": summary["dataset"],
+            "epoch_utc": summary["epoch_utc"],
+        })],
+        None => return Ok(()),
+    };
+    let epoch = meta.epoch_utc.epoch();
+    let same = |set: &serde_json::Value| {
+        set["name"].as_str() == Some(meta.name.as_str())
+            && set["epoch_utc"]
+                .as_str()
+                .and_then(|e| pdcal_dataset::EpochUtc::parse(e).ok())
+                .is_some_and(|e| e.epoch() == epoch)
+    };
+    if sets.is_empty() || sets.iter().any(same) {
+        return Ok(());
+    }
+    let made_from: Vec<String> = (sets.iter())
+        .map(|set| {
+            format!(
+                "{} (epoch {})",
+                pdcal_text::quote(set["name"].as_str().unwrap_or("?")),
+                pdcal_text::clip(set["epoch_utc"].as_str().unwrap_or("?"))
+            )
+        })
+        .collect();
+    bail!(
+        "{}: the calibration in {} was made from {}, not from this data set {} (epoch {}): another data set's truth describes other times, so its errors would be meaningless; evaluate against the data set the calibration read",
+        dataset.display(),
+        out.display(),
+        made_from.join(", "),
+        pdcal_text::quote(&meta.name),
+        meta.epoch_utc.as_str()
+    )
 }
 
 /// [`evaluate`] of the calibration outputs in `out` (`calibration.ron`, `estimates.csv`,

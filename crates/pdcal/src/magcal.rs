@@ -102,6 +102,10 @@ pub struct MagCalSummary {
     pub rejected_rows: Vec<usize>,
     /// `rejected_rows` holds fewer than `rows_rejected`.
     pub rejected_rows_truncated: bool,
+    /// The first [`REJECTED_ROWS_LISTED`] rows screened out before the fit (a current
+    /// impossible for its column's history, a magnitude no calibration explains), with the
+    /// cause; they are among `rejected_rows`.
+    pub rows_screened: Vec<ScreenedRecord>,
     /// Every regressor tested.
     pub regressors: Vec<RegressorRecord>,
     /// Forms of `T` the data did not determine (fallen back from).
@@ -110,6 +114,15 @@ pub struct MagCalSummary {
     pub warnings: Vec<String>,
     /// [`CONVENTION`].
     pub convention: &'static str,
+}
+
+/// A row screened out before the fit.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ScreenedRecord {
+    /// 0-based telemetry row.
+    pub row: usize,
+    /// The column and its value against the column's history.
+    pub cause: String,
 }
 
 /// Before and after.
@@ -205,7 +218,7 @@ fn held_currents(telemetry: &Telemetry) -> Vec<Option<Vec<f64>>> {
 
 /// `pdcal magcal DATASET --out OUT` (`--force` as the other commands).
 pub fn run_dir_forced(dataset: &Path, out: &Path, force: bool) -> Result<MagCalOutcome> {
-    let dir = OutputDir::create_forced(out, "magcal", force)?;
+    let dir = OutputDir::create_reading(out, "magcal", force, &[dataset])?;
     let meta = pdcal_dataset::read_meta(dataset)?;
     let telemetry = pdcal_dataset::read_telemetry(dataset, &meta)?;
     let outcome = run(&meta, &telemetry)?;
@@ -248,14 +261,19 @@ pub fn write_outputs(
     dir.commit()
 }
 
-/// Every row the outlier gate rejected: `row` (0-based telemetry row) and `t_s`.
+/// Every rejected row: `row` (0-based telemetry row), `t_s` and `cause` (`gate` for the
+/// outlier gate, else the screening's reason, quoted).
 fn rejected_rows_csv(outcome: &MagCalOutcome) -> String {
-    let mut text = String::from("row,t_s\n");
-    for &row in &outcome.calibration.rejected_rows {
+    let cal = &outcome.calibration;
+    let mut text = String::from("row,t_s,cause\n");
+    for &row in &cal.rejected_rows {
         let t_s = (outcome.samples.iter())
             .find(|s| s.row == row)
             .map_or(f64::NAN, |s| s.t_s);
-        text.push_str(&format!("{row},{t_s}\n"));
+        let cause = (cal.screened.iter().find(|r| r.row == row)).map_or("gate".to_owned(), |r| {
+            format!("\"{}\"", r.cause.replace('"', "\"\""))
+        });
+        text.push_str(&format!("{row},{t_s},{cause}\n"));
     }
     text
 }
@@ -355,6 +373,7 @@ fn from_file(file: &MagCalFile) -> Result<MagCalibration> {
     if file.covariance.len() != n || file.covariance.iter().any(|r| r.len() != n) {
         bail!("covariance is not {n} x {n} (one row and column per parameter)");
     }
+    check_numbers(file)?;
     let covariance = DMatrix::from_fn(n, n, |i, j| file.covariance[i][j]);
     let matrix = Matrix3::from_fn(|a, b| file.matrix[a][b]);
     let regressors = (file.current_bias_nt_per_a.iter())
@@ -368,6 +387,58 @@ fn from_file(file: &MagCalFile) -> Result<MagCalibration> {
         covariance,
     )
     .context("the matrix is singular or the covariance does not match the parameters")
+}
+
+/// Refuses a magcal.ron whose numbers no calibration has: a value that is not finite, a
+/// variance that is not positive, a covariance that is not symmetric, a noise that is not
+/// positive, or a matrix and biases no magnetometer has ([`pdcal_magcal::not_physical`]).
+fn check_numbers(file: &MagCalFile) -> Result<()> {
+    let values = (file.matrix.iter().flatten())
+        .chain(&file.bias_nt)
+        .chain(file.current_bias_nt_per_a.iter().flat_map(|(_, c)| c));
+    if let Some(v) = values.clone().find(|v| !v.is_finite()) {
+        bail!(
+            "the matrix or a bias holds {}, not a number",
+            pdcal_text::number(*v)
+        );
+    }
+    for (i, row) in file.covariance.iter().enumerate() {
+        let name = &file.parameters[i];
+        let variance = row[i];
+        if !(variance.is_finite() && variance > 0.0) {
+            bail!(
+                "the variance of {} is {}: a variance is a positive number",
+                pdcal_text::quote(name),
+                pdcal_text::number(variance)
+            );
+        }
+        for (j, v) in row.iter().enumerate() {
+            let mirror = file.covariance[j][i];
+            if !v.is_finite() || (v - mirror).abs() > 1e-9 * (v.abs() + mirror.abs()) {
+                bail!(
+                    "covariance row {} column {}: {} against {} across the diagonal (a covariance is symmetric and finite)",
+                    i + 1,
+                    j + 1,
+                    pdcal_text::number(*v),
+                    pdcal_text::number(mirror)
+                );
+            }
+        }
+    }
+    if !(file.noise_sigma_nt.is_finite() && file.noise_sigma_nt > 0.0) {
+        bail!(
+            "noise_sigma_nT is {}: a noise sigma is a positive number of nT",
+            pdcal_text::number(file.noise_sigma_nt)
+        );
+    }
+    let coeffs: Vec<(String, Vector3<f64>)> = (file.current_bias_nt_per_a.iter())
+        .map(|(name, c)| (pdcal_text::quote(name), Vector3::from(*c)))
+        .collect();
+    let matrix = Matrix3::from_fn(|a, b| file.matrix[a][b]);
+    if let Some(why) = pdcal_magcal::not_physical(&matrix, &Vector3::from(file.bias_nt), &coeffs) {
+        bail!("not a magnetometer calibration: {why}");
+    }
+    Ok(())
 }
 
 fn rows3(m: &Matrix3<f64>) -> [[f64; 3]; 3] {
@@ -432,6 +503,12 @@ pub fn summary_of(outcome: &MagCalOutcome) -> MagCalSummary {
         rows_rejected: cal.rejected_rows.len(),
         rejected_rows: (cal.rejected_rows.iter().take(REJECTED_ROWS_LISTED).copied()).collect(),
         rejected_rows_truncated: cal.rejected_rows.len() > REJECTED_ROWS_LISTED,
+        rows_screened: (cal.screened.iter().take(REJECTED_ROWS_LISTED))
+            .map(|r| ScreenedRecord {
+                row: r.row,
+                cause: r.cause.clone(),
+            })
+            .collect(),
         regressors: records(cal),
         matrix_forms_not_determined: cal.forms_not_determined.clone(),
         warnings: outcome.warnings.clone(),

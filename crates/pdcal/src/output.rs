@@ -79,6 +79,18 @@ impl OutputDir {
         })
     }
 
+    /// [`OutputDir::create_forced`] for a command that reads `inputs`: an `out` that is or
+    /// holds one of them is refused first, since publishing would replace the input.
+    pub fn create_reading(
+        target: &Path,
+        command: &'static str,
+        force: bool,
+        inputs: &[&Path],
+    ) -> Result<Self> {
+        refuse_inputs_inside(target, inputs)?;
+        Self::create_forced(target, command, force)
+    }
+
     /// Where to write the files before commit.
     pub fn path(&self) -> &Path {
         self.publication.path()
@@ -103,6 +115,27 @@ impl OutputDir {
         self.publication.publish(&rule)?;
         Ok(())
     }
+}
+
+/// Refuses an `out` that is, or contains, one of `inputs` (both resolved through links, so
+/// `OUT/dataset` and a link to it are alike); an `out` that does not exist holds nothing.
+pub fn refuse_inputs_inside(out: &Path, inputs: &[&Path]) -> Result<()> {
+    let Ok(out_real) = fs::canonicalize(out) else {
+        return Ok(());
+    };
+    for input in inputs {
+        let Ok(input_real) = fs::canonicalize(input) else {
+            continue;
+        };
+        if input_real.starts_with(&out_real) {
+            bail!(
+                "--out {} holds the input {}: writing the output would replace it; choose an --out outside the input",
+                pdcal_text::clip(&out.display().to_string()),
+                pdcal_text::clip(&input.display().to_string())
+            );
+        }
+    }
+    Ok(())
 }
 
 /// For the fault-injection tests: with `PDCAL_TEST_PAUSE_BEFORE_PUBLISH_MS` set, waits that

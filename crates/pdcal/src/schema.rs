@@ -27,6 +27,9 @@ pub struct Summary {
     pub format_version: u32,
     /// Dataset name from dataset.ron.
     pub dataset: String,
+    /// Its epoch (the earliest set's, with several): with `dataset`, what `evaluate` checks
+    /// it is given the data set the calibration read.
+    pub epoch_utc: String,
     /// Mode the filter ran in: `full`, `photodiode-only` or `scale-only` ([`mode_name`]).
     pub mode: &'static str,
     /// Whether magnetometer updates were made.
@@ -454,6 +457,7 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
     Summary {
         format_version: OUTPUT_FORMAT_VERSION,
         dataset: meta.name.clone(),
+        epoch_utc: meta.epoch_utc.as_str().to_owned(),
         mode: mode_name(run.mode),
         magnetometer_used: magnetometer_used(run.mode),
         attitude_observed: attitude_observed(run.mode),

@@ -357,7 +357,13 @@ fn a_silent_gyro_ends_its_segment() {
     for k in 3000..3060 {
         silent.gyro_rad_s.set(k, None);
     }
-    let run = run_checked(&silent, &|_| true, &forward_only(), |_, _| {});
+    // The gyro-driven filter's rule (with the inertia and `dynamics: Auto` the dynamics
+    // would carry the attitude through the silence instead).
+    let gyro_driven = FilterConfig {
+        dynamics: pdcal_filter::Dynamics::Off,
+        ..forward_only()
+    };
+    let run = run_checked(&silent, &|_| true, &gyro_driven, |_, _| {});
     let ended: Vec<&SegmentReport> = run
         .segments
         .iter()

@@ -1,6 +1,7 @@
 //! One test binary for the driver's integration tests: the `pdcal` binary run on files, as a user runs it: each module is one file of
 //! tests, linked once instead of once per file.
 
+mod absent_sensors;
 mod bias_per_set;
 mod common;
 mod consistency_verdict;
@@ -12,6 +13,7 @@ mod input_checks;
 mod joint_sets;
 mod mag_align_photodiodes;
 mod magcal_command;
+mod magcal_reliability;
 mod mounting_findings;
 mod never_held;
 mod onboard_commands;
