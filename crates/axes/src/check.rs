@@ -147,6 +147,19 @@ pub struct AxesCheck {
     pub finding: Option<Finding>,
     /// The sensors whose axes were not checked, with the reason.
     pub not_checked: Vec<NotChecked>,
+    /// The checks that had enough data, with their residual counts.
+    pub checks: Vec<CheckCount>,
+    /// When the stated axes fit best: by how much the next hypothesis loses, nats.
+    pub stated_margin_nats: Option<f64>,
+}
+
+/// One check that ran.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CheckCount {
+    /// `gyro-magnetometer`, `gyro-photodiodes` or `magnetometer-photodiodes`.
+    pub name: &'static str,
+    /// Residuals used.
+    pub samples: usize,
 }
 
 /// One hypothesis: one sensor's matrix, the others as stated.
@@ -306,10 +319,20 @@ fn decide(
     let runner_up = order
         .get(1)
         .map_or(f64::INFINITY, |&k| costs[k] - costs[best]);
-    let mut result = AxesCheck::default();
+    let mut result = AxesCheck {
+        checks: (0..3)
+            .filter(|&j| !all[0][j].is_empty())
+            .map(|j| CheckCount {
+                name: CHECK_NAMES[j],
+                samples: all[0][j].len(),
+            })
+            .collect(),
+        ..AxesCheck::default()
+    };
     let best_h = hypotheses[best];
     match best_h.sensor {
         None => {
+            result.stated_margin_nats = runner_up.is_finite().then_some(runner_up);
             if runner_up < thresholds.finding_nats {
                 let rival = hypotheses[order[1]];
                 let sensor = rival.sensor.unwrap_or(Sensor::Gyro);

@@ -33,6 +33,8 @@ mod kinematics;
 mod permutation;
 mod sun;
 
-pub use check::{AxesCheck, Evidence, Finding, Inputs, NotChecked, Sensor, Thresholds, check};
+pub use check::{
+    AxesCheck, CheckCount, Evidence, Finding, Inputs, NotChecked, Sensor, Thresholds, check,
+};
 pub use permutation::{SIGNED_PERMUTATIONS, signed_permutations};
 pub use sun::photodiode_sun;

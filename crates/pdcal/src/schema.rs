@@ -105,6 +105,9 @@ pub struct Summary {
     /// Sensors whose axes the data found other than stated, one entry per finding (empty
     /// when none), each applied to the data before calibrating ([`crate::axes`]).
     pub sensor_axes: Vec<crate::axes::SensorAxesEntry>,
+    /// What the sensor-axes check tested: each check with its residual count, and by how
+    /// much the next hypothesis lost to the stated axes (nats) when they fit best.
+    pub sensor_axes_checked: SensorAxesChecked,
     /// The one rotation that carries the nominal normals onto the calibrated ones, fitted
     /// to the photodiodes whose normals the data moved, with its sigma and whether it is a
     /// finding (`pdcal_filter::common_rotation`); null when fewer than 4 were.
@@ -514,6 +517,10 @@ pub fn summary(meta: &DatasetMeta, outcome: &Outcome) -> Summary {
         repeatability: outcome.repeatability.clone(),
         mounting_findings: outcome.mountings.clone(),
         sensor_axes: crate::axes::entries(&outcome.axes),
+        sensor_axes_checked: SensorAxesChecked {
+            checks: outcome.axes.checks.clone(),
+            stated_margin_nats: outcome.axes.stated_margin_nats,
+        },
         normals_rotation,
         normals_rotation_not_fitted,
         reported,
@@ -911,6 +918,16 @@ fn counts_json(run: &CalibrationRun) -> serde_json::Value {
         "photodiode": class(&run.counts.photodiode),
         "magnetometer": class(&run.counts.magnetometer),
     })
+}
+
+/// `summary.json` `sensor_axes_checked`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SensorAxesChecked {
+    /// The checks that had enough data.
+    pub checks: Vec<pdcal_axes::CheckCount>,
+    /// The next hypothesis's loss to the stated axes, nats (null when a hypothesis fit
+    /// better than the stated axes).
+    pub stated_margin_nats: Option<f64>,
 }
 
 /// Everything a calibration produces, in memory.
