@@ -114,8 +114,13 @@ pub fn corrected<'a>(
     (Cow::Owned(meta), Cow::Owned(telemetry))
 }
 
-/// `summary.json` `sensor_axes`: one entry per finding.
+/// `summary.json` `sensor_axes`: one entry per finding, applied.
 pub fn entries(result: &AxesCheck) -> Vec<SensorAxesEntry> {
+    entries_applied(result, true)
+}
+
+/// One entry per finding, `applied` as given.
+pub fn entries_applied(result: &AxesCheck, applied: bool) -> Vec<SensorAxesEntry> {
     result
         .finding
         .iter()
@@ -123,7 +128,7 @@ pub fn entries(result: &AxesCheck) -> Vec<SensorAxesEntry> {
             sensor: f.sensor.as_str(),
             body_from_sensor: f.body_from_sensor,
             evidence: f.evidence.clone(),
-            applied: true,
+            applied,
         })
         .collect()
 }
@@ -151,6 +156,15 @@ pub fn message(finding: &Finding) -> String {
         e.log_odds_nats,
         e.runner_up_nats,
         fix_text(finding)
+    )
+}
+
+/// The warning of a finding `magcal` reports without applying it.
+pub fn message_not_applied(finding: &Finding) -> String {
+    message(finding).replace(
+        "the data were corrected with it before calibrating",
+        "not applied by magcal (its magnitude fit does not depend on the axes; calibrate \
+         finds and applies them)",
     )
 }
 

@@ -112,6 +112,12 @@ pub struct MagCalSummary {
     pub matrix_forms_not_determined: Vec<MatrixForm>,
     /// Why the result should not be trusted, when the residuals say so (empty otherwise).
     pub warnings: Vec<String>,
+    /// The sensor-axes check ([`crate::axes`]): one entry per finding, `[]` when none; not
+    /// applied here (`applied: false`: the magnitude fit does not depend on the axes), but
+    /// by `calibrate`, which finds them again.
+    pub sensor_axes: Vec<crate::axes::SensorAxesEntry>,
+    /// What the data could not decide of the sensors' axes.
+    pub sensor_axes_not_checked: Vec<String>,
     /// [`CONVENTION`].
     pub convention: &'static str,
 }
@@ -143,8 +149,10 @@ pub struct MagCalOutcome {
     pub samples: Vec<Sample>,
     /// Every candidate regressor's name (the telemetry's current columns).
     pub names: Vec<String>,
-    /// Why the result should not be trusted ([`warnings`]).
+    /// Why the result should not be trusted ([`warnings`]), and the sensor-axes finding.
     pub warnings: Vec<String>,
+    /// The sensor-axes check before the fit.
+    pub axes: pdcal_axes::AxesCheck,
 }
 
 /// The misfit that makes a calibration untrustworthy: the implied noise well beyond the
@@ -174,6 +182,20 @@ pub fn warnings(cal: &MagCalibration, mean_field_nt: f64, hint_nt: Option<f64>) 
 
 /// Calibrates the magnetometer of `meta`/`telemetry`.
 pub fn run(meta: &DatasetMeta, telemetry: &Telemetry) -> Result<MagCalOutcome> {
+    if telemetry.mag_nt.is_none() {
+        bail!("the dataset has no magnetometer columns (mag_x_nT, mag_y_nT, mag_z_nT)");
+    }
+    // The magnetometer's axes against the gyro (and the photodiodes), as `calibrate` checks
+    // them. Reported, not applied: the magnitude fit does not depend on the axes, and
+    // `calibrate --mag-cal` applies this calibration to the samples as recorded, then finds
+    // and applies the same axes itself.
+    let references = pdcal_filter::step_references(meta, telemetry)?;
+    let axes = crate::axes::check(
+        meta,
+        telemetry,
+        &(&references).into(),
+        &pdcal_filter::FilterConfig::default(),
+    )?;
     let Some(mag) = telemetry.mag_nt.as_ref() else {
         bail!("the dataset has no magnetometer columns (mag_x_nT, mag_y_nT, mag_z_nT)");
     };
@@ -192,11 +214,15 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry) -> Result<MagCalOutcome> {
     let mean_field_nt =
         samples.iter().map(|s| s.field_nt).sum::<f64>() / samples.len().max(1) as f64;
     let hint = meta.noise.as_ref().and_then(|n| n.mag_nt);
+    let axes_warnings = axes.finding.iter().map(crate::axes::message_not_applied);
     Ok(MagCalOutcome {
-        warnings: warnings(&calibration, mean_field_nt, hint),
+        warnings: axes_warnings
+            .chain(warnings(&calibration, mean_field_nt, hint))
+            .collect(),
         calibration,
         samples,
         names,
+        axes,
     })
 }
 
@@ -512,6 +538,8 @@ pub fn summary_of(outcome: &MagCalOutcome) -> MagCalSummary {
         regressors: records(cal),
         matrix_forms_not_determined: cal.forms_not_determined.clone(),
         warnings: outcome.warnings.clone(),
+        sensor_axes: crate::axes::entries_applied(&outcome.axes, false),
+        sensor_axes_not_checked: crate::axes::notes(&outcome.axes),
         convention: CONVENTION,
     }
 }

@@ -12,6 +12,7 @@ mod import_command;
 mod input_checks;
 mod joint_sets;
 mod mag_align_photodiodes;
+mod magcal_axes;
 mod magcal_command;
 mod magcal_reliability;
 mod mounting_findings;
