@@ -86,7 +86,7 @@ pub enum Command {
         /// With --mag-cal: how the magnetometer's rotation against the body, which the
         /// field magnitude cannot see, is found: `photodiodes` (solved against a
         /// photodiode-only calibration's attitude and removed when consistent) or `off`.
-        #[arg(long, value_enum, default_value_t = crate::calibrate::MagAlign::Photodiodes)]
+        #[arg(long, value_enum, requires = "mag_cal", default_value_t = crate::calibrate::MagAlign::Photodiodes)]
         mag_align: crate::calibrate::MagAlign,
         /// Replace an earlier output of this command in OUT even where its files were
         /// changed since pdcal wrote them (never files pdcal did not write).

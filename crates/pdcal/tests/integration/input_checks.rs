@@ -408,3 +408,25 @@ fn a_tle_years_from_the_data_is_said() {
         }
     }
 }
+
+/// `--mag-align` acts on a `--mag-cal` file only: given without one, it is refused before
+/// anything is read, instead of silently doing nothing.
+#[test]
+fn mag_align_without_mag_cal_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let o = Command::new(PDCAL)
+        .args([
+            "calibrate",
+            "no-such-dataset",
+            "--mag-align",
+            "off",
+            "--out",
+        ])
+        .arg(tmp.path().join("out"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--mag-cal <MAG_CAL>"), "{stderr}");
+    assert!(!tmp.path().join("out").exists());
+}
