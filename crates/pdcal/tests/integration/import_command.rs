@@ -267,3 +267,28 @@ fn the_map_template_from_the_header_imports_once_filled_in() {
     let meta = std::fs::read_to_string(tmp.path().join("ds/dataset.ron")).unwrap();
     assert!(meta.contains("name: \"export\""), "{meta}");
 }
+
+/// A current's conversion error is placed at the current's own entry in the map, not at
+/// an earlier entry that reads the same export column (here the time).
+#[test]
+fn a_current_error_names_its_own_map_line() {
+    let map = std::fs::read_to_string(fixture("map.ron")).unwrap();
+    let map = map.replacen(
+        "    orbit: Tle(",
+        "    currents: [\n        (name: \"bus\", column: \"time_unix\", unit: \"A\"),\n    ],\n    orbit: Tle(",
+        1,
+    );
+    let line = 1 + map[..map.find("(name: \"bus\"").unwrap()]
+        .matches('\n')
+        .count();
+    let tmp = tempfile::tempdir().unwrap();
+    let map_path = tmp.path().join("map.ron");
+    std::fs::write(&map_path, &map).unwrap();
+    let o = import(&fixture("export.csv"), &map_path, &tmp.path().join("ds"));
+    let e = stderr(&o);
+    assert!(!o.status.success());
+    assert!(
+        e.contains(&format!("(currents[0] of map.ron:{line})")),
+        "{e}"
+    );
+}
