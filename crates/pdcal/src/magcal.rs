@@ -166,6 +166,17 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry) -> Result<MagCalOutcome> {
     };
     let model = pdcal_filter::reference_model(meta, telemetry)?;
     let names: Vec<String> = telemetry.current_a.iter().map(|c| c.name.clone()).collect();
+    // A row needs every current: one column without a sample would leave no row, and the
+    // fit would report too few rows without saying why.
+    if let Some(empty) = (telemetry.current_a.iter()).find(|c| c.values.iter().all(|v| v.is_none()))
+    {
+        bail!(
+            "telemetry.csv: current column {} has no sample: every row of the fit needs each \
+             current column's value (held from its latest sample), so this one leaves none; \
+             remove the column or give its samples",
+            pdcal_text::quote(&format!("cur_{}_A", empty.name))
+        );
+    }
     let held = held_currents(telemetry);
     let mut samples = Vec::new();
     for (row, (m, u)) in mag.iter().zip(held).enumerate() {

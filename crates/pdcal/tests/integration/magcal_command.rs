@@ -127,3 +127,26 @@ fn many_rejected_rows_are_counted_listed_short_and_written_whole() {
     assert_eq!(rows[..listed.len()], listed[..]);
     assert!(spiked.iter().all(|r| rows.contains(r)));
 }
+
+/// A current column without a sample is named as the cause, not reported as "0 usable rows
+/// for 9 parameters".
+#[test]
+fn an_all_empty_current_column_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = tmp.path().join("data");
+    simulated(&data, 3);
+    let meta = pdcal_dataset::read_meta(&data).unwrap();
+    let mut telemetry = pdcal_dataset::read_telemetry(&data, &meta).unwrap();
+    let column = &mut telemetry.current_a[1];
+    let name = format!("cur_{}_A", column.name);
+    column.values.iter_mut().for_each(|v| *v = None);
+    let Err(e) = magcal::run(&meta, &telemetry) else {
+        panic!("calibrated without the rows of {name}");
+    };
+    let e = format!("{e:#}");
+    assert!(
+        e.contains(&format!("current column \"{name}\" has no sample"))
+            && !e.contains("usable rows"),
+        "{e}"
+    );
+}
