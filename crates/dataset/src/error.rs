@@ -56,7 +56,8 @@ pub enum ErrorKind {
     Ron(crate::RonFaultKind),
     /// A TLE line whose checksum (column 69) does not match its digits.
     #[error(
-        "TLE line {line_number} checksum fails: column 69 holds {stated:?}, the digits give {computed}"
+        "TLE line {line_number} checksum fails: {}, the checksum of columns 1-68 is {computed}",
+        checksum_stated(*.stated)
     )]
     BadTleChecksum {
         /// 1 or 2.
@@ -427,4 +428,12 @@ pub(crate) fn io_error(
             source,
         },
     )
+}
+
+/// What column 69 of a TLE line holds, for the checksum message.
+fn checksum_stated(stated: Option<char>) -> String {
+    match stated {
+        Some(c) => format!("column 69 holds {}", quote(&c.to_string())),
+        None => "the line ends before column 69, the checksum digit".to_owned(),
+    }
 }

@@ -52,6 +52,11 @@ struct RawMeta {
     inertia_kg_m2: Option<Inertia>,
 }
 
+/// The principal moments a spacecraft can have, kg m^2: from a chip-sized femtosatellite
+/// (4 g over 3.5 cm: about 1e-6) with a decade of margin, to a space station (about 1e8)
+/// with one. A moment outside is a unit mistake.
+pub const MOMENT_RANGE_KG_M2: [f64; 2] = [1e-7, 1e9];
+
 /// The inertia tensor about the centre of mass, body frame, kg m^2: the three moments and
 /// the three products (`xy = J[0][1]`, the tensor's entry, not its negative); a product left
 /// out is zero.
@@ -95,9 +100,31 @@ impl Inertia {
         }
     }
 
-    /// The rigid body of this tensor: finite, positive definite, principal moments obeying
-    /// the triangle inequality ([`RigidBody::new`]), else why not.
+    /// The rigid body of this tensor: finite, moments within a spacecraft's
+    /// ([`MOMENT_RANGE_KG_M2`]), positive definite, principal moments obeying the triangle
+    /// inequality ([`RigidBody::new`]), else why not, naming the entry at fault.
     pub fn rigid_body(&self) -> Result<RigidBody, String> {
+        let entries = [
+            ("xx", self.xx),
+            ("yy", self.yy),
+            ("zz", self.zz),
+            ("xy", self.xy),
+            ("xz", self.xz),
+            ("yz", self.yz),
+        ];
+        if let Some((name, v)) = entries.iter().find(|(_, v)| !v.is_finite()) {
+            return Err(format!("{name} = {v} is not a finite number"));
+        }
+        let [low, high] = MOMENT_RANGE_KG_M2;
+        if let Some((name, v)) = entries[..3]
+            .iter()
+            .find(|(_, v)| *v > 0.0 && !(low..=high).contains(v))
+        {
+            return Err(format!(
+                "{name} = {v:e} kg m^2 is outside any spacecraft's moments of inertia ({low:e} to \
+                 {high:e} kg m^2): another unit (g cm^2 or g mm^2 as kg m^2)?"
+            ));
+        }
         RigidBody::new(self.matrix()).map_err(|e| e.to_string())
     }
 }

@@ -86,8 +86,11 @@ pub enum PublishErrorKind {
          point does not allow; pass a directory inside it (nothing was changed)"
     )]
     MountPoint,
-    /// The target has no final name (`/`, `..`).
-    #[error("does not name a directory that can be created")]
+    /// The target has no final name (`/`, `.`, `..`).
+    #[error(
+        "names no directory of its own (`/`, `.` or `..`): pdcal replaces its output \
+         directory whole, so give that directory by its name (a path ending in it)"
+    )]
     NoName,
     /// The caller's rule refuses to replace the existing target.
     #[error("{reason}")]
@@ -144,21 +147,50 @@ fn sibling_name(name: &str, kind: &str, pid: u32) -> String {
     format!(".{name}.pdcal-{kind}-{pid}")
 }
 
+/// The most bytes in a file name (Linux's NAME_MAX on ext4, xfs, btrfs, tmpfs).
+const NAME_MAX_BYTES: usize = 255;
+
+/// Bytes the staging, lock and aside names add to the stem: `.`, `.pdcal-staging-` and a
+/// process id of up to 10 digits.
+const SIBLING_EXTRA_BYTES: usize = 1 + 15 + 10;
+
+/// The name the staging, lock and aside files beside `name` are made from: `name` itself,
+/// or for a name too long to take their additions in one file name, its start and a hash
+/// of the whole (`aaaa~3f2c...`), so that every name a file system allows can be an output.
+fn sibling_stem(name: &str) -> String {
+    if name.len() + SIBLING_EXTRA_BYTES <= NAME_MAX_BYTES {
+        return name.to_owned();
+    }
+    // FNV-1a: stable across runs and builds, which the lock name must be.
+    let hash = name.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    });
+    let mut cut = NAME_MAX_BYTES - SIBLING_EXTRA_BYTES - 17;
+    while !name.is_char_boundary(cut) {
+        cut -= 1;
+    }
+    format!("{}~{hash:016x}", &name[..cut])
+}
+
+/// `target`'s final name.
+fn final_name(out: &Path, target: &Path) -> Result<String, PublishError> {
+    Ok((target.file_name())
+        .ok_or_else(|| PublishError::new(out, PublishErrorKind::NoName))?
+        .to_string_lossy()
+        .into_owned())
+}
+
 impl Publication {
     /// Starts a publication into `out`: resolves it, takes its lock, cleans what dead runs
     /// left, applies `may_replace` to an existing `out` and creates the staging directory.
     /// Call it before computing anything, so a bad `out` costs nothing.
     pub fn begin(out: &Path, may_replace: ReplaceRule<'_>) -> Result<Self, PublishError> {
         let target = resolve_target(out)?;
+        let pid = std::process::id();
+        let name = sibling_stem(&final_name(out, &target)?);
         let parent = parent_of(&target);
         refuse_mount_point(&target, &parent)?;
         fs::create_dir_all(&parent).map_err(io_error("create", &parent))?;
-        let name = target
-            .file_name()
-            .ok_or_else(|| PublishError::new(out, PublishErrorKind::NoName))?
-            .to_string_lossy()
-            .into_owned();
-        let pid = std::process::id();
         let lock = parent.join(format!(".{name}.pdcal-lock"));
         take_lock(&lock, &target, pid)?;
         let publication = Self {

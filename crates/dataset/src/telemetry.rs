@@ -213,9 +213,15 @@ fn layout<R: Read>(rows: &CsvRows<'_, R>, meta: &DatasetMeta) -> Result<Layout, 
             }
             current.push(col);
         } else if !known(h) {
+            let hint = match h.is_empty() {
+                true => "; the header has an empty name here: a delimiter at the end of the \
+                         header line, or two in a row"
+                    .to_owned(),
+                false => String::new(),
+            };
             let kind = ErrorKind::UnknownColumn {
                 name: h.clone(),
-                hint: String::new(),
+                hint,
             };
             return Err(rows.header_error(col, kind));
         } else if columns::R.contains(&h.as_str()) && !positions {

@@ -100,6 +100,10 @@ pub fn parse_utc(input: &str) -> Result<Epoch, TimeError> {
         input: input.to_owned(),
         reason,
     };
+    // Checked here: hifitime rolls some fields over (hour 24 is the next day's 00).
+    if let Some(reason) = calendar_fault(year, month, day, [hour, minute, second]) {
+        return Err(invalid(reason));
+    }
     // hifitime folds second 60 onto 59, so a leap second is built as 23:59:59 + 1 s (TAI).
     let leap = second == 60;
     let utc = Epoch::maybe_from_gregorian_utc(
@@ -111,7 +115,9 @@ pub fn parse_utc(input: &str) -> Result<Epoch, TimeError> {
         as_u8(if leap { 59 } else { second })?,
         if leap { 0 } else { nanos },
     )
-    .map_err(|e| invalid(e.to_string()))?;
+    .map_err(|_| {
+        invalid("the date and time are outside what the time library can represent".into())
+    })?;
     let tai = utc.to_time_scale(TimeScale::TAI);
     if !leap {
         return Ok(tai);
@@ -123,6 +129,36 @@ pub fn parse_utc(input: &str) -> Result<Epoch, TimeError> {
         ));
     }
     Ok(tai + Unit::Second + f64::from(nanos) * Unit::Nanosecond)
+}
+
+/// Which field of a date and time that does not exist is wrong, in words (`2011-02 has 28
+/// days, not 30`); `None` when every field is in its range.
+fn calendar_fault(
+    year: i32,
+    month: u32,
+    day: u32,
+    [hour, minute, second]: [u32; 3],
+) -> Option<String> {
+    let leap_year = (year % 4 == 0 && year % 100 != 0) || year % 400 == 0;
+    let days = match month {
+        2 if leap_year => 29,
+        2 => 28,
+        4 | 6 | 9 | 11 => 30,
+        _ => 31,
+    };
+    Some(if !(1..=12).contains(&month) {
+        format!("there is no month {month} (1 to 12)")
+    } else if day == 0 || day > days {
+        format!("{year:04}-{month:02} has {days} days, not {day}")
+    } else if hour > 23 {
+        format!("there is no hour {hour} (0 to 23)")
+    } else if minute > 59 {
+        format!("there is no minute {minute} (0 to 59)")
+    } else if second > 60 {
+        format!("there is no second {second} (0 to 59, 60 in a leap second)")
+    } else {
+        return None;
+    })
 }
 
 /// Formats an epoch as ISO 8601 UTC with microseconds, e.g. `2011-11-04T18:29:44.999808Z`
@@ -235,6 +271,18 @@ mod tests {
             parse_utc("2011-02-30T00:00:00Z"),
             Err(TimeError::Invalid { .. })
         ));
+        // The reason names the field, in words, not the time library's error variant.
+        for (bad, reason) in [
+            ("2011-02-30T00:00:00Z", "2011-02 has 28 days, not 30"),
+            ("2012-02-30T00:00:00Z", "2012-02 has 29 days, not 30"),
+            ("2011-04-31T00:00:00Z", "2011-04 has 30 days, not 31"),
+            ("2011-13-01T00:00:00Z", "there is no month 13 (1 to 12)"),
+            ("2011-00-01T00:00:00Z", "there is no month 0 (1 to 12)"),
+            ("2011-01-01T24:00:00Z", "there is no hour 24 (0 to 23)"),
+        ] {
+            let message = parse_utc(bad).unwrap_err().to_string();
+            assert!(message.ends_with(reason), "{bad}: {message}");
+        }
         assert!(matches!(
             parse_utc("2011-13-01T00:00:00Z"),
             Err(TimeError::Invalid { .. })

@@ -473,13 +473,29 @@ pub fn judge<'a>(
     acc.finish()
 }
 
+/// The robust spread over the noise of a judged channel, when beyond the bound.
+fn spread_beyond(c: &ChannelConsistency) -> Option<f64> {
+    c.robust_over_noise
+        .filter(|&ratio| c.updates >= MIN_JUDGED_UPDATES && ratio > MAX_RMS_NOISE_RATIO)
+}
+
+/// The mean NIS of a judged channel and its band's top, when above it.
+fn nis_beyond(c: &ChannelConsistency) -> Option<(f64, f64)> {
+    let (nis, [_, high]) = (c.nis_mean?, c.nis_band?);
+    (c.held_updates >= MIN_JUDGED_UPDATES && nis > high).then_some((nis, high))
+}
+
+/// The fraction of a judged channel's held updates inside 3 sigma, when too low.
+fn inside_too_few(c: &ChannelConsistency) -> Option<f64> {
+    let fraction = c.fraction_within_3sigma?;
+    (c.held_updates >= MIN_JUDGED_UPDATES && too_many_outside(c.held_updates, fraction))
+        .then_some(fraction)
+}
+
 /// What is wrong with one channel's figures, one sentence each.
 fn channel_problems(c: &ChannelConsistency) -> Vec<String> {
     let mut out = Vec::new();
-    if c.updates >= MIN_JUDGED_UPDATES
-        && let Some(ratio) = c.robust_over_noise
-        && ratio > MAX_RMS_NOISE_RATIO
-    {
+    if let Some(ratio) = spread_beyond(c) {
         out.push(format!(
             "{}: residuals {ratio:.1} times the noise {:.3e} (robust spread; RMS {:.3e}; \
              bound {MAX_RMS_NOISE_RATIO})",
@@ -488,20 +504,14 @@ fn channel_problems(c: &ChannelConsistency) -> Vec<String> {
             c.residual_rms.unwrap_or(f64::NAN),
         ));
     }
-    if let (Some(nis), Some([_, high])) = (c.nis_mean, c.nis_band)
-        && c.held_updates >= MIN_JUDGED_UPDATES
-        && nis > high
-    {
+    if let Some((nis, high)) = nis_beyond(c) {
         out.push(format!(
             "{}: mean normalised innovation squared {nis:.2} above its 99.9 % band (<= \
              {high:.2}): innovations larger than the filter predicts",
             c.channel
         ));
     }
-    if let Some(fraction) = c.fraction_within_3sigma
-        && c.held_updates >= MIN_JUDGED_UPDATES
-        && too_many_outside(c.held_updates, fraction)
-    {
+    if let Some(fraction) = inside_too_few(c) {
         out.push(format!(
             "{}: {:.2} % of the residuals of held rows inside 3 sigma (a Gaussian gives \
              99.73 %)",
@@ -510,6 +520,94 @@ fn channel_problems(c: &ChannelConsistency) -> Vec<String> {
         ));
     }
     out
+}
+
+/// A ratio to the noise as a reader takes it in: `32`, `3.4`.
+fn times(ratio: f64) -> String {
+    match ratio >= 10.0 {
+        true => format!("{ratio:.0}"),
+        false => format!("{ratio:.1}"),
+    }
+}
+
+/// The verdict's main reason in a few words, from the figures: the largest spread beyond
+/// the bound (a sensor class before its photodiodes), else innovations above their band,
+/// else too few residuals inside 3 sigma, else contradicted samples; else the first reason
+/// up to its first bracket or semicolon.
+fn main_reason(c: &Consistency) -> Option<String> {
+    let classes_first = [&c.sensors, &c.photodiodes];
+    let worst_spread = classes_first.iter().find_map(|channels| {
+        channels
+            .iter()
+            .filter_map(|ch| spread_beyond(ch).map(|r| (ch, r)))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+    });
+    if let Some((ch, ratio)) = worst_spread {
+        return Some(format!(
+            "{} residuals {} times the noise",
+            ch.channel,
+            times(ratio)
+        ));
+    }
+    let all = || c.sensors.iter().chain(&c.photodiodes);
+    if let Some((ch, (nis, _))) = all().find_map(|ch| nis_beyond(ch).map(|x| (ch, x))) {
+        return Some(format!(
+            "{} innovations {} times the variance the filter predicts",
+            ch.channel,
+            times(nis)
+        ));
+    }
+    if let Some((ch, f)) = all().find_map(|ch| inside_too_few(ch).map(|x| (ch, x))) {
+        return Some(format!(
+            "{} residuals: {:.1} % inside 3 sigma, not 99.7 %",
+            ch.channel,
+            100.0 * f
+        ));
+    }
+    if let Some(ch) = c
+        .photodiodes
+        .iter()
+        .find(|p| p.contradicted >= MIN_JUDGED_UPDATES)
+    {
+        return Some(format!(
+            "{} read more light than it could get in {} samples",
+            ch.channel, ch.contradicted
+        ));
+    }
+    let first = c.reasons.first()?;
+    let cut = first.find([';', '(']).unwrap_or(first.len());
+    Some(first[..cut].trim_end().to_owned())
+}
+
+impl Consistency {
+    /// The verdict in one short line with its main reason (`inconsistent: photodiode
+    /// residuals 32 times the noise`), and how many more reasons there are; a consistent
+    /// run says how far its sensor classes' residuals are from their noise.
+    pub fn headline(&self) -> String {
+        let verdict = self.verdict.as_str();
+        if self.verdict == Verdict::Consistent {
+            let spreads: Vec<String> = (self.sensors.iter())
+                .filter_map(|ch| {
+                    let ratio = ch.robust_over_noise.filter(|_| ch.updates > 0)?;
+                    Some(format!(
+                        "{} residuals {} times the noise",
+                        ch.channel,
+                        times(ratio)
+                    ))
+                })
+                .collect();
+            return match spreads.is_empty() {
+                true => verdict.to_owned(),
+                false => format!("{verdict}: {}", spreads.join(", ")),
+            };
+        }
+        let main = main_reason(self).unwrap_or_else(|| "no reason recorded".to_owned());
+        match self.reasons.len() {
+            0 | 1 => format!("{verdict}: {main}"),
+            2 => format!("{verdict}: {main} (and one more reason)"),
+            n => format!("{verdict}: {main} (and {} more reasons)", n - 1),
+        }
+    }
 }
 
 /// A sentence when a photodiode has at least [`MIN_JUDGED_UPDATES`] samples that read more
@@ -703,6 +801,14 @@ mod tests {
         let c = judge(&records, 3, 0.005, 300.0);
         assert_eq!(c.verdict, Verdict::Inconsistent);
         assert!(c.reasons[0].contains("times the noise"), "{:?}", c.reasons);
+        // The verdict in a line: the sensor class's spread, not a photodiode's, and how
+        // many more reasons there are.
+        let line = c.headline();
+        assert!(
+            line.starts_with("inconsistent: photodiode residuals ") && line.len() < 100,
+            "{line}"
+        );
+        assert!(line.contains(" times the noise (and "), "{line}");
         assert!(
             c.photodiodes
                 .iter()

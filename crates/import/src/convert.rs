@@ -246,7 +246,7 @@ pub fn convert_stream<R: Read>(
         let sentinels = Sentinels::of(&[&column.sentinels, &spec.sentinels]);
         channels.push(Channel {
             map_line: (column.first_name())
-                .and_then(|n| locate.column(n))
+                .and_then(|n| locate.column_of(&path, n))
                 .map(|o| map.line_of(o)),
             label: column.label(),
             path,

@@ -56,6 +56,7 @@ mod convert;
 mod error;
 mod map;
 mod source;
+mod template;
 mod timeform;
 mod units;
 
@@ -66,5 +67,6 @@ pub use map::{
     PhotodiodeColumn, PositionFrame, TimeColumn, VectorColumns, parse_map,
 };
 pub use pdcal_dataset::FileFaultKind;
+pub use template::map_template;
 pub use timeform::{PLAUSIBLE_UTC, TimeForm};
 pub use units::Quantity;

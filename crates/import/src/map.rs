@@ -1004,6 +1004,18 @@ impl Locator<'_> {
         self.names.get(name).copied()
     }
 
+    /// Byte offset of the literal `"name"` of the column at field path `path`
+    /// (`currents[2]`, `gyro.x`): the first after the map's top-level key of its section
+    /// (`currents:`), so that a column an earlier section also reads is placed in its own;
+    /// else the first anywhere ([`Self::column`]).
+    pub(crate) fn column_of(&self, path: &str, name: &str) -> Option<usize> {
+        let section = path.split(['[', '.']).next().unwrap_or(path);
+        let quoted = format!("\"{name}\"");
+        self.top_level_key(section)
+            .and_then(|from| Some(from + self.text.get(from..)?.find(&quoted)?))
+            .or_else(|| self.column(name))
+    }
+
     /// Byte offset of a column spec given by its field path (`photodiodes[3]`: its
     /// `azimuth_deg:`; `gyro.x`: the `x:` after `gyro:`), for a spec that names no column.
     fn key_path(&self, path: &str) -> Option<usize> {

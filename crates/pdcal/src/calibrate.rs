@@ -196,7 +196,7 @@ pub fn run_with_references(
     };
     let start = Instant::now();
     let run = pdcal_filter::calibrate(&inputs, &config.filter, &config.mode)
-        .context("calibration filter")?;
+        .with_context(|| filter_failed(&warnings))?;
     let runtime_s = start.elapsed().as_secs_f64();
     let sun_vector = crate::sunvec::metrics(
         meta,
@@ -277,6 +277,18 @@ fn check_sets(sets: &[(PathBuf, DatasetMeta, Telemetry)]) -> Result<Vec<String>>
         warnings.extend(crate::checks::orbit_age(meta, telemetry, &dataset_ron));
     }
     Ok(warnings)
+}
+
+/// The context of a failed filter run: the input's warnings so far (a TLE years from the
+/// data puts every row in eclipse), which a failure would otherwise lose.
+fn filter_failed(warnings: &[String]) -> String {
+    match warnings.is_empty() {
+        true => "calibration filter".to_owned(),
+        false => format!(
+            "calibration filter (the input's warnings, which may say why: {})",
+            warnings.join("; ")
+        ),
+    }
 }
 
 /// Rows up to which [`run_dirs`] computes the references once and stores them (176 bytes
@@ -497,7 +509,7 @@ pub fn run_sets(
     // Prepared (screened) once, here: the mounting check, the Sun-vector metrics and the
     // figures read the telemetry the filter reads, and never see a wild sample.
     let mut prepared = Prepared::new(&meta, Cow::Owned(joint.telemetry), &config.filter)
-        .context("calibration filter")?;
+        .with_context(|| filter_failed(&warnings))?;
     let albedo = albedo_model()?;
     let reference_model = pdcal_filter::reference_model(&meta, prepared.telemetry())?;
     let stored = match joint.references {
@@ -564,7 +576,7 @@ pub fn run_sets(
         smoother_block_rows(meta.photodiodes.len()),
         &mut sink,
     )
-    .context("calibration filter")?;
+    .with_context(|| filter_failed(&warnings))?;
     let runtime_s = start.elapsed().as_secs_f64();
     let streamed = sink.finish()?;
     run.forward = streamed.forward_sample;

@@ -249,14 +249,20 @@ pub fn orbit_age(
     let span_s = telemetry.t_s.last().copied().unwrap_or(0.0);
     let end = start + hifitime::Unit::Second * span_s;
     let days = |t: hifitime::Epoch| (t - tle.epoch()).to_seconds().abs() / 86_400.0;
-    let age = days(start).max(days(end));
+    // The row farther from the TLE is the one quoted.
+    let (age, row, at) = match days(end) > days(start) {
+        true => (days(end), "last row", end),
+        false => (days(start), "first row", start),
+    };
+    let utc = pdcal_ephem::time::format_utc;
     (age > MAX_TLE_AGE_DAYS).then(|| {
         format!(
-            "{name}: the TLE's epoch {} lies {age:.0} days from the data (first row {start}): \
+            "{name}: the TLE's epoch {} lies {age:.0} days from the data ({row} {}): \
              elements that old put the spacecraft anywhere along its orbit, so the eclipses \
              and the albedo's footprint are not the data's; a gap of years is a time column \
              read in the wrong scale or epoch (see the map's `time`)",
-            tle.epoch()
+            utc(tle.epoch()),
+            utc(at)
         )
     })
 }

@@ -50,11 +50,16 @@ pub enum Command {
         /// The export, CSV with a header row.
         source: PathBuf,
         /// The column map (RON): time form, columns and units, mounting, orbit, sentinels.
-        #[arg(long)]
-        map: PathBuf,
+        #[arg(long, required_unless_present = "print_map_template")]
+        map: Option<PathBuf>,
         /// Output dataset directory.
-        #[arg(long)]
-        out: PathBuf,
+        #[arg(long, required_unless_present = "print_map_template")]
+        out: Option<PathBuf>,
+        /// Print a column map to start from, made from SOURCE's header (each column with its
+        /// first value; time, gyro and magnetometer guessed from their names, every other
+        /// column a commented-out photodiode entry), and import nothing.
+        #[arg(long, conflicts_with_all = ["map", "out", "force"])]
+        print_map_template: bool,
         /// Replace an earlier output of this command in OUT even where its files were
         /// changed since pdcal wrote them (never files pdcal did not write).
         #[arg(long)]
@@ -81,7 +86,7 @@ pub enum Command {
         /// With --mag-cal: how the magnetometer's rotation against the body, which the
         /// field magnitude cannot see, is found: `photodiodes` (solved against a
         /// photodiode-only calibration's attitude and removed when consistent) or `off`.
-        #[arg(long, value_enum, default_value_t = crate::calibrate::MagAlign::Photodiodes)]
+        #[arg(long, value_enum, requires = "mag_cal", default_value_t = crate::calibrate::MagAlign::Photodiodes)]
         mag_align: crate::calibrate::MagAlign,
         /// Replace an earlier output of this command in OUT even where its files were
         /// changed since pdcal wrote them (never files pdcal did not write).
@@ -200,10 +205,23 @@ pub fn run(cli: Cli) -> Result<()> {
         }
         Some(Command::Import {
             source,
+            print_map_template: true,
+            ..
+        }) => {
+            print!("{}", crate::import::map_template(&source)?);
+            Ok(())
+        }
+        Some(Command::Import {
+            source,
             map,
             out,
             force,
+            print_map_template: false,
         }) => {
+            // clap requires both without --print-map-template.
+            let (Some(map), Some(out)) = (map, out) else {
+                anyhow::bail!("import needs --map and --out (or --print-map-template)");
+            };
             let imported = crate::import::run_to_dir_forced(&source, &map, &out, force)?;
             for line in crate::import::report_lines(&imported.report) {
                 println!("{line}");

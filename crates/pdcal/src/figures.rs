@@ -433,35 +433,36 @@ pub fn write_index(
     evaluation: Option<&[(String, String)]>,
     figures: &[FigureEntry],
 ) -> Result<()> {
+    let magnitude = &summary.sun_vector_magnitude;
+    let residuals = &summary.residuals;
     let mut rows: Vec<(String, String)> = vec![
         ("dataset".into(), summary.dataset.clone()),
         ("mode".into(), summary.mode.to_owned()),
         (
             "Sun-vector magnitude, initial (mean / std)".into(),
-            format!(
-                "{:.4} / {:.4}",
-                summary.sun_vector_magnitude.initial.mean, summary.sun_vector_magnitude.initial.std
-            ),
+            mean_std_cell(&magnitude.initial),
         ),
         (
             "Sun-vector magnitude, calibrated (mean / std)".into(),
-            format!(
-                "{:.4} / {:.4}",
-                summary.sun_vector_magnitude.calibrated.mean,
-                summary.sun_vector_magnitude.calibrated.std
-            ),
+            mean_std_cell(&magnitude.calibrated),
         ),
         (
             "Sun-direction change, mean (deg)".into(),
-            format!("{:.2}", summary.sun_direction_change_deg.mean),
+            available(summary.sun_direction_change_deg.mean, NO_SUN_VECTOR, |x| {
+                format!("{x:.2}")
+            }),
         ),
         (
             "photodiode residual RMS (V)".into(),
-            format!("{:.4}", summary.residuals.photodiode_rms_V),
+            available(residuals.photodiode_rms_V, NO_RESIDUALS, |x| {
+                format!("{x:.4}")
+            }),
         ),
         (
             "photodiode residuals inside 3-sigma".into(),
-            format!("{:.2} %", 100.0 * summary.residuals.fraction_within_3sigma),
+            available(residuals.fraction_within_3sigma, NO_RESIDUALS, |x| {
+                format!("{:.2} %", 100.0 * x)
+            }),
         ),
         (
             "filter run time (s)".into(),
@@ -498,6 +499,34 @@ pub fn write_index(
         figures,
     )?;
     Ok(())
+}
+
+/// Why the Sun-vector statistics have no sample.
+const NO_SUN_VECTOR: &str = "no row in full Sun with every photodiode in use sampled and the \
+     Sun vector observable (three lit photodiodes in independent directions) with both the \
+     initial and the calibrated parameters";
+
+/// Why the residual statistics have no sample.
+const NO_RESIDUALS: &str = "no photodiode update was made";
+
+/// `x` formatted, or `not available` with `why` where it could not be computed.
+fn available(x: f64, why: &str, format: impl Fn(f64) -> String) -> String {
+    match x.is_finite() {
+        true => format(x),
+        false => format!("not available: {why}"),
+    }
+}
+
+/// A mean and standard deviation, each `not available` with the reason where it could not
+/// be computed.
+fn mean_std_cell(m: &crate::schema::MeanStd) -> String {
+    if !m.mean.is_finite() {
+        return format!("not available: {NO_SUN_VECTOR}");
+    }
+    let std = available(m.std, m.reason.unwrap_or("not finite"), |x| {
+        format!("{x:.4}")
+    });
+    format!("{:.4} / {std}", m.mean)
 }
 
 #[cfg(test)]

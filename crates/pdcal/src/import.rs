@@ -47,6 +47,20 @@ pub fn run_to_dir_forced(source: &Path, map: &Path, out: &Path, force: bool) -> 
     Ok(converted)
 }
 
+/// The column map template of the export `source` (`pdcal import SOURCE
+/// --print-map-template`): only its header and first row are read; a source that is not a
+/// regular file is refused before it is opened (a pipe without a writer would block).
+pub fn map_template(source: &Path) -> Result<String> {
+    let meta =
+        std::fs::metadata(source).with_context(|| format!("cannot read {}", source.display()))?;
+    if !meta.is_file() {
+        anyhow::bail!("cannot read {}: not a regular file", source.display());
+    }
+    let file =
+        std::fs::File::open(source).with_context(|| format!("cannot read {}", source.display()))?;
+    Ok(pdcal_import::map_template(source, file)?)
+}
+
 /// A dataset directory made from the skCUBE flight frames of `fixtures/flight/skcube`
 /// (`adcs_frames.csv` with `skcube.map.ron`) in `out`, as `pdcal import
 /// fixtures/flight/skcube/adcs_frames.csv --map fixtures/flight/skcube/skcube.map.ron --out

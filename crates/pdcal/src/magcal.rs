@@ -201,6 +201,18 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry) -> Result<MagCalOutcome> {
     };
     let model = pdcal_filter::reference_model(meta, telemetry)?;
     let names: Vec<String> = telemetry.current_a.iter().map(|c| c.name.clone()).collect();
+    // A row needs every current: one column without a sample would leave no row, and the
+    // fit would report too few rows without saying why.
+    if let Some(empty) = (telemetry.current_a.iter()).find(|c| c.values.iter().all(|v| v.is_none()))
+    {
+        bail!(
+            "telemetry.csv: current column {} has no sample: every row of the fit needs each \
+             current column's value (held from its latest sample), so this one leaves none; \
+             remove the column or give its samples",
+            pdcal_text::quote(&format!("cur_{}_A", empty.name))
+        );
+    }
+    stuck_axis(mag, meta.noise.as_ref().and_then(|n| n.mag_nt))?;
     let held = held_currents(telemetry);
     let mut samples = Vec::new();
     for (row, (m, u)) in mag.iter().zip(held).enumerate() {
@@ -224,6 +236,29 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry) -> Result<MagCalOutcome> {
         names,
         axes,
     })
+}
+
+/// An error naming a magnetometer axis whose samples span no more than its noise (exactly
+/// one value without a noise hint): a stuck or dead axis, from which no scale can be fitted
+/// (the fit would only say a scale factor was not determined).
+fn stuck_axis(mag: &pdcal_dataset::Vectors, noise_nt: Option<f64>) -> Result<()> {
+    for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+        let values = mag.iter().flatten().map(|m| m[k]);
+        let (low, high) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+        if low.is_finite() && high - low <= noise_nt.unwrap_or(0.0) {
+            bail!(
+                "telemetry.csv: mag_{axis}_nT spans {:.3} nT ({} .. {} nT) over every sample, \
+                 within its noise: a stuck or dead axis (or a spacecraft that never turned), \
+                 from which no scale or bias can be fitted",
+                high - low,
+                pdcal_text::number(low),
+                pdcal_text::number(high)
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Each row's current channels, held from their latest sample; `None` before every channel

@@ -61,38 +61,28 @@ pub fn photodiode_table(summary: &Summary) -> Table {
             ]
         })
         .collect();
-    let scaled = summary
-        .dispersion
-        .filter(|d| d.sigma_factor > 1.0)
-        .map(|d| {
-            format!(
-                "; sigmas multiplied by {:.2}, the residuals' spread after each step over \
-                 the noise",
-                d.sigma_factor
-            )
-        })
-        .unwrap_or_default();
-    let widened = summary
-        .ensemble
-        .as_ref()
-        .map(|e| {
-            format!(
-                "{scaled}; sigmas widened by the spread of {} of {} ensemble runs from other \
-                 starts",
-                e.started, e.runs
-            )
-        })
-        .unwrap_or(scaled);
-    Table::new(
-        &format!(
-            "Photodiodes (calibrated value +- 1 sigma{widened}; nominal: the dataset.ron \
-             mounting, and the maximum output as C; \"not determined\": the data did not \
-             determine it, summary.json and calibration.ron hold the nominal value and say \
-             why)"
-        ),
-        &header,
-        rows,
-    )
+    let mut notes: Vec<String> = Vec::new();
+    if let Some(d) = summary.dispersion.filter(|d| d.sigma_factor > 1.0) {
+        notes.push(format!(
+            "Sigmas multiplied by {:.2}, the residuals' spread after each step over the noise.",
+            d.sigma_factor
+        ));
+    }
+    if let Some(e) = &summary.ensemble {
+        notes.push(format!(
+            "Sigmas widened by the spread of {} of {} ensemble runs from other starts.",
+            e.started, e.runs
+        ));
+    }
+    notes.push("Nominal: the dataset.ron mounting, and the maximum output as C.".to_owned());
+    notes.push(
+        "\"not determined\": the data did not determine it; summary.json and calibration.ron \
+         hold the nominal value and say why."
+            .to_owned(),
+    );
+    Table::new("Photodiodes", &header, rows)
+        .with_caption("Calibrated value +- 1 sigma per photodiode, beside its nominal value")
+        .with_notes(notes)
 }
 
 /// A calibrated cell, or `not determined` where the data did not determine the quantity
@@ -119,7 +109,12 @@ pub fn consistency_table(c: &Consistency) -> Table {
         "held updates",
         "inside 3 sigma (held)",
     ];
-    let opt = |x: Option<f64>, f: &dyn Fn(f64) -> String| x.map_or("-".to_owned(), f);
+    let opt = |x: Option<f64>, f: &dyn Fn(f64) -> String| {
+        x.map_or("not available: no updates".to_owned(), f)
+    };
+    let held = |x: Option<f64>, f: &dyn Fn(f64) -> String| {
+        x.map_or("not available: no held updates".to_owned(), f)
+    };
     let rows = c
         .sensors
         .iter()
@@ -134,26 +129,26 @@ pub fn consistency_table(c: &Consistency) -> Table {
                 opt(ch.robust_over_noise, &|x| format!("{x:.2}")),
                 match (ch.nis_mean, ch.nis_band) {
                     (Some(m), Some([lo, hi])) => format!("{m:.3} [{lo:.3}, {hi:.3}]"),
-                    _ => "-".to_owned(),
+                    _ => "not available: no held updates".to_owned(),
                 },
                 ch.held_updates.to_string(),
-                opt(ch.fraction_within_3sigma, &|x| {
+                held(ch.fraction_within_3sigma, &|x| {
                     format!("{:.2} %", 100.0 * x)
                 }),
             ]
         })
         .collect();
-    let said: Vec<&str> = c
-        .reasons
-        .iter()
-        .chain(&c.notes)
-        .map(String::as_str)
+    let notes = (c.reasons.iter().cloned())
+        .chain(c.notes.iter().map(|n| format!("Note: {n}")))
         .collect();
-    let title = match said.is_empty() {
-        true => format!("Consistency: {}", c.verdict.as_str()),
-        false => format!("Consistency: {} ({})", c.verdict.as_str(), said.join("; ")),
-    };
-    Table::new(&title, &header, rows)
+    Table::new("Consistency", &header, rows)
+        .with_lead(&c.headline())
+        .with_notes(notes)
+        .with_caption(
+            "Residuals per sensor class and per photodiode with updates: their spread against \
+             the noise, the mean NIS against its band and the fraction inside 3 sigma of the \
+             rows with the attitude held",
+        )
 }
 
 /// The segments of the run: rows, time span, rows used, how the attitude was acquired and
@@ -204,11 +199,11 @@ pub fn segment_table(summary: &Summary) -> Table {
             ]
         })
         .collect();
-    let title = format!(
-        "Segments (rows between gaps; propagation: {})",
+    let caption = format!(
+        "Rows between gaps; propagation: {}",
         summary.propagation.describe()
     );
-    Table::new(&title, &header, rows)
+    Table::new("Segments", &header, rows).with_caption(&caption)
 }
 
 /// `table` as aligned plain text, under its title.
@@ -221,7 +216,17 @@ pub fn text(table: &Table) -> String {
         }
     }
     let mut s = String::new();
-    let _ = writeln!(s, "{}", table.title);
+    match &table.lead {
+        Some(lead) => writeln!(s, "{}: {lead}", table.title),
+        None if table.caption != table.title => {
+            writeln!(s, "{} ({})", table.title, table.caption)
+        }
+        None => writeln!(s, "{}", table.title),
+    }
+    .ok();
+    for note in &table.notes {
+        let _ = writeln!(s, "  - {note}");
+    }
     let line = |s: &mut String, cells: &[String]| {
         let padded: Vec<String> = cells
             .iter()
@@ -335,11 +340,14 @@ pub fn repeatability_table(summary: &Summary) -> Option<Table> {
         })
         .collect();
     let header: Vec<&str> = header.iter().map(String::as_str).collect();
-    Some(Table::new(
-        &repeatability_title(r, sets.len()),
-        &header,
-        rows,
-    ))
+    Some(
+        Table::new("Repeatability", &header, rows)
+            .with_lead(&repeatability_title(r, sets.len()))
+            .with_caption(
+                "Each set's own estimate +- 1 sigma, with its normalised difference (z) from \
+                 the other sets",
+            ),
+    )
 }
 
 /// A set's own estimate of a parameter, `+- 1 sigma`, with its normalised difference from

@@ -6,11 +6,20 @@ use std::path::{Path, PathBuf};
 use crate::ReportError;
 use crate::render::{check_stem, write_files_atomically};
 
-/// A table of text cells under a title, for the top of an index page.
+/// A table of text cells in a section of an index page: a short heading, an optional one-line
+/// lead under it (a verdict and its reason), the details as a list, then the table under its
+/// caption.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Table {
-    /// Heading above the table.
+    /// The section's heading: a few words.
     pub title: String,
+    /// One short line under the heading, e.g. `inconsistent: photodiode residuals 32 times
+    /// the noise`.
+    pub lead: Option<String>,
+    /// The details, one sentence each, shown as a list under the lead.
+    pub notes: Vec<String>,
+    /// The table's caption: what a row is, in a line.
+    pub caption: String,
     /// Column names.
     pub header: Vec<String>,
     /// Rows of cells (a row shorter than the header leaves the rest empty).
@@ -18,13 +27,34 @@ pub struct Table {
 }
 
 impl Table {
-    /// A table titled `title` with columns `header`.
+    /// A table titled `title` (also its caption) with columns `header`.
     pub fn new(title: &str, header: &[&str], rows: Vec<Vec<String>>) -> Self {
         Table {
             title: title.to_owned(),
+            lead: None,
+            notes: Vec::new(),
+            caption: title.to_owned(),
             header: header.iter().map(|h| (*h).to_owned()).collect(),
             rows,
         }
+    }
+
+    /// The same with its caption.
+    pub fn with_caption(mut self, caption: &str) -> Self {
+        self.caption = caption.to_owned();
+        self
+    }
+
+    /// The same with a lead line under the heading.
+    pub fn with_lead(mut self, lead: &str) -> Self {
+        self.lead = Some(lead.to_owned());
+        self
+    }
+
+    /// The same with the details listed under the lead.
+    pub fn with_notes(mut self, notes: Vec<String>) -> Self {
+        self.notes = notes;
+        self
     }
 }
 
@@ -99,7 +129,10 @@ where
         push_table(&mut h, table);
     }
     if !rows.is_empty() {
-        h.push_str("<h2>Summary</h2>\n<table>\n");
+        h.push_str(
+            "<h2>Summary</h2>\n<table>\n<caption>The run in figures; a value that could not \
+             be computed says why</caption>\n",
+        );
         for (k, v) in rows {
             let _ = writeln!(
                 h,
@@ -126,7 +159,18 @@ where
 }
 
 fn push_table(h: &mut String, table: &Table) {
-    let _ = writeln!(h, "<h2>{}</h2>\n<table>", escape(&table.title));
+    let _ = writeln!(h, "<section>\n<h2>{}</h2>", escape(&table.title));
+    if let Some(lead) = &table.lead {
+        let _ = writeln!(h, "<p class=\"lead\">{}</p>", escape(lead));
+    }
+    if !table.notes.is_empty() {
+        h.push_str("<ul class=\"notes\">\n");
+        for note in &table.notes {
+            let _ = writeln!(h, "<li>{}</li>", escape(note));
+        }
+        h.push_str("</ul>\n");
+    }
+    let _ = writeln!(h, "<table>\n<caption>{}</caption>", escape(&table.caption));
     let cells = |tag: &str, row: &[String]| -> String {
         row.iter()
             .map(|c| format!("<{tag}>{}</{tag}>", escape(c)))
@@ -136,7 +180,7 @@ fn push_table(h: &mut String, table: &Table) {
     for row in &table.rows {
         let _ = writeln!(h, "<tr>{}</tr>", cells("td", row));
     }
-    h.push_str("</table>\n");
+    h.push_str("</table>\n</section>\n");
 }
 
 const CSS: &str =
@@ -148,6 +192,10 @@ td { font-family: monospace; }
 figure { margin: 0 0 2.5em 0; }
 img { max-width: 100%; height: auto; border: 1px solid #ddd; }
 figcaption { margin-top: 0.4em; }
+caption { caption-side: top; text-align: left; padding-bottom: 0.4em; color: #555; }
+p.lead { font-size: 1.15em; font-weight: bold; margin: 0.3em 0 0.6em 0; }
+ul.notes { margin: 0 0 1em 0; padding-left: 1.4em; max-width: 60em; line-height: 1.4; }
+ul.notes li { margin-bottom: 0.3em; }
 ";
 
 /// Escape text for HTML element content and double-quoted attributes.

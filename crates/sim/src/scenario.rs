@@ -793,8 +793,18 @@ fn check_period(field: &str, period: f64, duration_s: f64) -> Result<(), Scenari
             format!("{} s is not a period of at least 1 us", number(period)),
         ));
     }
-    if duration_s / period > MAX_ROWS {
-        return Err(invalid(field, format!("more than {MAX_ROWS} samples")));
+    let samples = duration_s / period;
+    if samples > MAX_ROWS {
+        // Neither field alone is wrong: both are named.
+        return Err(invalid(
+            "duration_s",
+            format!(
+                "{} s sampled every {} s ({field}) is {samples:.3e} samples, more than \
+                 {MAX_ROWS}: a shorter duration_s or a longer {field}",
+                number(duration_s),
+                number(period)
+            ),
+        ));
     }
     Ok(())
 }
@@ -944,6 +954,15 @@ mod tests {
         let mut s = base.clone();
         s.epoch_utc = "yesterday".into();
         assert_eq!(field_of(s.validate()), "epoch_utc");
+        // Too many samples: the duration, with the period it was sampled at.
+        let mut s = base.clone();
+        s.duration_s = 1e12;
+        let e = s.validate().unwrap_err().to_string();
+        assert_eq!(field_of(s.validate()), "duration_s");
+        assert!(
+            e.contains("1000000000000 s sampled every 1 s (photodiodes.sample_period_s)"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -225,6 +225,20 @@ fn missing_column() {
         "telemetry.csv:1:6 (mag_q_nT): unknown column \"mag_q_nT\""
     );
 
+    // A delimiter at the end of the header: the empty name is said to be one.
+    let mut lines: Vec<String> = TELEMETRY.lines().map(str::to_owned).collect();
+    lines[0].push(',');
+    let text = lines.join("\n") + "\n";
+    let e = fail("telemetry.csv", &text);
+    assert!(
+        shown(&e).ends_with(
+            "unknown column \"\"; the header has an empty name here: a delimiter at the end \
+             of the header line, or two in a row"
+        ),
+        "{}",
+        shown(&e)
+    );
+
     // A truth.csv column.
     let text = TRUTH_CSV.replacen(",eclipse,", ",", 1);
     let e = fail("truth.csv", &text);
@@ -405,7 +419,7 @@ fn bad_tle_checksum() {
     );
     assert_eq!(
         shown(&e),
-        "dataset.ron:6:16 (orbit.line1): TLE line 1 checksum fails: column 69 holds Some('7'), the digits give 8"
+        "dataset.ron:6:16 (orbit.line1): TLE line 1 checksum fails: column 69 holds \"7\", the checksum of columns 1-68 is 8"
     );
 
     // Line 2, inclination 101.7000 -> 101.8000.

@@ -49,7 +49,24 @@ fn unphysical_tensors_are_refused_at_the_field() {
         ("(xx: -1.0, yy: 1.0, zz: 1.0)", "not physical"),
         // Products too large: an eigenvalue below zero.
         ("(xx: 1.0, yy: 1.0, zz: 1.0, xy: 1.5)", "not physical"),
-        ("(xx: 1.0, yy: inf, zz: 1.0)", "non-finite"),
+        (
+            "(xx: 1.0, yy: inf, zz: 1.0)",
+            "yy = inf is not a finite number",
+        ),
+        // The entry at fault is named, not blamed on symmetry.
+        (
+            "(xx: NaN, yy: 1.0, zz: 1.0)",
+            "xx = NaN is not a finite number",
+        ),
+        // A moment no spacecraft has: a unit mistake, not a body to calibrate with.
+        (
+            "(xx: 1e-30, yy: 1e-30, zz: 1e-30)",
+            "xx = 1e-30 kg m^2 is outside any spacecraft's",
+        ),
+        (
+            "(xx: 0.0314, yy: 0.0314, zz: 5e10)",
+            "zz = 5e10 kg m^2 is outside",
+        ),
     ] {
         let e = meta_from_str(&meta_text(tensor)).unwrap_err().to_string();
         assert!(

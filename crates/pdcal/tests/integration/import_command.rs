@@ -207,3 +207,88 @@ fn a_fault_in_the_last_row_of_a_streamed_export_leaves_the_old_dataset() {
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
 }
+
+/// `--print-map-template` prints a map made from the export's header: time, gyro and
+/// magnetometer filled in from the names, a commented-out photodiode entry per other
+/// numeric column, `?` where no name can tell. Given what it leaves open, it imports.
+#[test]
+fn the_map_template_from_the_header_imports_once_filled_in() {
+    let o = Command::new(PDCAL)
+        .args(["import", "--print-map-template"])
+        .arg(fixture("export.csv"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let template = String::from_utf8(o.stdout).unwrap();
+    for line in [
+        "    time: (column: \"time_unix\", form: Unix),",
+        "        x: (column: \"gyro_x_dps\", unit: \"deg/s\"),",
+        "        z: (column: \"mag_z_mG\", unit: \"mG\"),",
+        "        // (column: \"adc_ch00\", unit: ?, azimuth_deg: ?, elevation_deg: ?),",
+        "    orbit: Tle(line1: ?, line2: ?),",
+    ] {
+        assert!(template.contains(line), "no {line:?} in\n{template}");
+    }
+    // Text columns are no photodiode; the header is listed with the first values.
+    assert!(!template.contains("(column: \"mode\""), "{template}");
+    assert!(template.contains("//   \"mode\": \"SCI\""), "{template}");
+
+    // Filled in from the fixture's map: its photodiodes and orbit.
+    let map = std::fs::read_to_string(fixture("map.ron")).unwrap();
+    let photodiodes: String = map
+        .lines()
+        .filter(|l| l.trim_start().starts_with("(column: \"adc_ch"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let orbit_at = map.find("    orbit: Tle(").unwrap();
+    let orbit_end = orbit_at + map[orbit_at..].find("    ),\n").unwrap() + "    ),\n".len();
+    let filled: String = template
+        .lines()
+        .filter(|l| !l.trim_start().starts_with("// (column:"))
+        .map(|l| match l {
+            "    orbit: Tle(line1: ?, line2: ?),   // or Positions(x: .., y: .., z: .., frame: Teme)" => {
+                map[orbit_at..orbit_end].to_owned()
+            }
+            l if l.starts_with("    photodiodes: [") => format!("{l}\n{photodiodes}"),
+            // The export's sentinels, which no header can tell.
+            l if l.starts_with("    time: ") => concat!(
+                "    time: (column: \"time_unix\", form: Unix, sentinels: [-1]),\n",
+                "    sentinels: [65535],\n"
+            )
+            .to_owned(),
+            l => format!("{l}\n"),
+        })
+        .collect();
+    let tmp = tempfile::tempdir().unwrap();
+    let filled_map = tmp.path().join("map.ron");
+    std::fs::write(&filled_map, &filled).unwrap();
+    let o = import(&fixture("export.csv"), &filled_map, &tmp.path().join("ds"));
+    assert!(o.status.success(), "{}\n{filled}", stderr(&o));
+    let meta = std::fs::read_to_string(tmp.path().join("ds/dataset.ron")).unwrap();
+    assert!(meta.contains("name: \"export\""), "{meta}");
+}
+
+/// A current's conversion error is placed at the current's own entry in the map, not at
+/// an earlier entry that reads the same export column (here the time).
+#[test]
+fn a_current_error_names_its_own_map_line() {
+    let map = std::fs::read_to_string(fixture("map.ron")).unwrap();
+    let map = map.replacen(
+        "    orbit: Tle(",
+        "    currents: [\n        (name: \"bus\", column: \"time_unix\", unit: \"A\"),\n    ],\n    orbit: Tle(",
+        1,
+    );
+    let line = 1 + map[..map.find("(name: \"bus\"").unwrap()]
+        .matches('\n')
+        .count();
+    let tmp = tempfile::tempdir().unwrap();
+    let map_path = tmp.path().join("map.ron");
+    std::fs::write(&map_path, &map).unwrap();
+    let o = import(&fixture("export.csv"), &map_path, &tmp.path().join("ds"));
+    let e = stderr(&o);
+    assert!(!o.status.success());
+    assert!(
+        e.contains(&format!("(currents[0] of map.ron:{line})")),
+        "{e}"
+    );
+}

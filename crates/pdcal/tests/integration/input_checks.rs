@@ -407,4 +407,69 @@ fn a_tle_years_from_the_data_is_said() {
             );
         }
     }
+    // Data spanning three years from the TLE's epoch: the row quoted is the far one.
+    let meta = sim().meta.clone();
+    let mut telemetry = telemetry.clone();
+    *telemetry.t_s.last_mut().unwrap() = 3.0 * 365.0 * 86_400.0;
+    let w = pdcal::checks::orbit_age(&meta, &telemetry, "dataset.ron").unwrap();
+    assert!(
+        w.contains("days from the data (last row 2014-11-03T"),
+        "{w}"
+    );
+}
+
+/// A run that fails keeps the input's warnings: with a TLE from 1957, the failure says the
+/// TLE is decades from the data, not only what the filter then met.
+#[test]
+fn a_failed_run_keeps_the_tle_age_warning() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scenario = pdcal_sim::Scenario::from_ron_str(include_str!(
+        "../../../../fixtures/scenarios/weak/pyramid-head.ron"
+    ))
+    .unwrap();
+    let dir = tmp.path().join("ds");
+    pdcal::simulate::run_to_dir(&scenario, 1, &dir).unwrap();
+    let text = fs::read_to_string(dir.join("dataset.ron")).unwrap();
+    let at = text.find("line1: \"").unwrap() + "line1: \"".len();
+    let line1 = &text[at..at + 69];
+    // Epoch year 11 -> 57, and the checksum of columns 1-68 again.
+    let mut moved = format!("{}57{}", &line1[..18], &line1[20..68]);
+    let sum: u32 = moved
+        .chars()
+        .map(|c| c.to_digit(10).unwrap_or(u32::from(c == '-')))
+        .sum();
+    moved.push(char::from_digit(sum % 10, 10).unwrap());
+    fs::write(dir.join("dataset.ron"), text.replace(line1, &moved)).unwrap();
+    let Err(err) = pdcal::calibrate::run_dir(&dir, &tmp.path().join("out"), &RunConfig::default())
+    else {
+        panic!("a TLE from 1957 calibrated");
+    };
+    let text = pdcal::cli::error_text(&err);
+    assert!(
+        text.contains("the input's warnings, which may say why: ")
+            && text.contains("the TLE's epoch 1957-11-04T"),
+        "{text}"
+    );
+}
+
+/// `--mag-align` acts on a `--mag-cal` file only: given without one, it is refused before
+/// anything is read, instead of silently doing nothing.
+#[test]
+fn mag_align_without_mag_cal_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let o = Command::new(PDCAL)
+        .args([
+            "calibrate",
+            "no-such-dataset",
+            "--mag-align",
+            "off",
+            "--out",
+        ])
+        .arg(tmp.path().join("out"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--mag-cal <MAG_CAL>"), "{stderr}");
+    assert!(!tmp.path().join("out").exists());
 }

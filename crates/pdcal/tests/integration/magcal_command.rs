@@ -127,3 +127,50 @@ fn many_rejected_rows_are_counted_listed_short_and_written_whole() {
     assert_eq!(rows[..listed.len()], listed[..]);
     assert!(spiked.iter().all(|r| rows.contains(r)));
 }
+
+/// A current column without a sample is named as the cause, not reported as "0 usable rows
+/// for 9 parameters".
+#[test]
+fn an_all_empty_current_column_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = tmp.path().join("data");
+    simulated(&data, 3);
+    let meta = pdcal_dataset::read_meta(&data).unwrap();
+    let mut telemetry = pdcal_dataset::read_telemetry(&data, &meta).unwrap();
+    let column = &mut telemetry.current_a[1];
+    let name = format!("cur_{}_A", column.name);
+    column.values.iter_mut().for_each(|v| *v = None);
+    let Err(e) = magcal::run(&meta, &telemetry) else {
+        panic!("calibrated without the rows of {name}");
+    };
+    let e = format!("{e:#}");
+    assert!(
+        e.contains(&format!("current column \"{name}\" has no sample"))
+            && !e.contains("usable rows"),
+        "{e}"
+    );
+}
+
+/// A magnetometer axis that reads one value throughout is named as stuck, not reported as
+/// "the scale factor not determined by the data".
+#[test]
+fn a_stuck_axis_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = tmp.path().join("data");
+    simulated(&data, 4);
+    let meta = pdcal_dataset::read_meta(&data).unwrap();
+    let mut telemetry = pdcal_dataset::read_telemetry(&data, &meta).unwrap();
+    let mag = telemetry.mag_nt.as_mut().unwrap();
+    *mag = mag
+        .iter()
+        .map(|m| m.map(|m| nalgebra::Vector3::new(m.x, m.y, -123.0)))
+        .collect();
+    let Err(e) = magcal::run(&meta, &telemetry) else {
+        panic!("calibrated a stuck z axis");
+    };
+    let e = format!("{e:#}");
+    assert!(
+        e.contains("mag_z_nT spans 0.000 nT (-123 .. -123 nT)") && e.contains("stuck or dead axis"),
+        "{e}"
+    );
+}

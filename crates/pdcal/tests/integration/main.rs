@@ -9,6 +9,7 @@ mod dark_offset;
 mod files_contract;
 mod hand_made_dataset;
 mod import_command;
+mod index_page;
 mod input_checks;
 mod joint_sets;
 mod mag_align_photodiodes;

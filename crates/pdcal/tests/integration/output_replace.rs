@@ -221,3 +221,37 @@ fn nothing_the_manifest_does_not_list_is_removed_even_with_force() {
         );
     }
 }
+
+/// `--out .` is refused for what it is, a path with no name of its own, not as a mount
+/// point; a 240-byte name, which the file system allows, is written and replaced (its
+/// staging and lock files beside it take a shortened name).
+#[test]
+fn out_dot_is_named_for_what_it_is_and_a_long_legal_name_is_written() {
+    let tmp = tempfile::tempdir().unwrap();
+    let simulate = |cwd: &Path, out: &str| {
+        Command::new(PDCAL)
+            .current_dir(cwd)
+            .args(["simulate", "--scenario", "sso-6u", "--out", out])
+            .output()
+            .unwrap()
+    };
+    let o = simulate(tmp.path(), ".");
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        stderr.contains(".: names no directory of its own") && !stderr.contains("mount point"),
+        "{stderr}"
+    );
+    let long = "d".repeat(240);
+    for _ in 0..2 {
+        let o = simulate(tmp.path(), &long);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert!(tmp.path().join(&long).join("dataset.ron").is_file());
+    }
+    // Nothing left beside it.
+    let names: Vec<String> = fs::read_dir(tmp.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names, [long]);
+}
