@@ -15,6 +15,17 @@ pub enum FilterError {
         /// What the field must satisfy.
         rule: &'static str,
     },
+    /// A configuration field is out of range by a rule of its own words (a count, a name,
+    /// a sensor noise checked by `pdcal_dataset::rules`); its value as a message shows it.
+    #[error("filter config: {field} = {value}: {rule}")]
+    ConfigValue {
+        /// Field path as in the RON file (`parameter_sigmas[2].name_or_unit`).
+        field: String,
+        /// Offending value, as a message shows it.
+        value: String,
+        /// What the field must satisfy.
+        rule: String,
+    },
     /// A calibration's value breaks the rule every file's value of its kind obeys
     /// (`pdcal_dataset::rules`).
     #[error("calibration: {field} = {value}: {rule}")]

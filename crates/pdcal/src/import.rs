@@ -37,8 +37,10 @@ pub fn run_to_dir_forced(source: &Path, map: &Path, out: &Path, force: bool) -> 
         pdcal_dataset::bounded::read_bounded(map, pdcal_dataset::bounded::MAX_RON_BYTES)
             .with_context(|| format!("cannot read {}", map.display()))?;
     let map = pdcal_import::parse_map(map, &map_bytes)?;
-    let file =
-        std::fs::File::open(source).with_context(|| format!("cannot read {}", source.display()))?;
+    // Only a regular file, refused before it is opened, as every input of `calibrate`: a
+    // FIFO with no writer would block the open, with `out` locked, for ever.
+    let file = pdcal_dataset::bounded::open_regular(source)
+        .with_context(|| format!("cannot read {}", source.display()))?;
     let mut stream = writer.telemetry_stream(pdcal_import::layout(&map))?;
     let converted = pdcal_import::convert_stream(&map, source, file, |row| {
         stream.push(row).map_err(ImportError::from)

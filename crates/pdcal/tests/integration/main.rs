@@ -2,6 +2,7 @@
 //! tests, linked once instead of once per file.
 
 mod bias_per_set;
+mod bounded_inputs;
 mod common;
 mod consistency_verdict;
 mod dark_offset;
