@@ -137,7 +137,11 @@ pub enum ErrorKind {
         empty: String,
     },
     /// `t_s` not strictly increasing.
-    #[error("t_s {value} is not greater than the previous row's {previous}")]
+    #[error(
+        "t_s {} is not greater than the previous row's {}",
+        pdcal_text::number(*.value),
+        pdcal_text::number(*.previous)
+    )]
     TimeNotIncreasing {
         /// The previous row's time.
         previous: f64,

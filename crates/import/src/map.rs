@@ -782,7 +782,8 @@ fn check_currents(map: &Locator<'_>, spec: &MapSpec) -> Result<(), ImportError> 
     for (i, c) in spec.currents.iter().enumerate() {
         let reason = if !pdcal_dataset::is_current_name(&c.name) {
             format!(
-                "{} is not a channel name (a-z, 0-9, _): it becomes the column cur_<name>_A",
+                "{} is not a channel name (1 to 64 of a-z, 0-9, _): it becomes the column \
+                 cur_<name>_A",
                 quote(&c.name)
             )
         } else if !names.insert(c.name.as_str()) {

@@ -505,3 +505,26 @@ fn two_axes_of_one_sensor_never_share_a_column() {
         "{e}"
     );
 }
+
+/// A current's name longer than a file name allows is refused in the map, before any row
+/// is read (it becomes `cur_<name>_A` and `magcal`'s figure of it).
+#[test]
+fn a_current_name_too_long_for_a_file_is_refused_in_the_map() {
+    let named = |name: &str| {
+        map_text(&format!(
+            "    currents: [(name: \"{name}\", column: \"V6\", unit: \"A\")],\n"
+        ))
+    };
+    let longest = "a".repeat(pdcal_dataset::MAX_CURRENT_NAME_CHARS);
+    parse_map(Path::new("map.ron"), named(&longest).as_bytes()).expect("the longest is valid");
+    let e = match parse_map(Path::new("map.ron"), named(&"a".repeat(65)).as_bytes()) {
+        Ok(_) => panic!("accepted"),
+        Err(e) => e.to_string(),
+    };
+    assert!(
+        e.starts_with("map.ron:9:")
+            && e.contains("(currents[0].name): ")
+            && e.contains("is not a channel name (1 to 64 of a-z, 0-9, _)"),
+        "{e}"
+    );
+}

@@ -108,9 +108,10 @@ pub fn join(mut sets: Vec<(PathBuf, DatasetMeta, Telemetry)>) -> Result<Joint> {
             && offset_s + t0 <= end_s
         {
             bail!(
-                "{}: its first row (t_s = {t0} s after {}) is not after the last row of the \
+                "{}: its first row (t_s = {} s after {}) is not after the last row of the \
                  data set before it: data sets of one calibration must not overlap in time",
                 dir.display(),
+                pdcal_text::number(t0),
                 meta.epoch_utc.as_str()
             );
         }
