@@ -320,7 +320,7 @@ impl fmt::Display for ImportError {
             // The dataset error names its own file and place.
             return write!(f, "{inner}");
         }
-        write!(f, "{}", e.file.display())?;
+        write!(f, "{}", pdcal_text::path(&e.file))?;
         if let Some(line) = e.line {
             write!(f, ":{line}")?;
             if let Some(column) = e.column {

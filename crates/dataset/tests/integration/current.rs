@@ -87,7 +87,7 @@ fn a_current_name_too_long_for_a_file_is_refused_when_read() {
     assert_eq!(
         e,
         format!(
-            "telemetry.csv:1:9 (cur_{a76}... 2006 bytes): unknown column \"cur_{a76}\"... (2006 \
+            "telemetry.csv:1:9 (cur_{a76}... (2006 bytes)): unknown column \"cur_{a76}\"... (2006 \
              bytes); current columns are cur_<name>_A (<name>: 1 to 64 of a-z, 0-9, _; amperes)",
             a76 = "a".repeat(76)
         )

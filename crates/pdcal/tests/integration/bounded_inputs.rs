@@ -191,3 +191,51 @@ fn a_fifo_as_import_source_is_refused_and_out_left_unlocked() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// Control characters in a path or a header never reach the terminal raw: the `-> OUT`
+/// line, an error naming a path, and a location's parentheses escape them.
+#[cfg(unix)]
+#[test]
+fn control_characters_in_paths_and_headers_are_escaped_everywhere() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("ds\u{1b}[31mRED\u{7}");
+    let map = import_fixture("map.ron");
+    let export = import_fixture("export.csv");
+    let o = run_bounded(&[
+        "import".as_ref(),
+        export.as_os_str(),
+        "--map".as_ref(),
+        map.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let shown = format!("{}/ds\\u{{1b}}[31mRED\\u{{7}}", tmp.path().display());
+    assert!(stdout.contains(&format!("-> {shown}\n")), "{stdout}");
+    // A header with an escape sequence and a bell, in a directory whose name has them.
+    let telemetry = out.join("telemetry.csv");
+    let text = fs::read_to_string(&telemetry).unwrap();
+    fs::write(
+        &telemetry,
+        text.replacen("mag_x_nT", "mag_\u{1b}[31mRED\u{7}", 1),
+    )
+    .unwrap();
+    let o = run_bounded(&[
+        "calibrate".as_ref(),
+        out.as_os_str(),
+        "--out".as_ref(),
+        tmp.path().join("cal").as_os_str(),
+    ]);
+    assert!(!o.status.success());
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !stderr.contains('\u{1b}') && !stderr.contains('\u{7}'),
+        "{stderr:?}"
+    );
+    assert!(
+        stderr.starts_with(&format!("pdcal: error: {shown}/telemetry.csv:1:"))
+            && stderr.contains("(mag_\\u{1b}[31mRED\\u{7}): "),
+        "{stderr}"
+    );
+}
