@@ -330,11 +330,11 @@ pub struct PhysicalRange {
     pub why: &'static str,
 }
 
-/// The physical range of every fitted value of the catalogue beyond [`Effect::check`]'s
-/// validity (the roll-offs' angles and shapes and the time offset have theirs there). Wide
-/// enough for any spacecraft's hardware, so that a value outside is a wrong model or
-/// wrong data, never an unusual sensor.
-pub const PHYSICAL_RANGES: [PhysicalRange; 9] = [
+/// The physical range of every fitted value of the catalogue (the roll-offs' shapes are
+/// fitted on grids inside their validity, [`Effect::check`]). Wide enough for any
+/// spacecraft's hardware and a fit's noise at a bound, so that a value outside is a wrong
+/// model or wrong data, never an unusual sensor.
+pub const PHYSICAL_RANGES: [PhysicalRange; 10] = [
     PhysicalRange {
         id: EffectId::DarkOffset,
         field: "volts",
@@ -349,6 +349,14 @@ pub const PHYSICAL_RANGES: [PhysicalRange; 9] = [
         min: 0.0,
         max: 100.0,
         why: "a saturation level is within 0 ..= 100 V (the largest scale factor)",
+    },
+    PhysicalRange {
+        id: EffectId::TimeOffset,
+        field: "seconds",
+        min: -60.0,
+        max: 60.0,
+        why: "a time offset is within 60 s in size (a clock or a tagging slip of a sample or \
+              two)",
     },
     PhysicalRange {
         id: EffectId::ScaleDrift,
@@ -375,17 +383,18 @@ pub const PHYSICAL_RANGES: [PhysicalRange; 9] = [
     PhysicalRange {
         id: EffectId::AlbedoGain,
         field: "gain",
-        min: 0.0,
+        min: -0.2,
         max: 3.0,
         why: "an albedo gain is within 0 ..= 3 (no reflectivity map is off by more than a \
-              factor of 3 over an orbit)",
+              factor of 3 over an orbit; down to -0.2 is 0 within a fit's noise)",
     },
     PhysicalRange {
         id: EffectId::AlbedoMap,
         field: "latitude_gains",
-        min: 0.0,
+        min: -0.2,
         max: 3.0,
-        why: "an albedo map's latitude gain is within 0 ..= 3",
+        why: "an albedo map's latitude gain is within 0 ..= 3 (down to -0.2 is 0 within a \
+              fit's noise)",
     },
     PhysicalRange {
         id: EffectId::Temperature,
@@ -459,13 +468,13 @@ impl Effect {
         }
     }
 
-    /// The physical range of the effect's fitted values ([`PHYSICAL_RANGES`]), beyond
-    /// [`Effect::check`]'s validity: what a spacecraft's hardware can do. A value a fit
+    /// The physical range of the effect's fitted values ([`PHYSICAL_RANGES`]): what a
+    /// spacecraft's hardware can do, with room for a fit's noise at a bound (an albedo gain
+    /// of -0.001 is 0). A value a fit
     /// finds outside it is no explanation of the data (a scale drift of -120 %/h would
     /// take every photodiode's output to zero within the pass) but a sign that the base
     /// model or the data are wrong. Field names and units are the files' ([`record`]).
     pub fn check_physical(&self) -> Result<(), Invalid> {
-        self.check_range()?;
         let id = self.id();
         let rec = record::EffectRecord::from(self.clone());
         for (field, value) in rec.numbers() {
