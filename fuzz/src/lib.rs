@@ -43,11 +43,14 @@ pub enum Target {
     /// An import column map through `pdcal::import::import_files` (`pdcal import --map`),
     /// run on a fixed small export (`seeds/fixed/export.csv`).
     ImportMap,
+    /// Two data sets of a joint run through `pdcal::joint::read` and `join` (each set's
+    /// reader, then the checks across the sets), as `calibrate SET1 SET2` runs them.
+    JointSets,
 }
 
 impl Target {
     /// Every target, in the order of `fuzz/README.md`.
-    pub const ALL: [Target; 7] = [
+    pub const ALL: [Target; 8] = [
         Target::DatasetPair,
         Target::DatasetRon,
         Target::TelemetryCsv,
@@ -55,6 +58,7 @@ impl Target {
         Target::ScenarioRon,
         Target::ConfigRon,
         Target::ImportMap,
+        Target::JointSets,
     ];
 
     /// The name on the command line and of the seed directory `fuzz/seeds/NAME`.
@@ -67,6 +71,7 @@ impl Target {
             Target::ScenarioRon => "scenario-ron",
             Target::ConfigRon => "config-ron",
             Target::ImportMap => "import-map",
+            Target::JointSets => "joint-sets",
         }
     }
 
@@ -97,7 +102,9 @@ impl Target {
                 include_bytes!("../seeds/import-map/map.ron"),
                 include_bytes!("../seeds/import-map/map-positions.ron"),
                 include_bytes!("../seeds/import-map/map-shapes.ron"),
+                include_bytes!("../seeds/import-map/map-currents.ron"),
             ],
+            Target::JointSets => vec![include_bytes!("../seeds/joint-sets/two-sets.bin")],
         }
     }
 }
@@ -215,6 +222,26 @@ pub fn exercise(target: Target, input: &[u8], scratch: &Path) -> Verdict {
             ];
             let result = pdcal::import::import_files(&files[1].0, &files[0].0).map(drop);
             check::import(result, &files)
+        }
+        Target::JointSets => {
+            let mut parts = input.splitn(4, |&b| b == 0);
+            let dirs = [scratch.join("set1"), scratch.join("set2")];
+            let mut files = Vec::new();
+            for dir in &dirs {
+                if let Err(e) = fs::create_dir_all(dir) {
+                    panic!("fuzz harness: cannot create {}: {e}", dir.display());
+                }
+                for name in [pdcal_dataset::DATASET_RON, TELEMETRY_CSV] {
+                    let bytes = parts.next().unwrap_or_default();
+                    let inside =
+                        format!("{}/{name}", dir.file_name().unwrap_or_default().display());
+                    files.push((write(&inside, bytes), bytes));
+                }
+            }
+            let result = pdcal::joint::read(&dirs)
+                .and_then(pdcal::joint::join)
+                .map(drop);
+            check::joint(result, &files, &dirs, input)
         }
     }
 }
