@@ -13,7 +13,7 @@ cd "$root"
 execs="${EXECS:-1000000}"
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-    targets=(dataset-pair dataset-ron telemetry-csv truth-csv scenario-ron config-ron import-map magcal-ron)
+    targets=(dataset-pair dataset-ron telemetry-csv truth-csv scenario-ron config-ron import-map magcal-ron joint-sets)
 fi
 afl_dir="$root/target/afl"
 

@@ -87,9 +87,38 @@ impl Place {
 
 /// Checks a result of the dataset reader; `files` are the paths written and their bytes.
 pub(crate) fn dataset(result: Result<(), DatasetError>, files: &[(PathBuf, &[u8])]) -> Verdict {
+    match result {
+        Ok(()) => Verdict::Accepted,
+        Err(e) => dataset_error(&e, files),
+    }
+}
+
+/// Checks a joint run's reading and joining of several sets (`files` of every set, each
+/// set's directory in `dirs`): a reader's fault as [`dataset`]'s; a fault across the sets
+/// (layout, spacecraft, overlap, references) names the set's directory first.
+pub(crate) fn joint(
+    result: anyhow::Result<()>,
+    files: &[(PathBuf, &[u8])],
+    dirs: &[PathBuf],
+    input: &[u8],
+) -> Verdict {
     let Err(e) = result else {
         return Verdict::Accepted;
     };
+    if let Some(d) = e.chain().find_map(|c| c.downcast_ref::<DatasetError>()) {
+        return dataset_error(d, files);
+    }
+    let message = format!("{e:#}");
+    let mut problems = Vec::new();
+    let named = (dirs.iter()).find_map(|d| message.strip_prefix(&d.display().to_string()));
+    match named {
+        Some(rest) => problems.extend(long_quote(rest, input)),
+        None => problems.push(Problem::FileNotNamed),
+    }
+    Verdict::Rejected { message, problems }
+}
+
+fn dataset_error(e: &DatasetError, files: &[(PathBuf, &[u8])]) -> Verdict {
     let message = e.to_string();
     let mut problems = Vec::new();
     let Some((path, bytes)) = files.iter().find(|(p, _)| p == e.file()) else {

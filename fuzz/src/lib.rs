@@ -45,11 +45,14 @@ pub enum Target {
     ImportMap,
     /// A magcal.ron through `pdcal::magcal::load` (`calibrate --mag-cal FILE`).
     MagcalRon,
+    /// Two data sets of a joint run through `pdcal::joint::read` and `join` (each set's
+    /// reader, then the checks across the sets), as `calibrate SET1 SET2` runs them.
+    JointSets,
 }
 
 impl Target {
     /// Every target, in the order of `fuzz/README.md`.
-    pub const ALL: [Target; 8] = [
+    pub const ALL: [Target; 9] = [
         Target::DatasetPair,
         Target::DatasetRon,
         Target::TelemetryCsv,
@@ -58,6 +61,7 @@ impl Target {
         Target::ConfigRon,
         Target::ImportMap,
         Target::MagcalRon,
+        Target::JointSets,
     ];
 
     /// The name on the command line and of the seed directory `fuzz/seeds/NAME`.
@@ -71,6 +75,7 @@ impl Target {
             Target::ConfigRon => "config-ron",
             Target::ImportMap => "import-map",
             Target::MagcalRon => "magcal-ron",
+            Target::JointSets => "joint-sets",
         }
     }
 
@@ -101,8 +106,10 @@ impl Target {
                 include_bytes!("../seeds/import-map/map.ron"),
                 include_bytes!("../seeds/import-map/map-positions.ron"),
                 include_bytes!("../seeds/import-map/map-shapes.ron"),
+                include_bytes!("../seeds/import-map/map-currents.ron"),
             ],
             Target::MagcalRon => vec![include_bytes!("../seeds/magcal-ron/magcal.ron")],
+            Target::JointSets => vec![include_bytes!("../seeds/joint-sets/two-sets.bin")],
         }
     }
 }
@@ -231,6 +238,26 @@ pub fn exercise(target: Target, input: &[u8], scratch: &Path) -> Verdict {
             let path = write("magcal.ron", input);
             let result = pdcal::magcal::load(&path).map(drop);
             check::magcal(result, &path, input)
+        }
+        Target::JointSets => {
+            let mut parts = input.splitn(4, |&b| b == 0);
+            let dirs = [scratch.join("set1"), scratch.join("set2")];
+            let mut files = Vec::new();
+            for dir in &dirs {
+                if let Err(e) = fs::create_dir_all(dir) {
+                    panic!("fuzz harness: cannot create {}: {e}", dir.display());
+                }
+                for name in [pdcal_dataset::DATASET_RON, TELEMETRY_CSV] {
+                    let bytes = parts.next().unwrap_or_default();
+                    let inside =
+                        format!("{}/{name}", dir.file_name().unwrap_or_default().display());
+                    files.push((write(&inside, bytes), bytes));
+                }
+            }
+            let result = pdcal::joint::read(&dirs)
+                .and_then(pdcal::joint::join)
+                .map(drop);
+            check::joint(result, &files, &dirs, input)
         }
     }
 }

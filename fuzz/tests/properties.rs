@@ -206,6 +206,11 @@ fn import_map_never_panics_and_places_errors() {
     assert_holds(Target::ImportMap, Promises::Placement);
 }
 
+#[test]
+fn joint_sets_never_panic_and_place_errors() {
+    assert_holds(Target::JointSets, Promises::Placement);
+}
+
 // Quoting: one test per target, so that a failure names its reader.
 #[test]
 fn dataset_pair_errors_quote_at_most_the_limit() {
@@ -230,6 +235,11 @@ fn truth_csv_errors_quote_at_most_the_limit() {
 #[test]
 fn import_map_errors_quote_at_most_the_limit() {
     assert_holds(Target::ImportMap, Promises::Quoting);
+}
+
+#[test]
+fn joint_sets_errors_quote_at_most_the_limit() {
+    assert_holds(Target::JointSets, Promises::Quoting);
 }
 
 #[test]

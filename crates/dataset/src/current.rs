@@ -20,9 +20,16 @@ pub fn current_column(name: &str) -> String {
     format!("cur_{name}_A")
 }
 
-/// Whether `name` may name a current channel: ASCII `a-z`, `0-9`, `_`, not empty.
+/// Longest current channel name, characters: every output that names a channel (the
+/// figure `residual_cur_<name>_a` of `magcal`, a file name of at most 100 characters) has
+/// room for it, and a telemetry channel's name is a word or two.
+pub const MAX_CURRENT_NAME_CHARS: usize = 64;
+
+/// Whether `name` may name a current channel: ASCII `a-z`, `0-9`, `_`, not empty, at most
+/// [`MAX_CURRENT_NAME_CHARS`].
 pub fn is_current_name(name: &str) -> bool {
     !name.is_empty()
+        && name.len() <= MAX_CURRENT_NAME_CHARS
         && name
             .bytes()
             .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_')

@@ -138,7 +138,11 @@ pub enum ErrorKind {
         empty: String,
     },
     /// `t_s` not strictly increasing.
-    #[error("t_s {value} is not greater than the previous row's {previous}")]
+    #[error(
+        "t_s {} is not greater than the previous row's {}",
+        pdcal_text::number(*.value),
+        pdcal_text::number(*.previous)
+    )]
     TimeNotIncreasing {
         /// The previous row's time.
         previous: f64,
@@ -297,10 +301,8 @@ impl DatasetError {
     /// The file's name without its directory (`telemetry.csv`).
     pub fn file_name(&self) -> String {
         let file = &self.0.file;
-        file.file_name().map_or_else(
-            || file.display().to_string(),
-            |n| n.to_string_lossy().into_owned(),
-        )
+        file.file_name()
+            .map_or_else(|| pdcal_text::path(file), pdcal_text::path)
     }
 
     /// 1-based line, as a text editor shows it.
@@ -327,7 +329,7 @@ impl DatasetError {
 impl fmt::Display for DatasetError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let e = &self.0;
-        write!(f, "{}", e.file.display())?;
+        write!(f, "{}", pdcal_text::path(&e.file))?;
         if let Some(line) = e.line {
             write!(f, ":{line}")?;
             if let Some(column) = e.column {
@@ -335,11 +337,9 @@ impl fmt::Display for DatasetError {
             }
         }
         if let Some(field) = &e.field {
-            // A header or field path comes from the file too: cut like any quoted value.
-            match field.char_indices().nth(QUOTE_MAX_CHARS) {
-                None => write!(f, " ({field})")?,
-                Some((cut, _)) => write!(f, " ({}... {} bytes)", &field[..cut], field.len())?,
-            }
+            // A header or field path comes from the file too: cut and escaped like any
+            // quoted value.
+            write!(f, " ({})", clip(field))?;
         }
         write!(f, ": {}", e.kind)
     }
@@ -349,7 +349,7 @@ impl fmt::Display for DatasetError {
 // print it twice in an `anyhow` chain).
 impl std::error::Error for DatasetError {}
 
-pub(crate) use pdcal_text::{QUOTE_MAX_CHARS, clip, quote};
+pub(crate) use pdcal_text::{clip, quote};
 
 pub(crate) use pdcal_text::line_col;
 

@@ -73,7 +73,9 @@ mod temperature;
 mod truth;
 
 pub use column::{Cell, Column, Samples, Vectors};
-pub use current::{CURRENT_RANGE_A, CurrentColumn, current_column, is_current_name};
+pub use current::{
+    CURRENT_RANGE_A, CurrentColumn, MAX_CURRENT_NAME_CHARS, current_column, is_current_name,
+};
 pub use error::{DatasetError, ErrorKind, FileFaultKind, TextFault, decode_text};
 pub use files::{
     Dataset, DatasetWriter, LIBRARY_WRITE_COMMAND, begin_dataset, begin_dataset_as, read_dataset,

@@ -70,7 +70,7 @@ pub struct ManifestError {
 
 impl std::fmt::Display for ManifestError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}: {}", self.path.display(), self.message)
+        write!(f, "{}: {}", pdcal_text::path(&self.path), self.message)
     }
 }
 
@@ -202,7 +202,7 @@ pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> Result<(), ManifestError>
         .map_err(failed(&tmp, "write it"))?;
     fs::rename(&tmp, path).map_err(|e| ManifestError {
         path: tmp.clone(),
-        message: format!("cannot rename it to {}: {e}", path.display()),
+        message: format!("cannot rename it to {}: {e}", pdcal_text::path(path)),
     })
 }
 

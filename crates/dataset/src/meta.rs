@@ -518,15 +518,6 @@ fn check_mounts(file: &Path, text: &str, mounts: &[NominalMount]) -> Result<(), 
     Ok(())
 }
 
-/// Upper bounds of the noise hints: beyond these a 1-sigma is not a noise but a unit
-/// mistake (57 deg/s of gyro noise, more than the geomagnetic field, more than any
-/// photodiode's full scale), and it would only surface deep inside the filter.
-pub const NOISE_HINT_MAX: [(&str, f64, &str); 3] = [
-    ("gyro_rad_s", 1.0, "rad/s"),
-    ("mag_nT", 1.0e5, "nT"),
-    ("photodiode_V", 100.0, "V"),
-];
-
 fn check_noise(file: &Path, noise: &NoiseHints) -> Result<(), DatasetError> {
     let hints = [
         ("gyro_rad_s", noise.gyro_rad_s),
@@ -536,16 +527,10 @@ fn check_noise(file: &Path, noise: &NoiseHints) -> Result<(), DatasetError> {
     for (name, value) in hints {
         let Some(v) = value else { continue };
         check_finite(file, v, || format!("noise.{name}"))?;
-        let max = NOISE_HINT_MAX.iter().find(|(n, _, _)| *n == name);
-        let rule = match max {
-            Some((_, max, unit)) if v > *max => {
-                format!("a 1-sigma noise must be positive and at most {max:e} {unit}")
-            }
-            _ if v <= 0.0 => "a 1-sigma noise must be positive".into(),
-            _ => continue,
-        };
-        let kind = ErrorKind::OutOfRange { value: v, rule };
-        return Err(DatasetError::whole_file(file, kind).named(format!("noise.{name}")));
+        if let Err(rule) = crate::rules::noise(name, v) {
+            let kind = ErrorKind::OutOfRange { value: v, rule };
+            return Err(DatasetError::whole_file(file, kind).named(format!("noise.{name}")));
+        }
     }
     Ok(())
 }

@@ -59,7 +59,7 @@ pub enum PublishErrorKind {
     /// Another process holds the lock of this output directory.
     #[error(
         "is being written by another pdcal run (process {pid}, lock file {}); wait for it to finish or choose another directory",
-        lock.display()
+        pdcal_text::path(lock)
     )]
     Busy {
         /// The lock file.
@@ -70,7 +70,7 @@ pub enum PublishErrorKind {
     /// The target is a symlink to nothing.
     #[error(
         "is a symlink to {}, which does not exist; create that directory or pass another path",
-        points_to.display()
+        pdcal_text::path(points_to)
     )]
     DanglingSymlink {
         /// What it points to.
@@ -102,7 +102,7 @@ pub enum PublishErrorKind {
 
 impl std::fmt::Display for PublishError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}: {}", self.path.display(), self.kind)
+        write!(f, "{}: {}", pdcal_text::path(&self.path), self.kind)
     }
 }
 

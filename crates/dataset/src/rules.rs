@@ -47,6 +47,30 @@ pub fn sigma(value: f64, max: f64) -> Result<(), String> {
     }
 }
 
+/// Upper bounds of a sensor's 1-sigma noise, by its dataset.ron name: beyond these a
+/// 1-sigma is not a noise but a unit mistake (57 deg/s of gyro noise, more than the
+/// geomagnetic field, more than any photodiode's full scale), and it would only surface
+/// deep inside the filter.
+pub const NOISE_MAX: [(&str, f64, &str); 3] = [
+    ("gyro_rad_s", 1.0, "rad/s"),
+    ("mag_nT", 1.0e5, "nT"),
+    ("photodiode_V", 100.0, "V"),
+];
+
+/// A sensor's 1-sigma noise `value`, `name` one of [`NOISE_MAX`]'s (in its unit), whether
+/// dataset.ron's hint or a `--config` sigma: positive and at most its bound. A NaN is
+/// refused with the bound's words.
+pub fn noise(name: &str, value: f64) -> Result<(), String> {
+    let bound = NOISE_MAX.iter().find(|(n, _, _)| *n == name);
+    match bound {
+        Some((_, max, unit)) if value > *max || value.is_nan() => Err(format!(
+            "a 1-sigma noise must be positive and at most {max:e} {unit}"
+        )),
+        _ if value <= 0.0 || value.is_nan() => Err("a 1-sigma noise must be positive".into()),
+        _ => Ok(()),
+    }
+}
+
 /// Equatorial radius of the Earth, km (WGS-84).
 pub const EARTH_RADIUS_KM: f64 = 6378.137;
 /// Lowest altitude of a position above the Earth's equatorial radius, km: below it no

@@ -86,7 +86,7 @@ impl SpillColumn {
         if cache.error.is_none() {
             cache.error = Some(format!(
                 "{}: cannot {action} a telemetry column kept there: {e}",
-                self.dir.display()
+                pdcal_text::path(&self.dir)
             ));
         }
     }

@@ -206,7 +206,7 @@ fn layout<R: Read>(rows: &CsvRows<'_, R>, meta: &DatasetMeta) -> Result<Layout, 
             if key.is_err() {
                 let kind = ErrorKind::UnknownColumn {
                     name: h.clone(),
-                    hint: "; current columns are cur_<name>_A (<name>: a-z, 0-9, _; amperes)"
+                    hint: "; current columns are cur_<name>_A (<name>: 1 to 64 of a-z, 0-9, _; amperes)"
                         .to_owned(),
                 };
                 return Err(rows.header_error(col, kind));

@@ -567,8 +567,16 @@ fn try_candidates(
         let c = &c;
         let reason = match refit {
             Ok(next) => {
-                let shrink = shrink(c, &state.res, &next.res, config);
                 let kept = next.spec.added(c.id).unwrap_or(&c.effect);
+                if let Err(e) = kept.check_physical() {
+                    rejected.push(Rejected {
+                        id: c.id,
+                        score: c.score,
+                        reason: unphysical(&e),
+                    });
+                    continue;
+                }
+                let shrink = shrink(c, &state.res, &next.res, config);
                 let sig = significance(c, kept, &next.run, albedo_gain(&state.spec));
                 if shrink.significant && sig.agrees() {
                     return Ok((Some((c.clone(), shrink, sig, next)), rejected));
@@ -602,6 +610,15 @@ fn try_candidates(
         });
     }
     Ok((None, rejected))
+}
+
+/// Why a refit outside its effect's physical range is not named: it says the residuals
+/// need something no hardware does, so the base model or the data are wrong.
+pub(crate) fn unphysical(e: &pdcal_effects::Invalid) -> String {
+    format!(
+        "its refit is outside the effect's physical range ({e}): not an explanation, a sign \
+         that the base model or the data are wrong"
+    )
 }
 
 /// Candidate `c`, or its other form when that one is significant too and its refit leaves

@@ -389,3 +389,40 @@ fn effect_size_sweep() {
         println!("SWEEP {name}: smallest found in 3/3 seeds: {smallest:?}");
     }
 }
+
+/// A refit outside its effect's physical range is not named: every photodiode losing 15 %
+/// of its output per hour is no scale drift any hardware has (it would be dark within
+/// seven hours), so the diagnosis says that the model or the data are wrong instead.
+#[test]
+fn a_refit_outside_the_physical_range_is_not_named() {
+    let drift = Effect::ScaleDrift {
+        fraction_per_hour: vec![-0.15; 17],
+    };
+    let (_, d) = run(
+        &scenario(vec![albedo(), drift], SHORT_S),
+        1,
+        BaseModel::Paper,
+    );
+    println!("{}", describe(&d));
+    assert!(
+        d.rounds.iter().all(|r| r.found != EffectId::ScaleDrift),
+        "{}",
+        describe(&d)
+    );
+    assert!(!d.verdict().contains("scale-drift"), "{}", d.verdict());
+    let rejected = (d.rounds.iter().flat_map(|r| &r.rejected))
+        .chain(&d.final_rejected)
+        .find(|r| r.id == EffectId::ScaleDrift)
+        .expect("scale-drift tried and rejected");
+    assert!(
+        rejected.reason.starts_with(
+            "its refit is outside the effect's physical range (fraction_per_hour[0] = -0.1"
+        ) && rejected.reason.ends_with(
+            "a scale drift is within 10 %/h in size (coverglass darkening is about 1 % a year; \
+             beyond 10 %/h a photodiode would lose its output within hours)): not an \
+             explanation, a sign that the base model or the data are wrong"
+        ),
+        "{}",
+        rejected.reason
+    );
+}

@@ -315,6 +315,104 @@ pub fn albedo_map_band(n: usize, lat_rad: f64) -> usize {
 /// Default reference temperature of the `temperature` effect, degrees Celsius.
 pub const REFERENCE_TEMPERATURE_C: f64 = 20.0;
 
+/// The physical range of one fitted value of an effect, in the files' field and unit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PhysicalRange {
+    /// The effect.
+    pub id: EffectId,
+    /// Its field, the files' spelling without an index (`fraction_per_hour`).
+    pub field: &'static str,
+    /// Smallest physical value.
+    pub min: f64,
+    /// Largest physical value.
+    pub max: f64,
+    /// The range and the hardware behind it, for a message.
+    pub why: &'static str,
+}
+
+/// The physical range of every fitted value of the catalogue (the roll-offs' shapes are
+/// fitted on grids inside their validity, [`Effect::check`]). Wide enough for any
+/// spacecraft's hardware and a fit's noise at a bound, so that a value outside is a wrong
+/// model or wrong data, never an unusual sensor.
+pub const PHYSICAL_RANGES: [PhysicalRange; 10] = [
+    PhysicalRange {
+        id: EffectId::DarkOffset,
+        field: "volts",
+        min: -1.0,
+        max: 1.0,
+        why: "a dark offset is within 1 V in size (a dark current through the load gives \
+              millivolts)",
+    },
+    PhysicalRange {
+        id: EffectId::Saturation,
+        field: "volts",
+        min: 0.0,
+        max: 100.0,
+        why: "a saturation level is within 0 ..= 100 V (the largest scale factor)",
+    },
+    PhysicalRange {
+        id: EffectId::TimeOffset,
+        field: "seconds",
+        min: -60.0,
+        max: 60.0,
+        why: "a time offset is within 60 s in size (a clock or a tagging slip of a sample or \
+              two)",
+    },
+    PhysicalRange {
+        id: EffectId::ScaleDrift,
+        field: "fraction_per_hour",
+        min: -0.1,
+        max: 0.1,
+        why: "a scale drift is within 10 %/h in size (coverglass darkening is about 1 % a \
+              year; beyond 10 %/h a photodiode would lose its output within hours)",
+    },
+    PhysicalRange {
+        id: EffectId::MagBias,
+        field: "nT",
+        min: -1e5,
+        max: 1e5,
+        why: "a magnetometer bias is within 1e5 nT in size (twice the geomagnetic field)",
+    },
+    PhysicalRange {
+        id: EffectId::GyroScale,
+        field: "scale_error",
+        min: -0.2,
+        max: 0.2,
+        why: "a gyro scale error is within 20 % in size (MEMS gyros: a few percent)",
+    },
+    PhysicalRange {
+        id: EffectId::AlbedoGain,
+        field: "gain",
+        min: -0.2,
+        max: 3.0,
+        why: "an albedo gain is within 0 ..= 3 (no reflectivity map is off by more than a \
+              factor of 3 over an orbit; down to -0.2 is 0 within a fit's noise)",
+    },
+    PhysicalRange {
+        id: EffectId::AlbedoMap,
+        field: "latitude_gains",
+        min: -0.2,
+        max: 3.0,
+        why: "an albedo map's latitude gain is within 0 ..= 3 (down to -0.2 is 0 within a \
+              fit's noise)",
+    },
+    PhysicalRange {
+        id: EffectId::Temperature,
+        field: "percent_per_K",
+        min: -2.0,
+        max: 2.0,
+        why: "a scale factor's temperature coefficient is within 2 %/K in size (silicon: \
+              about 0.1 %/K)",
+    },
+    PhysicalRange {
+        id: EffectId::Temperature,
+        field: "reference_C",
+        min: -150.0,
+        max: 150.0,
+        why: "a reference temperature is within -150 ..= 150 C",
+    },
+];
+
 /// A value of an effect outside its physical range.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Invalid {
@@ -328,7 +426,8 @@ pub struct Invalid {
 
 impl fmt::Display for Invalid {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{} = {}: {}", self.field, self.value, self.rule)
+        let value = pdcal_text::number(self.value);
+        write!(f, "{} = {value}: {}", self.field, self.rule)
     }
 }
 
@@ -367,6 +466,29 @@ impl Effect {
             } => Some(("percent_per_K", coefficient_per_k)),
             _ => None,
         }
+    }
+
+    /// The physical range of the effect's fitted values ([`PHYSICAL_RANGES`]): what a
+    /// spacecraft's hardware can do, with room for a fit's noise at a bound (an albedo gain
+    /// of -0.001 is 0). A value a fit
+    /// finds outside it is no explanation of the data (a scale drift of -120 %/h would
+    /// take every photodiode's output to zero within the pass) but a sign that the base
+    /// model or the data are wrong. Field names and units are the files' ([`record`]).
+    pub fn check_physical(&self) -> Result<(), Invalid> {
+        let id = self.id();
+        let rec = record::EffectRecord::from(self.clone());
+        for (field, value) in rec.numbers() {
+            let name = field.split('[').next().unwrap_or(&field);
+            let range = PHYSICAL_RANGES
+                .iter()
+                .find(|r| r.id == id && r.field == name);
+            if let Some(r) = range
+                && !(r.min..=r.max).contains(&value)
+            {
+                return Err(invalid(&field, value, r.why));
+            }
+        }
+        Ok(())
     }
 
     /// Checks the values against their physical range for a spacecraft with `n_pd`
@@ -567,6 +689,38 @@ fn invalid(field: &str, value: f64, rule: &str) -> Invalid {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_value_outside_its_physical_range_is_refused_with_the_range() {
+        let drift = |f: f64| Effect::ScaleDrift {
+            fraction_per_hour: vec![0.01, f],
+        };
+        assert_eq!(drift(0.1).check_physical(), Ok(()));
+        let e = drift(-1.2).check_physical().unwrap_err();
+        assert_eq!(e.field, "fraction_per_hour[1]");
+        assert!(
+            e.to_string()
+                .starts_with("fraction_per_hour[1] = -1.2: a scale drift is")
+        );
+        // Valid in a file, not physical.
+        assert_eq!(drift(-1.2).check(2), Ok(()));
+        let temperature = Effect::Temperature {
+            coefficient_per_k: vec![0.03],
+            reference_c: 20.0,
+        };
+        assert_eq!(
+            temperature.check_physical().unwrap_err().field,
+            "percent_per_K[0]"
+        );
+        let bias = Effect::MagBias {
+            bias_nt: [0.0, -2e5, 0.0],
+        };
+        assert_eq!(bias.check_physical().unwrap_err().field, "nT[1]");
+        // Every range names a field its effect has.
+        for r in PHYSICAL_RANGES {
+            assert!(r.min < r.max && r.why.contains(' '), "{r:?}");
+        }
+    }
 
     /// One value of every effect, in catalogue order.
     pub(crate) fn one_of_each(n_pd: usize) -> Vec<Effect> {

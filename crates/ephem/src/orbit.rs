@@ -96,7 +96,10 @@ pub enum OrbitError {
         message: String,
     },
     /// A time outside the sampled span of a [`crate::columns::PositionColumns`] source.
-    #[error("t_s = {t_s} s is outside the sampled span [{first_s}, {last_s}] s")]
+    #[error(
+        "t_s = {} s is outside the sampled span [{first_s}, {last_s}] s",
+        pdcal_text::number(*.t_s)
+    )]
     OutsideSpan {
         /// The requested time, s since the dataset epoch.
         t_s: f64,

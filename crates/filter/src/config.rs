@@ -23,6 +23,20 @@ pub const DEFAULT_MAG_SIGMA_NT: f64 = 320.0;
 /// (0.05 deg/s, ADIS16405 class, rax2-scenario.md).
 pub const DEFAULT_GYRO_SIGMA_RAD_S: f64 = 8.726_646_259_971_648e-4;
 
+/// Longest window, tolerance or hold of the configuration, s (one day): the windows after
+/// an acquisition (`bias_fit_window_s`, `about_sun_probe_s`, `relinearise_window_s`) are
+/// held and run again row by row, and a gap or gyro hold longer than a day would have the
+/// attitude propagated across it; a day is far beyond any of their uses.
+pub const MAX_WINDOW_S: f64 = 86_400.0;
+
+/// Most `parameter_sigmas` entries: one per parameter of a model of a thousand photodiodes
+/// with ten effects each (they are searched per parameter).
+pub const MAX_PARAMETER_SIGMAS: usize = 10_000;
+
+/// Longest `parameter_sigmas` name or unit, characters: parameter names are a few tens of
+/// characters (`pd03_dark_offset_V`), and a longer one matches nothing.
+pub const MAX_PARAMETER_NAME_CHARS: usize = 80;
+
 /// How the filter runs.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Mode {
@@ -373,12 +387,83 @@ impl FilterConfig {
         })
     }
 
-    /// Checks every field's range.
+    /// Checks every field's range: each number finite and in its physical range, each
+    /// count, window and name below its bound (a count sets an allocation or a loop), with
+    /// the field named.
     pub fn validate(&self) -> Result<(), FilterError> {
+        self.check_sensor_sigmas()?;
+        self.check_positive()?;
+        self.check_non_negative()?;
+        let windows = [
+            ("bias_fit_window_s", self.bias_fit_window_s),
+            ("about_sun_probe_s", self.about_sun_probe_s),
+            ("relinearise_window_s", self.relinearise_window_s),
+        ];
+        for (field, value) in windows {
+            if value > MAX_WINDOW_S {
+                return Err(bad(field, value, WINDOW_RULE));
+            }
+        }
+        let angles = [
+            ("fov_half_angle_deg", self.fov_half_angle_deg),
+            (
+                "initial_min_sun_field_angle_deg",
+                self.initial_min_sun_field_angle_deg,
+            ),
+        ];
+        for (field, value) in angles {
+            if !(value > 0.0 && value < 90.0) {
+                return Err(bad(field, value, "must be in (0, 90) deg"));
+            }
+        }
+        if !(self.min_sun_fraction > 0.0 && self.min_sun_fraction <= 1.0) {
+            return Err(bad(
+                "min_sun_fraction",
+                self.min_sun_fraction,
+                "must be in (0, 1]",
+            ));
+        }
+        self.segments.validate()?;
+        self.check_parameter_sigmas()?;
+        if let EnsembleRuns::Runs(n) = self.ensemble
+            && n > crate::ensemble::MAX_RUNS
+        {
+            return Err(FilterError::ConfigValue {
+                field: "ensemble".into(),
+                value: format!("Runs({n})"),
+                rule: "Runs(n) must be at most 64 (each run is one more forward pass)".into(),
+            });
+        }
+        Ok(())
+    }
+
+    /// The sensor sigmas by the rule dataset.ron's noise hints obey
+    /// ([`pdcal_dataset::rules::noise`]): a config cannot pass what the dataset may not.
+    fn check_sensor_sigmas(&self) -> Result<(), FilterError> {
+        let sigmas = [
+            (
+                "photodiode_sigma_v",
+                "photodiode_V",
+                self.photodiode_sigma_v,
+            ),
+            ("mag_sigma_nt", "mag_nT", self.mag_sigma_nt),
+            ("gyro_sigma_rad_s", "gyro_rad_s", self.gyro_sigma_rad_s),
+        ];
+        for (field, name, value) in sigmas {
+            let Some(value) = value else { continue };
+            if let Err(rule) = pdcal_dataset::rules::noise(name, value) {
+                return Err(FilterError::ConfigValue {
+                    field: field.into(),
+                    value: pdcal_text::number(value),
+                    rule,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    fn check_positive(&self) -> Result<(), FilterError> {
         let positive = [
-            ("photodiode_sigma_v", self.photodiode_sigma_v.unwrap_or(1.0)),
-            ("mag_sigma_nt", self.mag_sigma_nt.unwrap_or(1.0)),
-            ("gyro_sigma_rad_s", self.gyro_sigma_rad_s.unwrap_or(1.0)),
             ("gyro_noise_inflation", self.gyro_noise_inflation),
             ("initial_bias_sigma_deg_s", self.initial_bias_sigma_deg_s),
             ("bias_fit_window_s", self.bias_fit_window_s),
@@ -409,6 +494,10 @@ impl FilterConfig {
                 return Err(bad(field, value, "must be positive and finite"));
             }
         }
+        Ok(())
+    }
+
+    fn check_non_negative(&self) -> Result<(), FilterError> {
         let non_negative = [
             ("albedo_sigma_w_m2", self.albedo_sigma_w_m2),
             ("albedo_gain_sigma", self.albedo_gain_sigma),
@@ -436,50 +525,45 @@ impl FilterConfig {
                 return Err(bad(field, value, "must be non-negative and finite"));
             }
         }
-        let angles = [
-            ("fov_half_angle_deg", self.fov_half_angle_deg),
-            (
-                "initial_min_sun_field_angle_deg",
-                self.initial_min_sun_field_angle_deg,
-            ),
-        ];
-        for (field, value) in angles {
-            if !(value > 0.0 && value < 90.0) {
-                return Err(bad(field, value, "must be in (0, 90) deg"));
-            }
+        Ok(())
+    }
+
+    /// Each entry's sigma and walk in range, its name short enough to be a parameter's,
+    /// and no more entries than [`MAX_PARAMETER_SIGMAS`].
+    fn check_parameter_sigmas(&self) -> Result<(), FilterError> {
+        let n = self.parameter_sigmas.len();
+        if n > MAX_PARAMETER_SIGMAS {
+            return Err(FilterError::ConfigValue {
+                field: "parameter_sigmas".into(),
+                value: format!("{n} entries"),
+                rule: format!("at most {MAX_PARAMETER_SIGMAS} entries"),
+            });
         }
-        if !(self.min_sun_fraction > 0.0 && self.min_sun_fraction <= 1.0) {
-            return Err(bad(
-                "min_sun_fraction",
-                self.min_sun_fraction,
-                "must be in (0, 1]",
-            ));
-        }
-        self.segments.validate()?;
-        for p in &self.parameter_sigmas {
-            if !(p.sigma > 0.0 && p.sigma.is_finite()) {
-                return Err(bad(
-                    "parameter_sigmas.sigma",
-                    p.sigma,
-                    "must be positive and finite",
+        for (i, p) in self.parameter_sigmas.iter().enumerate() {
+            let entry = |field: &str, value: String, rule: &str| FilterError::ConfigValue {
+                field: format!("parameter_sigmas[{i}].{field}"),
+                value,
+                rule: rule.into(),
+            };
+            if p.name_or_unit.chars().count() > MAX_PARAMETER_NAME_CHARS {
+                return Err(entry(
+                    "name_or_unit",
+                    pdcal_text::quote(&p.name_or_unit),
+                    "a parameter's name or unit is at most 80 characters",
                 ));
             }
+            if !(p.sigma > 0.0 && p.sigma.is_finite()) {
+                let value = pdcal_text::number(p.sigma);
+                return Err(entry("sigma", value, "must be positive and finite"));
+            }
             if !(p.walk_per_sqrt_h >= 0.0 && p.walk_per_sqrt_h.is_finite()) {
-                return Err(bad(
-                    "parameter_sigmas.walk_per_sqrt_h",
-                    p.walk_per_sqrt_h,
+                let value = pdcal_text::number(p.walk_per_sqrt_h);
+                return Err(entry(
+                    "walk_per_sqrt_h",
+                    value,
                     "must be non-negative and finite",
                 ));
             }
-        }
-        if let EnsembleRuns::Runs(n) = self.ensemble
-            && n > crate::ensemble::MAX_RUNS
-        {
-            return Err(bad(
-                "ensemble",
-                n as f64,
-                "Runs(n) must be at most 64 (each run is one more forward pass)",
-            ));
         }
         Ok(())
     }
@@ -518,6 +602,9 @@ impl FilterConfig {
         found.map_or((1.0, 0.0), |p| (p.sigma, p.walk_per_sqrt_h / 60.0))
     }
 }
+
+/// The rule of the windows, tolerances and holds ([`MAX_WINDOW_S`]).
+pub(crate) const WINDOW_RULE: &str = "must be at most 86400 s (one day)";
 
 fn bad(field: &'static str, value: f64, rule: &'static str) -> FilterError {
     FilterError::Config { field, value, rule }

@@ -15,6 +15,17 @@ pub enum FilterError {
         /// What the field must satisfy.
         rule: &'static str,
     },
+    /// A configuration field is out of range by a rule of its own words (a count, a name,
+    /// a sensor noise checked by `pdcal_dataset::rules`); its value as a message shows it.
+    #[error("filter config: {field} = {value}: {rule}")]
+    ConfigValue {
+        /// Field path as in the RON file (`parameter_sigmas[2].name_or_unit`).
+        field: String,
+        /// Offending value, as a message shows it.
+        value: String,
+        /// What the field must satisfy.
+        rule: String,
+    },
     /// A calibration's value breaks the rule every file's value of its kind obeys
     /// (`pdcal_dataset::rules`).
     #[error("calibration: {field} = {value}: {rule}")]
@@ -64,7 +75,7 @@ pub enum FilterError {
         threshold_v: f64,
     },
     /// A reference quantity or a measurement is not finite.
-    #[error("sample {index} (t_s = {t_s}): non-finite {what}")]
+    #[error("sample {index} (t_s = {}): non-finite {what}", pdcal_text::number(*.t_s))]
     NonFinite {
         /// Sample index.
         index: usize,
@@ -82,7 +93,10 @@ pub enum FilterError {
     },
     /// The filter's state became non-finite (a divergence the covariance guard cannot
     /// repair).
-    #[error("filter state not finite after row {index} (t_s = {t_s})")]
+    #[error(
+        "filter state not finite after row {index} (t_s = {})",
+        pdcal_text::number(*.t_s)
+    )]
     StateNotFinite {
         /// Telemetry row.
         index: usize,
@@ -104,7 +118,7 @@ pub enum FilterError {
     #[error("telemetry.csv: orbit PositionColumns needs r_x_km, r_y_km, r_z_km")]
     MissingPositionColumns,
     /// A row's reference vectors could not be computed.
-    #[error("reference{}: {source}", index.map(|i| format!(" at row {i} (t_s = {t_s})")).unwrap_or_default())]
+    #[error("reference{}: {source}", index.map(|i| format!(" at row {i} (t_s = {})", pdcal_text::number(*t_s))).unwrap_or_default())]
     Reference {
         /// Telemetry row (`None`: building the reference model).
         index: Option<usize>,
@@ -159,6 +173,30 @@ impl FilterError {
                 e.span,
                 pdcal_text::parser_message(&e.code.to_string())
             ),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn times_are_echoed_cut() {
+        for e in [
+            FilterError::StateNotFinite {
+                index: 3,
+                t_s: 1e300,
+            },
+            FilterError::NonFinite {
+                index: 3,
+                t_s: 1e300,
+                what: "gyro",
+            },
+        ] {
+            let shown = e.to_string();
+            assert!(shown.contains("... (301 bytes)"), "{shown}");
+            assert!(shown.len() < 160, "{} bytes: {shown}", shown.len());
         }
     }
 }

@@ -17,6 +17,7 @@ use pdcal_dataset::Telemetry;
 use serde::{Deserialize, Serialize};
 
 use crate::FilterError;
+use crate::config::{MAX_WINDOW_S, WINDOW_RULE};
 
 /// A gap is this many median spacings without a row (and the gyro may be held this many of
 /// its own spacings): irregular rows and a dropped sample or two are not gaps.
@@ -25,6 +26,10 @@ pub const GAP_SPACINGS: f64 = 10.0;
 /// Floor of the derived gap threshold and gyro hold, s: at 10 Hz, ten spacings are 1 s,
 /// less than a ground segment's usual jitter in time tags.
 pub const GAP_FLOOR_S: f64 = 5.0;
+
+/// Most updates in the lost-attitude test's window: two thousand rows of a few lit
+/// photodiodes and the magnetometer, longer than any attitude stays lost unnoticed.
+pub const MAX_LOST_WINDOW_UPDATES: usize = 10_000;
 
 /// How the run splits the telemetry into segments and when it calls the attitude lost
 /// (`segments` in the filter config RON; every field defaulted).
@@ -105,12 +110,27 @@ impl SegmentConfig {
                 return Err(bad(field, value, "must be non-negative and finite"));
             }
         }
-        if self.lost_window_updates == 0 {
-            return Err(bad(
-                "segments.lost_window_updates",
-                0.0,
-                "must be at least 1",
-            ));
+        for (field, value) in [
+            ("segments.gap_threshold_s", self.gap_threshold_s),
+            ("segments.gyro_hold_s", self.gyro_hold_s),
+            (
+                "segments.pairing_tolerance_s",
+                Some(self.pairing_tolerance_s),
+            ),
+        ] {
+            if let Some(v) = value
+                && v > MAX_WINDOW_S
+            {
+                return Err(bad(field, v, WINDOW_RULE));
+            }
+        }
+        let updates = self.lost_window_updates;
+        if !(1..=MAX_LOST_WINDOW_UPDATES).contains(&updates) {
+            return Err(FilterError::ConfigValue {
+                field: "segments.lost_window_updates".into(),
+                value: updates.to_string(),
+                rule: format!("must be at least 1 and at most {MAX_LOST_WINDOW_UPDATES}"),
+            });
         }
         if !(self.lost_gated_fraction > 0.0 && self.lost_gated_fraction <= 1.0) {
             return Err(bad(

@@ -738,8 +738,6 @@ fn number(cell: &str, context: impl Fn() -> String) -> Result<f64, ErrorKind> {
 }
 
 fn file_name(path: &Path) -> String {
-    path.file_name().map_or_else(
-        || path.display().to_string(),
-        |n| n.to_string_lossy().into_owned(),
-    )
+    path.file_name()
+        .map_or_else(|| pdcal_text::path(path), pdcal_text::path)
 }

@@ -87,11 +87,14 @@ pub enum ErrorKind {
          (\"OTHER\", -1.0)]`"
     )]
     ColumnOrColumns,
-    /// Two axes of one vector sensor read from the same export data.
-    #[error("reads the same export data as {other}: two axes of one sensor never share a column")]
-    SharedAxis {
-        /// The other axis's map path (`gyro.x`).
+    /// Two entries of the map that stand for different data (two axes of one vector
+    /// sensor, two photodiodes, two currents) read the same export data.
+    #[error("reads the same export data as {other}: {never}")]
+    SharedColumn {
+        /// The other entry's map path (`gyro.x`, `photodiodes[0]`).
         other: String,
+        /// Which two never share a column, and why.
+        never: &'static str,
     },
     /// A `columns` combination that cannot be used.
     #[error("the combination is refused: {reason}")]
@@ -317,7 +320,7 @@ impl fmt::Display for ImportError {
             // The dataset error names its own file and place.
             return write!(f, "{inner}");
         }
-        write!(f, "{}", e.file.display())?;
+        write!(f, "{}", pdcal_text::path(&e.file))?;
         if let Some(line) = e.line {
             write!(f, ":{line}")?;
             if let Some(column) = e.column {

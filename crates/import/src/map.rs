@@ -481,7 +481,7 @@ pub fn parse_map(file: &Path, bytes: &[u8]) -> Result<ImportMap, ImportError> {
     }
     check_temperatures(&map, &spec)?;
     check_currents(&map, &spec)?;
-    check_shared_axes(&map, &spec)?;
+    check_shared_columns(&map, &spec)?;
     check_as_dataset(&map, &spec)?;
     if let OrbitMap::Tle { line1, line2 } = &spec.orbit
         && let Err(e) = pdcal_ephem::TleOrbit::from_lines(line1, line2)
@@ -523,29 +523,55 @@ impl ImportMap {
     }
 }
 
-/// Every numeric column of the map: its field path, spec and quantity, in map order.
-/// Two axes of the gyro or the magnetometer that read the same export data (a column
-/// copied from the axis above and not renamed): refused, at the later axis.
-fn check_shared_axes(map: &Locator<'_>, spec: &MapSpec) -> Result<(), ImportError> {
+/// Entries that stand for different data and read the same export data (a column copied
+/// from the entry above and not renamed): two axes of the gyro or of the magnetometer, two
+/// photodiodes (the second would be "calibrated" as a copy of the first), two currents.
+/// Refused at the later entry; a combination is the same data whatever the order of its
+/// terms.
+fn check_shared_columns(map: &Locator<'_>, spec: &MapSpec) -> Result<(), ImportError> {
+    let mut groups: Vec<(Vec<(String, Column)>, &'static str)> = Vec::new();
     for (name, sensor) in [("gyro", &spec.gyro), ("mag", &spec.mag)] {
         let Some(v) = sensor else { continue };
         let axes = [("x", &v.x), ("y", &v.y), ("z", &v.z)];
-        for (i, (axis, column)) in axes.iter().enumerate() {
-            let Some((first, _)) = axes[..i].iter().find(|(_, c)| c.terms() == column.terms())
-            else {
+        let entries = axes.map(|(axis, c)| (format!("{name}.{axis}"), c.clone()));
+        groups.push((
+            entries.to_vec(),
+            "two axes of one sensor never share a column",
+        ));
+    }
+    let photodiodes = (spec.photodiodes.iter().enumerate())
+        .map(|(i, p)| (format!("photodiodes[{i}]"), p.as_column()));
+    groups.push((
+        photodiodes.collect(),
+        "two photodiodes never share a column (each is a sensor of its own)",
+    ));
+    let currents =
+        (spec.currents.iter().enumerate()).map(|(i, c)| (format!("currents[{i}]"), c.as_column()));
+    groups.push((currents.collect(), "two currents never share a column"));
+    for (entries, never) in groups {
+        let mut seen = HashMap::new();
+        for (path, column) in entries {
+            let Some(other) = seen.insert(same_data(&column), path.clone()) else {
                 continue;
             };
-            let path = format!("{name}.{axis}");
             let place = map.key_path(&path).map(|o| line_col(map.text, o));
-            let kind = ErrorKind::SharedAxis {
-                other: format!("{name}.{first}"),
-            };
+            let kind = ErrorKind::SharedColumn { other, never };
             return Err(ImportError::maybe_at(map.file, place, kind).named(path));
         }
     }
     Ok(())
 }
 
+/// The export data a column reads, as a key: its terms in name order, coefficients by bits.
+fn same_data(column: &Column) -> Vec<(String, u64)> {
+    let mut terms: Vec<(String, u64)> = (column.terms().into_iter())
+        .map(|(name, c)| (name, c.to_bits()))
+        .collect();
+    terms.sort();
+    terms
+}
+
+/// Every numeric column of the map: its field path, spec and quantity, in map order.
 pub(crate) fn columns(spec: &MapSpec) -> Vec<(String, Column, Quantity)> {
     let mut out = Vec::new();
     let mut vector = |name: &str, v: &VectorColumns, q: Quantity| {
@@ -756,7 +782,8 @@ fn check_currents(map: &Locator<'_>, spec: &MapSpec) -> Result<(), ImportError> 
     for (i, c) in spec.currents.iter().enumerate() {
         let reason = if !pdcal_dataset::is_current_name(&c.name) {
             format!(
-                "{} is not a channel name (a-z, 0-9, _): it becomes the column cur_<name>_A",
+                "{} is not a channel name (1 to 64 of a-z, 0-9, _): it becomes the column \
+                 cur_<name>_A",
                 quote(&c.name)
             )
         } else if !names.insert(c.name.as_str()) {
@@ -1017,13 +1044,24 @@ impl Locator<'_> {
     }
 
     /// Byte offset of a column spec given by its field path (`photodiodes[3]`: its
-    /// `azimuth_deg:`; `gyro.x`: the `x:` after `gyro:`), for a spec that names no column.
+    /// `azimuth_deg:`; `currents[1]`: its `name:`; `gyro.x`: the `x:` after `gyro:`), for a
+    /// spec that names no column or whose column another spec names first.
     fn key_path(&self, path: &str) -> Option<usize> {
         if let Some(i) = (path.strip_prefix("photodiodes["))
             .and_then(|r| r.strip_suffix(']'))
             .and_then(|i| i.parse::<usize>().ok())
         {
             return self.key("azimuth_deg", i);
+        }
+        if let Some(i) = (path.strip_prefix("currents["))
+            .and_then(|r| r.strip_suffix(']'))
+            .and_then(|i| i.parse::<usize>().ok())
+        {
+            let from = self.top_level_key("currents")?;
+            return (0..)
+                .map_while(|n| self.key("name", n))
+                .filter(|&at| at > from)
+                .nth(i);
         }
         let (outer, axis) = path.split_once('.')?;
         self.key_after(self.key(outer, 0)?, axis)

@@ -434,6 +434,53 @@ fn a_line_of_blanks_is_skipped() {
     assert_eq!(rows_read(&csv), 4);
 }
 
+/// Two photodiodes, or two currents, that read the same export data (an entry copied from
+/// the one above and its column not renamed) are refused at the later entry's line, as two
+/// axes of one sensor are: the second would be "calibrated" as a copy of the first.
+#[test]
+fn two_photodiodes_or_two_currents_never_share_a_column() {
+    let shared = |map: &str| match parse_map(Path::new("map.ron"), map.as_bytes()) {
+        Ok(_) => panic!("accepted"),
+        Err(e) => e.to_string(),
+    };
+    let pds = map_text("").replace(
+        "(column: \"V6\", unit: \"mV\"",
+        "(column: \"V5\", unit: \"mV\"",
+    );
+    // The same data scaled (counts and mV) is the same data.
+    let pds = pds.replace(
+        "(columns: [(\"V5\", 1.0), (\"VN\", -1.0)], counts: (gain: 0.001220703125, unit: \"V\"), \
+         sentinels: [4095],",
+        "(column: \"V5\", unit: \"V\",",
+    );
+    assert_eq!(
+        shared(&pds),
+        "map.ron:11:36 (photodiodes[1]): reads the same export data as photodiodes[0]: two \
+         photodiodes never share a column (each is a sensor of its own)"
+    );
+    // A combination is the same data whatever the order of its terms.
+    let pds = map_text("").replace(
+        "(column: \"V6\", unit: \"mV\"",
+        "(columns: [(\"VN\", -1.0), (\"V5\", 1.0)], unit: \"mV\"",
+    );
+    assert!(
+        shared(&pds).starts_with("map.ron:11:")
+            && shared(&pds).contains("(photodiodes[1]): reads the same export data as"),
+        "{}",
+        shared(&pds)
+    );
+    let currents = map_text(
+        "    currents: [\n        (name: \"px\", column: \"V6\", unit: \"A\"),\n        \
+         (name: \"py\", column: \"wx\", unit: \"A\"),\n        (name: \"pz\", column: \
+         \"V6\", unit: \"mA\"),\n    ],\n",
+    );
+    assert_eq!(
+        shared(&currents),
+        "map.ron:12:10 (currents[2]): reads the same export data as currents[0]: two currents \
+         never share a column"
+    );
+}
+
 /// The rows `csv` imports to with the base map.
 fn rows_read(csv: &str) -> usize {
     import(&map_text(""), csv)
@@ -455,6 +502,29 @@ fn two_axes_of_one_sensor_never_share_a_column() {
     assert!(
         e.starts_with("map.ron:6:9 ")
             && e.contains("(gyro.y): reads the same export data as gyro.x"),
+        "{e}"
+    );
+}
+
+/// A current's name longer than a file name allows is refused in the map, before any row
+/// is read (it becomes `cur_<name>_A` and `magcal`'s figure of it).
+#[test]
+fn a_current_name_too_long_for_a_file_is_refused_in_the_map() {
+    let named = |name: &str| {
+        map_text(&format!(
+            "    currents: [(name: \"{name}\", column: \"V6\", unit: \"A\")],\n"
+        ))
+    };
+    let longest = "a".repeat(pdcal_dataset::MAX_CURRENT_NAME_CHARS);
+    parse_map(Path::new("map.ron"), named(&longest).as_bytes()).expect("the longest is valid");
+    let e = match parse_map(Path::new("map.ron"), named(&"a".repeat(65)).as_bytes()) {
+        Ok(_) => panic!("accepted"),
+        Err(e) => e.to_string(),
+    };
+    assert!(
+        e.starts_with("map.ron:9:")
+            && e.contains("(currents[0].name): ")
+            && e.contains("is not a channel name (1 to 64 of a-z, 0-9, _)"),
         "{e}"
     );
 }

@@ -73,7 +73,7 @@ impl Default for RunConfig {
 pub fn load_config(path: &Path) -> Result<RunConfig> {
     let text =
         pdcal_dataset::bounded::read_text_bounded(path, pdcal_dataset::bounded::MAX_RON_BYTES)
-            .with_context(|| format!("cannot read {}", path.display()))?;
+            .with_context(|| format!("cannot read {}", pdcal_text::path(path)))?;
     match Calibration::from_ron_str(&text) {
         Ok(prior) => {
             return Ok(RunConfig {
@@ -85,7 +85,7 @@ pub fn load_config(path: &Path) -> Result<RunConfig> {
         // A calibration.ron with a bad value gets the calibration's own message, not the
         // filter configuration's "unknown field".
         Err(e) if has_field(&text, "gyro_bias_rad_s") && has_field(&text, "photodiodes") => {
-            return Err(e).with_context(|| format!("{}", path.display()));
+            return Err(e).with_context(|| pdcal_text::path(path).to_string());
         }
         Err(_) => {}
     }
@@ -94,17 +94,17 @@ pub fn load_config(path: &Path) -> Result<RunConfig> {
             "{}: this is {kind}, not a --config file; --config expects a filter configuration \
              (RON with fields such as photodiode_sigma_v, gate_sigmas) or the calibration.ron \
              of an earlier pdcal calibrate",
-            path.display()
+            pdcal_text::path(path)
         );
     }
     let filter =
-        FilterConfig::from_ron_str(&text).with_context(|| format!("{}", path.display()))?;
+        FilterConfig::from_ron_str(&text).with_context(|| pdcal_text::path(path).to_string())?;
     if filter.dynamics_gyro_step_s.is_some() {
         eprintln!(
             "pdcal: warning: {}: dynamics_gyro_step_s is no longer used: dynamics: Auto now \
              tests whether the gyro's rate changes between its samples beyond its noise \
              (summary.json propagation); use dynamics: On or Off to choose",
-            path.display()
+            pdcal_text::path(path)
         );
     }
     Ok(RunConfig {
@@ -266,14 +266,14 @@ fn check_sets(sets: &[(PathBuf, DatasetMeta, Telemetry)]) -> Result<Vec<String>>
     let mut warnings = Vec::new();
     for (dir, meta, telemetry) in sets {
         let prefix = if sets.len() > 1 {
-            format!("{}: ", dir.display())
+            format!("{}: ", pdcal_text::path(dir))
         } else {
             String::new()
         };
         let found = crate::checks::check_telemetry(telemetry)
             .map_err(|e| anyhow::anyhow!("{prefix}{e:#}"))?;
         warnings.extend(found.into_iter().map(|w| format!("{prefix}{w}")));
-        let dataset_ron = dir.join("dataset.ron").display().to_string();
+        let dataset_ron = pdcal_text::path(dir.join("dataset.ron"));
         warnings.extend(crate::checks::orbit_age(meta, telemetry, &dataset_ron));
     }
     Ok(warnings)
@@ -364,8 +364,8 @@ pub fn run_dirs_kept(
         let sigma = with_mag_cal(&config, cal, meta, telemetry).with_context(|| {
             format!(
                 "--mag-cal {} on {}",
-                pdcal_text::clip(&file.display().to_string()),
-                path.display()
+                pdcal_text::path(file),
+                pdcal_text::path(&path)
             )
         })?;
         worst_sigma_nt = worst_sigma_nt.max(sigma);
@@ -501,7 +501,7 @@ pub fn run_sets(
     cancel: Option<CancelCheck>,
 ) -> Result<(Outcome, crate::schema::Summary)> {
     if let Some((dir, meta, _)) = sets.first() {
-        check_photodiode_count(meta.photodiodes.len(), &dir.display().to_string())?;
+        check_photodiode_count(meta.photodiodes.len(), &pdcal_text::path(dir))?;
     }
     let mut warnings = check_sets(&sets)?;
     let joint = crate::joint::join(sets)?;

@@ -199,7 +199,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 scenario.name,
                 output.telemetry.len(),
                 output.true_photodiodes.len(),
-                out.display()
+                pdcal_text::path(&out)
             );
             Ok(())
         }
@@ -228,10 +228,10 @@ pub fn run(cli: Cli) -> Result<()> {
             }
             println!(
                 "imported {}: {} samples, {} photodiodes -> {}",
-                source.display(),
+                pdcal_text::path(&source),
                 imported.report.rows_kept,
                 imported.meta.photodiodes.len(),
-                out.display()
+                pdcal_text::path(&out)
             );
             Ok(())
         }
@@ -257,7 +257,7 @@ pub fn run(cli: Cli) -> Result<()> {
             eprintln!(
                 "calibrated in {:.2} s -> {}",
                 outcome.runtime_s,
-                out.display()
+                pdcal_text::path(&out)
             );
             Ok(())
         }
@@ -271,7 +271,7 @@ pub fn run(cli: Cli) -> Result<()> {
             let outcome = crate::diagnose::run_dir_forced(&dataset, &out, base, force)?;
             print_warnings(&outcome.warnings);
             print!("{}", crate::diagnose::console_summary(&outcome));
-            eprintln!("diagnosis -> {}", out.display());
+            eprintln!("diagnosis -> {}", pdcal_text::path(&out));
             Ok(())
         }
         Some(Command::Magcal {
@@ -294,7 +294,7 @@ pub fn run(cli: Cli) -> Result<()> {
                     cal.regressors.join(", ")
                 }
             );
-            eprintln!("magcal -> {}", out.display());
+            eprintln!("magcal -> {}", pdcal_text::path(&out));
             Ok(())
         }
         Some(Command::ExportOnboard {

@@ -89,6 +89,10 @@ pub fn report(summary: &Summary, evaluation: &Evaluation, out: &Path) -> String 
         100.0 * evaluation.consistency.attitude_within_3sigma
     );
     let _ = writeln!(s, "  filter run time        {:.2} s", summary.runtime_s);
-    let _ = writeln!(s, "  outputs                {}/index.html", out.display());
+    let _ = writeln!(
+        s,
+        "  outputs                {}/index.html",
+        pdcal_text::path(out)
+    );
     s
 }

@@ -13,17 +13,17 @@ pub use pdcal_evaluate::*;
 
 /// Reads `estimates.csv` back into step estimates (the columns of cli-contract.md).
 pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
-    let mut reader =
-        csv::Reader::from_path(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut reader = csv::Reader::from_path(path)
+        .with_context(|| format!("cannot read {}", pdcal_text::path(path)))?;
     let header = reader
         .headers()
-        .with_context(|| format!("{}: cannot read the header row", path.display()))?
+        .with_context(|| format!("{}: cannot read the header row", pdcal_text::path(path)))?
         .clone();
     let col = |name: &str| {
         header
             .iter()
             .position(|h| h == name)
-            .with_context(|| format!("{}: missing column {name}", path.display()))
+            .with_context(|| format!("{}: missing column {name}", pdcal_text::path(path)))
     };
     let m = (1..)
         .take_while(|i| header.iter().any(|h| h == format!("pd{i:02}_scale_V")))
@@ -62,13 +62,13 @@ pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
         .collect();
     let mut out = Vec::new();
     for (line, record) in reader.records().enumerate() {
-        let record = record.with_context(|| format!("{}:{}", path.display(), line + 2))?;
+        let record = record.with_context(|| format!("{}:{}", pdcal_text::path(path), line + 2))?;
         let num = |c: usize| -> Result<f64> {
             let text = record.get(c).unwrap_or("");
             text.parse::<f64>().map_err(|_| {
                 anyhow::anyhow!(
                     "{}:{}:{} ({}): {} is not a number",
-                    path.display(),
+                    pdcal_text::path(path),
                     line + 2,
                     c + 1,
                     header.get(c).unwrap_or("?"),
@@ -86,7 +86,7 @@ pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
         let q = Quat::new_normalized(q[0], q[1], q[2], q[3]).with_context(|| {
             format!(
                 "{}:{} (q_x, q_y, q_z, q_w): {} is not a quaternion",
-                path.display(),
+                pdcal_text::path(path),
                 line + 2,
                 quaternion_fault(&q)
             )
@@ -110,7 +110,7 @@ pub fn read_estimates(path: &Path) -> Result<Vec<StepEstimate>> {
                 text.parse::<usize>().map_err(|_| {
                     anyhow::anyhow!(
                         "{}:{}:{} (segment): {} is not a segment number",
-                        path.display(),
+                        pdcal_text::path(path),
                         line + 2,
                         c + 1,
                         pdcal_text::quote(text)
@@ -156,7 +156,7 @@ pub fn run_dir(dataset: &Path, out: &Path) -> Result<Evaluation> {
     let Some((truth, constants)) = pdcal_dataset::read_truth(dataset, &meta)? else {
         bail!(
             "{}: evaluate needs truth.csv and truth.ron (a simulated dataset)",
-            dataset.display()
+            pdcal_text::path(dataset)
         );
     };
     let evaluation = evaluate_output(&truth, &constants, out)?;
@@ -232,9 +232,9 @@ pub fn evaluate_output(
 ) -> Result<Evaluation> {
     let cal_path = out.join("calibration.ron");
     let text = std::fs::read_to_string(&cal_path)
-        .with_context(|| format!("cannot read {}", cal_path.display()))?;
-    let final_cal =
-        Calibration::from_ron_str(&text).with_context(|| format!("{}", cal_path.display()))?;
+        .with_context(|| format!("cannot read {}", pdcal_text::path(&cal_path)))?;
+    let final_cal = Calibration::from_ron_str(&text)
+        .with_context(|| pdcal_text::path(&cal_path).to_string())?;
     let estimates = read_estimates(&out.join("estimates.csv"))?;
     let smoothed_path = out.join("estimates_smoothed.csv");
     let smoothed = match smoothed_path.exists() {

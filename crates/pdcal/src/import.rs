@@ -10,11 +10,11 @@ use pdcal_import::{Converted, DuplicateTimes, ImportError, ImportReport, Importe
 pub fn import_files(source: &Path, map: &Path) -> Result<Imported> {
     let read = |path: &Path| {
         pdcal_dataset::bounded::read_bounded(path, u64::MAX - 1)
-            .with_context(|| format!("cannot read {}", path.display()))
+            .with_context(|| format!("cannot read {}", pdcal_text::path(path)))
     };
     let map_bytes =
         pdcal_dataset::bounded::read_bounded(map, pdcal_dataset::bounded::MAX_RON_BYTES)
-            .with_context(|| format!("cannot read {}", map.display()))?;
+            .with_context(|| format!("cannot read {}", pdcal_text::path(map)))?;
     let map = pdcal_import::parse_map(map, &map_bytes)?;
     Ok(pdcal_import::convert(&map, source, &read(source)?)?)
 }
@@ -35,10 +35,12 @@ pub fn run_to_dir_forced(source: &Path, map: &Path, out: &Path, force: bool) -> 
     let writer = pdcal_dataset::begin_dataset_as(out, "import", force)?;
     let map_bytes =
         pdcal_dataset::bounded::read_bounded(map, pdcal_dataset::bounded::MAX_RON_BYTES)
-            .with_context(|| format!("cannot read {}", map.display()))?;
+            .with_context(|| format!("cannot read {}", pdcal_text::path(map)))?;
     let map = pdcal_import::parse_map(map, &map_bytes)?;
-    let file =
-        std::fs::File::open(source).with_context(|| format!("cannot read {}", source.display()))?;
+    // Only a regular file, refused before it is opened, as every input of `calibrate`: a
+    // FIFO with no writer would block the open, with `out` locked, for ever.
+    let file = pdcal_dataset::bounded::open_regular(source)
+        .with_context(|| format!("cannot read {}", pdcal_text::path(source)))?;
     let mut stream = writer.telemetry_stream(pdcal_import::layout(&map))?;
     let converted = pdcal_import::convert_stream(&map, source, file, |row| {
         stream.push(row).map_err(ImportError::from)

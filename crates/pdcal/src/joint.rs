@@ -100,7 +100,7 @@ pub fn join(mut sets: Vec<(PathBuf, DatasetMeta, Telemetry)>) -> Result<Joint> {
     for (dir, meta, telemetry) in &sets {
         if several {
             let refs = pdcal_filter::step_references(meta, telemetry)
-                .with_context(|| format!("{}: references", dir.display()))?;
+                .with_context(|| format!("{}: references", pdcal_text::path(dir)))?;
             references.extend(refs);
         }
         let offset_s = (meta.epoch_utc.epoch() - first_epoch).to_seconds();
@@ -108,9 +108,10 @@ pub fn join(mut sets: Vec<(PathBuf, DatasetMeta, Telemetry)>) -> Result<Joint> {
             && offset_s + t0 <= end_s
         {
             bail!(
-                "{}: its first row (t_s = {t0} s after {}) is not after the last row of the \
+                "{}: its first row (t_s = {} s after {}) is not after the last row of the \
                  data set before it: data sets of one calibration must not overlap in time",
-                dir.display(),
+                pdcal_text::path(dir),
+                pdcal_text::number(t0),
                 meta.epoch_utc.as_str()
             );
         }
@@ -156,7 +157,7 @@ pub const MAX_JOINT_SPAN_DAYS: f64 = 366.0;
 /// mode, so it is an error naming it, not a silently skipped set), every TLE names the same
 /// object, and the epochs lie within [`MAX_JOINT_SPAN_DAYS`].
 fn same_spacecraft(sets: &[(PathBuf, DatasetMeta, Telemetry)]) -> Result<()> {
-    let name = |dir: &Path| dir.display().to_string();
+    let name = |dir: &Path| pdcal_text::path(dir);
     if let Some(with) = sets.iter().find(|s| s.2.mag_nt.is_some())
         && let Some(without) = sets.iter().find(|s| s.2.mag_nt.is_none())
     {
@@ -210,7 +211,7 @@ fn same_layout(
     (dir_a, a, _): &(PathBuf, DatasetMeta, Telemetry),
     (dir_b, b, _): &(PathBuf, DatasetMeta, Telemetry),
 ) -> Result<()> {
-    let name = |dir: &Path| dir.join("dataset.ron").display().to_string();
+    let name = |dir: &Path| pdcal_text::path(dir.join("dataset.ron"));
     if a.photodiodes.len() != b.photodiodes.len() {
         bail!(
             "{} has {} photodiodes, {} has {}: data sets of one calibration must share the \

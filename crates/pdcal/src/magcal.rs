@@ -347,7 +347,8 @@ fn write_corrected_dataset(
     meta: &DatasetMeta,
     telemetry: Telemetry,
 ) -> Result<()> {
-    std::fs::create_dir(target).with_context(|| format!("cannot create {}", target.display()))?;
+    std::fs::create_dir(target)
+        .with_context(|| format!("cannot create {}", pdcal_text::path(target)))?;
     let corrected = pdcal_dataset::Dataset {
         meta: meta.clone(),
         telemetry,
@@ -362,7 +363,7 @@ fn write_corrected_dataset(
         };
         if from.is_file() {
             std::fs::copy(&from, target.join(name))
-                .with_context(|| format!("cannot copy {}", from.display()))?;
+                .with_context(|| format!("cannot copy {}", pdcal_text::path(&from)))?;
         }
     }
     Ok(())
@@ -410,7 +411,7 @@ pub fn apply(telemetry: &mut Telemetry, cal: &MagCalibration) -> Result<f64> {
 pub fn load(path: &Path) -> Result<MagCalibration> {
     let text =
         pdcal_dataset::bounded::read_text_bounded(path, pdcal_dataset::bounded::MAX_RON_BYTES)
-            .with_context(|| format!("cannot read {}", path.display()))?;
+            .with_context(|| format!("cannot read {}", pdcal_text::path(path)))?;
     let file: MagCalFile = pdcal_dataset::parse_ron(&text).map_err(|fault| {
         let what = match fault.kind {
             RonFaultKind::Ron { message } => message,
@@ -421,12 +422,12 @@ pub fn load(path: &Path) -> Result<MagCalibration> {
         };
         anyhow::anyhow!(
             "{}:{}:{}: {what} (expected the magcal.ron of pdcal magcal)",
-            path.display(),
+            pdcal_text::path(path),
             fault.line,
             fault.column
         )
     })?;
-    from_file(&file).with_context(|| format!("{}", path.display()))
+    from_file(&file).with_context(|| pdcal_text::path(path).to_string())
 }
 
 fn from_file(file: &MagCalFile) -> Result<MagCalibration> {

@@ -157,7 +157,7 @@ pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 
 /// Writes one file, naming it in the error (a full disk says which file).
 pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
-    fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))
+    fs::write(path, bytes).with_context(|| format!("cannot write {}", pdcal_text::path(path)))
 }
 
 /// Adds `name` with `bytes` to the published pdcal output `dir` (`evaluate`'s
@@ -167,7 +167,7 @@ pub fn add_file(dir: &Path, name: &str, bytes: &[u8]) -> Result<()> {
     let Some(mut manifest) = Manifest::read(dir)? else {
         bail!(
             "{}: not a pdcal output (no {MANIFEST}); run pdcal calibrate into it first",
-            dir.display()
+            pdcal_text::path(dir)
         );
     };
     write_file_atomic(&dir.join(name), bytes)?;

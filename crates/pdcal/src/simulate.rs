@@ -11,8 +11,8 @@ pub fn load_scenario(name_or_file: &str) -> Result<Scenario> {
     if path.extension().is_some_and(|e| e == "ron") {
         let text =
             pdcal_dataset::bounded::read_text_bounded(path, pdcal_dataset::bounded::MAX_RON_BYTES)
-                .with_context(|| format!("cannot read {}", path.display()))?;
-        Scenario::from_ron_str(&text).with_context(|| format!("{}", path.display()))
+                .with_context(|| format!("cannot read {}", pdcal_text::path(path)))?;
+        Scenario::from_ron_str(&text).with_context(|| pdcal_text::path(path).to_string())
     } else {
         Scenario::builtin(name_or_file).with_context(|| format!("scenario {name_or_file:?}"))
     }

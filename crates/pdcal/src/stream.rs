@@ -100,11 +100,12 @@ pub struct StreamSink {
 
 /// `cannot write PATH` for an error writing `path` (a full disk says which file).
 fn writing(path: &Path) -> impl Fn() -> String + '_ {
-    move || format!("cannot write {}", path.display())
+    move || format!("cannot write {}", pdcal_text::path(path))
 }
 
 fn create(path: &Path) -> Result<csv::Writer<BufWriter<File>>> {
-    let file = File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    let file =
+        File::create(path).with_context(|| format!("cannot create {}", pdcal_text::path(path)))?;
     Ok(csv::Writer::from_writer(BufWriter::new(file)))
 }
 
@@ -252,29 +253,30 @@ impl StreamSink {
             out.flush().with_context(writing(&self.smoothed_path))?;
             let mut out = out
                 .into_inner()
-                .map_err(|e| anyhow::anyhow!("{}: {e}", self.smoothed_path.display()))?;
+                .map_err(|e| anyhow::anyhow!("{}: {e}", pdcal_text::path(&self.smoothed_path)))?;
             let mut spill = std::fs::OpenOptions::new()
                 .read(true)
                 .write(true)
                 .open(&self.spill_path)
-                .with_context(|| format!("cannot read {}", self.spill_path.display()))?;
+                .with_context(|| format!("cannot read {}", pdcal_text::path(&self.spill_path)))?;
             // Row order is the reverse of arrival, so each block copied is the spill's last:
             // cut off once copied, the spill and the CSV together never hold much more than
             // the smoothed rows once.
             for &(start, end) in self.segments.iter().rev() {
-                spill
-                    .seek(SeekFrom::Start(start))
-                    .with_context(|| format!("cannot read {}", self.spill_path.display()))?;
-                std::io::copy(&mut (&mut spill).take(end - start), &mut out)
-                    .with_context(|| format!("cannot write {}", self.smoothed_path.display()))?;
-                spill
-                    .set_len(start)
-                    .with_context(|| format!("cannot shorten {}", self.spill_path.display()))?;
+                spill.seek(SeekFrom::Start(start)).with_context(|| {
+                    format!("cannot read {}", pdcal_text::path(&self.spill_path))
+                })?;
+                std::io::copy(&mut (&mut spill).take(end - start), &mut out).with_context(
+                    || format!("cannot write {}", pdcal_text::path(&self.smoothed_path)),
+                )?;
+                spill.set_len(start).with_context(|| {
+                    format!("cannot shorten {}", pdcal_text::path(&self.spill_path))
+                })?;
             }
             out.flush().with_context(writing(&self.smoothed_path))?;
         }
         std::fs::remove_file(&self.spill_path)
-            .with_context(|| format!("cannot remove {}", self.spill_path.display()))?;
+            .with_context(|| format!("cannot remove {}", pdcal_text::path(&self.spill_path)))?;
         let mut attitudes = self.attitudes;
         attitudes.close()?;
         let summary = ResidualSummary::from_sums(self.pd_sum_sq, self.pd_inside, self.pd_count);
@@ -361,8 +363,8 @@ pub struct AttitudeSpill {
 impl AttitudeSpill {
     /// `backward`: the blocks will arrive last first.
     fn create(path: PathBuf, backward: bool) -> Result<Self> {
-        let file =
-            File::create(&path).with_context(|| format!("cannot create {}", path.display()))?;
+        let file = File::create(&path)
+            .with_context(|| format!("cannot create {}", pdcal_text::path(&path)))?;
         Ok(AttitudeSpill {
             path,
             out: Some(BufWriter::new(file)),
@@ -375,7 +377,7 @@ impl AttitudeSpill {
     /// Appends the attitudes of `rows` (consecutive, increasing) as one block.
     fn append(&mut self, rows: &[StepEstimate]) -> Result<()> {
         let Some(out) = self.out.as_mut() else {
-            anyhow::bail!("{} is closed", self.path.display());
+            anyhow::bail!("{} is closed", pdcal_text::path(&self.path));
         };
         let start = self.written;
         for e in rows {
@@ -408,7 +410,7 @@ impl AttitudeSpill {
     /// The attitudes `(row, attitude)` in increasing rows.
     pub fn rows(&self) -> Result<impl Iterator<Item = Result<(usize, Quat)>> + '_> {
         let file = File::open(&self.path)
-            .with_context(|| format!("cannot read {}", self.path.display()))?;
+            .with_context(|| format!("cannot read {}", pdcal_text::path(&self.path)))?;
         let mut file = BufReader::new(file);
         let order: Box<dyn Iterator<Item = &(u64, u64)>> = if self.backward {
             Box::new(self.blocks.iter().rev())
@@ -416,7 +418,7 @@ impl AttitudeSpill {
             Box::new(self.blocks.iter())
         };
         let path = &self.path;
-        let reading = move || format!("cannot read {}", path.display());
+        let reading = move || format!("cannot read {}", pdcal_text::path(path));
         Ok(order
             .flat_map(|&(start, end)| {
                 let n = (end - start) / ATTITUDE_RECORD_BYTES as u64;
@@ -439,7 +441,7 @@ impl AttitudeSpill {
     pub fn remove(mut self) -> Result<()> {
         self.close()?;
         std::fs::remove_file(&self.path)
-            .with_context(|| format!("cannot remove {}", self.path.display()))
+            .with_context(|| format!("cannot remove {}", pdcal_text::path(&self.path)))
     }
 }
 

@@ -157,7 +157,7 @@ impl CurrentChannel {
         if !pdcal_dataset::is_current_name(&self.name) {
             return Err(invalid(
                 &field("name"),
-                "a-z, 0-9, _ only (the column is cur_<name>_A)",
+                "1 to 64 of a-z, 0-9, _ only (the column is cur_<name>_A)",
             ));
         }
         let (amps, what) = match self.source {

@@ -39,6 +39,13 @@ pub fn escape_controls(text: &str) -> String {
         .collect()
 }
 
+/// A path for a message (an input, an output directory, the `-> OUT` line): control
+/// characters escaped as [`clip`] escapes them, not cut (a path names the file to fix, and
+/// the system bounds its length); bytes that are not UTF-8 shown as U+FFFD.
+pub fn path(path: impl AsRef<std::path::Path>) -> String {
+    escape_controls(&path.as_ref().to_string_lossy())
+}
+
 /// `text` quoted for a message: Rust string syntax, at most [`QUOTE_MAX_CHARS`] characters
 /// of it, and the full length when cut (`"aaaa..."... (52428800 bytes)`).
 pub fn quote(text: &str) -> String {
@@ -144,6 +151,16 @@ mod tests {
         assert_eq!(
             quote(&long),
             format!("\"{}\"... (200 bytes)", "x".repeat(QUOTE_MAX_CHARS))
+        );
+    }
+
+    #[test]
+    fn paths_are_escaped_not_cut() {
+        let long = format!("/tmp/{}/out\u{1b}[31mRED\u{7}", "d".repeat(200));
+        let shown = path(std::path::Path::new(&long));
+        assert_eq!(
+            shown,
+            format!("/tmp/{}/out\\u{{1b}}[31mRED\\u{{7}}", "d".repeat(200))
         );
     }
 

@@ -71,3 +71,38 @@ fn bad_current_columns_are_refused_at_their_cell() {
     assert!(e.contains("telemetry.csv:3:9"), "{e}");
     assert!(e.contains("a current must lie within -100 .. 100 A"), "{e}");
 }
+
+/// A channel name longer than [`pdcal_dataset::MAX_CURRENT_NAME_CHARS`] is refused at its
+/// header cell when the set is read, not after a fit whose figure it cannot name; the
+/// message quotes it cut to 80 characters.
+#[test]
+fn a_current_name_too_long_for_a_file_is_refused_when_read() {
+    let longest = "a".repeat(pdcal_dataset::MAX_CURRENT_NAME_CHARS);
+    let ok = TELEMETRY.replace("cur_px_A", &format!("cur_{longest}_A"));
+    parse(&ok).expect("the longest name is valid");
+    let long = "a".repeat(2000);
+    let e = parse(&TELEMETRY.replace("cur_px_A", &format!("cur_{long}_A")))
+        .expect_err("refused")
+        .to_string();
+    assert_eq!(
+        e,
+        format!(
+            "telemetry.csv:1:9 (cur_{a76}... (2006 bytes)): unknown column \"cur_{a76}\"... (2006 \
+             bytes); current columns are cur_<name>_A (<name>: 1 to 64 of a-z, 0-9, _; amperes)",
+            a76 = "a".repeat(76)
+        )
+    );
+}
+
+/// A time of 300 digits is echoed cut, as every value.
+#[test]
+fn a_huge_time_is_echoed_cut() {
+    let rows = TELEMETRY.replace("\n0,", "\n1e300,");
+    let e = parse(&rows).expect_err("refused").to_string();
+    assert!(
+        e.starts_with("telemetry.csv:3:1 (t_s): t_s 1 is not greater than the previous row's 1000"),
+        "{e}"
+    );
+    assert!(e.ends_with("... (301 bytes)"), "{e}");
+    assert!(e.len() < 250, "{} bytes: {e}", e.len());
+}

@@ -244,8 +244,8 @@ fn passes_with_gaps_are_segments_each_reacquired() {
     // The same rows without segments (the threshold beyond every gap): the attitude is
     // propagated blind across each gap and the calibration suffers.
     let mut blind = forward_only();
-    blind.segments.gap_threshold_s = Some(1e6);
-    blind.segments.gyro_hold_s = Some(1e6);
+    blind.segments.gap_threshold_s = Some(pdcal_filter::config::MAX_WINDOW_S);
+    blind.segments.gyro_hold_s = Some(pdcal_filter::config::MAX_WINDOW_S);
     blind.segments.lost_attitude_sigma_deg = 1e3;
     blind.segments.lost_gated_fraction = 1.0;
     let worse = run_checked(&f.telemetry, &on_off, &blind, |_, _| {});

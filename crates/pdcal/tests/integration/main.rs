@@ -3,6 +3,7 @@
 
 mod absent_sensors;
 mod bias_per_set;
+mod bounded_inputs;
 mod common;
 mod consistency_verdict;
 mod dark_offset;
