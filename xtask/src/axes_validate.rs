@@ -165,6 +165,7 @@ fn check(meta: &DatasetMeta, telemetry: &Telemetry) -> Result<AxesCheck> {
         telemetry,
         &(&references).into(),
         &pdcal_filter::FilterConfig::default(),
+        &[],
     )
     .context("sensor-axes check")
 }

@@ -28,12 +28,17 @@ pub struct SensorAxesEntry {
     pub applied: bool,
 }
 
-/// The check on `meta` and `telemetry` (before any mounting correction).
+/// The check on `meta` and `telemetry` (before any mounting correction), run on each data
+/// set of a joint run alone (`set_rows`: each set's first row and row count; empty: one
+/// set): each downlink has its own turn-on bias, which one fit over all of them would not
+/// describe. A finding needs every set that could check to find the same matrix; a set that
+/// finds none or another leaves the sensor undecided.
 pub fn check(
     meta: &DatasetMeta,
     telemetry: &Telemetry,
     references: &References<'_>,
     config: &FilterConfig,
+    set_rows: &[(usize, usize)],
 ) -> Result<AxesCheck> {
     let rows = telemetry.len();
     let mut refs = Vec::with_capacity(rows);
@@ -60,15 +65,72 @@ pub fn check(
         .collect();
     let sigmas = config.resolve(meta.noise.as_ref());
     let sun = pdcal_axes::photodiode_sun(&outputs, &normals, sigmas.photodiode_v, &radius_km);
-    let inputs = Inputs {
-        t_s: &telemetry.t_s,
-        gyro_rad_s: &gyro,
-        mag: &mag,
-        sun_photodiodes: &sun,
-        references: &refs,
-        gyro_bias_sigma_rad_s: config.initial_bias_sigma_deg_s.to_radians(),
+    let whole = [(0, rows)];
+    let spans = if set_rows.len() > 1 {
+        set_rows
+    } else {
+        &whole[..]
     };
-    Ok(pdcal_axes::check(&inputs, &Thresholds::default()))
+    let results: Vec<AxesCheck> = spans
+        .iter()
+        .map(|&(first, n)| {
+            let r = first.min(rows)..(first + n).min(rows);
+            let inputs = Inputs {
+                t_s: &telemetry.t_s[r.clone()],
+                gyro_rad_s: &gyro[r.clone()],
+                mag: if mag.is_empty() { &[] } else { &mag[r.clone()] },
+                sun_photodiodes: &sun[r.clone()],
+                references: &refs[r],
+                gyro_bias_sigma_rad_s: config.initial_bias_sigma_deg_s.to_radians(),
+            };
+            pdcal_axes::check(&inputs, &Thresholds::default())
+        })
+        .collect();
+    Ok(combine(results))
+}
+
+/// One result of the sets' own: their common finding, or none when a set that checked
+/// disagrees (its notes kept, named by set).
+fn combine(mut results: Vec<AxesCheck>) -> AxesCheck {
+    if results.len() == 1 {
+        return results.pop().unwrap_or_default();
+    }
+    let checked: Vec<&AxesCheck> = results.iter().filter(|r| !r.checks.is_empty()).collect();
+    let first = checked.first().and_then(|r| r.finding.clone());
+    let agree = first.as_ref().is_some_and(|f| {
+        checked.iter().all(|r| {
+            r.finding
+                .as_ref()
+                .is_some_and(|g| g.sensor == f.sensor && g.body_from_sensor == f.body_from_sensor)
+        })
+    });
+    let mut out = AxesCheck {
+        checks: results.iter().flat_map(|r| r.checks.clone()).collect(),
+        stated_margin_nats: results
+            .iter()
+            .filter_map(|r| r.stated_margin_nats)
+            .reduce(f64::min),
+        ..AxesCheck::default()
+    };
+    for (k, r) in results.iter().enumerate() {
+        for n in &r.not_checked {
+            out.not_checked.push(pdcal_axes::NotChecked {
+                sensor: n.sensor,
+                reason: format!("set {}: {}", k + 1, n.reason),
+            });
+        }
+    }
+    if agree {
+        out.finding = first;
+    } else if let Some(f) = results.iter().find_map(|r| r.finding.as_ref()) {
+        out.not_checked.push(pdcal_axes::NotChecked {
+            sensor: f.sensor,
+            reason: "the data sets do not agree on its axes (one set's finding is not every \
+                     set's)"
+                .to_owned(),
+        });
+    }
+    out
 }
 
 /// Applies a finding to the data: a gyro's or magnetometer's samples are turned into the

@@ -172,7 +172,14 @@ pub fn run_with_references(
 ) -> Result<Outcome> {
     let mut warnings = crate::checks::check_telemetry(telemetry)?;
     warnings.extend(crate::checks::orbit_age(meta, telemetry, "dataset.ron"));
-    let axes = crate::axes::check(meta, telemetry, &(&references).into(), &config.filter)?;
+    let set_rows: Vec<(usize, usize)> = sets.iter().map(|s| (s.first_row, s.rows)).collect();
+    let axes = crate::axes::check(
+        meta,
+        telemetry,
+        &(&references).into(),
+        &config.filter,
+        &set_rows,
+    )?;
     warnings.extend(axes.finding.iter().map(crate::axes::message));
     let (meta, telemetry) = crate::axes::corrected(&axes, meta, telemetry);
     let (meta, telemetry) = (meta.as_ref(), telemetry.as_ref());
@@ -528,6 +535,11 @@ pub fn run_sets(
             &prepared.telemetry().t_s,
         ),
         &config.filter,
+        &joint
+            .sets
+            .iter()
+            .map(|s| (s.first_row, s.rows))
+            .collect::<Vec<_>>(),
     )?;
     crate::axes::apply(&axes, &mut meta, prepared.telemetry_mut());
     warnings.extend(axes.finding.iter().map(crate::axes::message));

@@ -45,7 +45,7 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry, base: BaseModel) -> Result
     // into the body frame, a photodiode that reads reversed is negated and one whose data
     // contradict any mounting is left out, each said, before the diagnosis, so that no
     // effect is sought in what a wiring fault explains.
-    let axes = crate::axes::check(meta, telemetry, &(&references).into(), &config.filter)?;
+    let axes = crate::axes::check(meta, telemetry, &(&references).into(), &config.filter, &[])?;
     warnings.extend(axes.finding.iter().map(crate::axes::message));
     warnings.extend(crate::axes::notes(&axes));
     let (meta, telemetry) = crate::axes::corrected(&axes, meta, telemetry);

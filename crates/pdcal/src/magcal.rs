@@ -195,6 +195,7 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry) -> Result<MagCalOutcome> {
         telemetry,
         &(&references).into(),
         &pdcal_filter::FilterConfig::default(),
+        &[],
     )?;
     let Some(mag) = telemetry.mag_nt.as_ref() else {
         bail!("the dataset has no magnetometer columns (mag_x_nT, mag_y_nT, mag_z_nT)");
@@ -212,7 +213,6 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry) -> Result<MagCalOutcome> {
             pdcal_text::quote(&format!("cur_{}_A", empty.name))
         );
     }
-    stuck_axis(mag, meta.noise.as_ref().and_then(|n| n.mag_nt))?;
     let held = held_currents(telemetry);
     let mut samples = Vec::new();
     for (row, (m, u)) in mag.iter().zip(held).enumerate() {
@@ -222,6 +222,10 @@ pub fn run(meta: &DatasetMeta, telemetry: &Telemetry) -> Result<MagCalOutcome> {
         let t_s = telemetry.t_s[row];
         samples.push(pdcal_magcal::sample_along_orbit(&model, row, t_s, m, u)?);
     }
+    // The unit first: a field in uT spans less than an nT noise on every axis, and would be
+    // called stuck.
+    pdcal_magcal::screen::check_field_size(&samples)?;
+    stuck_axis(mag, meta.noise.as_ref().and_then(|n| n.mag_nt))?;
     let calibration = pdcal_magcal::calibrate(&samples, &names, &MagCalConfig::default())?;
     let mean_field_nt =
         samples.iter().map(|s| s.field_nt).sum::<f64>() / samples.len().max(1) as f64;
@@ -454,6 +458,45 @@ fn from_file(file: &MagCalFile) -> Result<MagCalibration> {
 /// Refuses a magcal.ron whose numbers no calibration has: a value that is not finite, a
 /// variance that is not positive, a covariance that is not symmetric, a noise that is not
 /// positive, or a matrix and biases no magnetometer has ([`pdcal_magcal::not_physical`]).
+/// The matrix has the shape its `matrix_form` says: symmetric; diagonal (no off-diagonal
+/// entry); scalar (one value on the diagonal). A matrix of another shape under a form would
+/// be read as that form's parameters and silently lose the rest.
+fn check_form(form: MatrixForm, m: &[[f64; 3]; 3]) -> Result<()> {
+    let scale = m.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
+    let differs = |a: f64, b: f64| (a - b).abs() > 1e-9 * scale;
+    let off = [(0, 1), (0, 2), (1, 2)];
+    if let Some(&(r, c)) = off.iter().find(|&&(r, c)| differs(m[r][c], m[c][r])) {
+        bail!(
+            "the matrix is not symmetric (row {} column {}: {} against {}): matrix_form {form:?} \
+             holds a symmetric matrix",
+            r + 1,
+            c + 1,
+            pdcal_text::number(m[r][c]),
+            pdcal_text::number(m[c][r])
+        );
+    }
+    let off_diagonal = off.iter().find(|&&(r, c)| differs(m[r][c], 0.0));
+    match (form, off_diagonal) {
+        (MatrixForm::Diagonal | MatrixForm::Scalar, Some(&(r, c))) => bail!(
+            "matrix_form is {form:?} but the matrix has an off-diagonal entry (row {} column {}: \
+             {}): write the form the matrix has (Symmetric) or the matrix of the form",
+            r + 1,
+            c + 1,
+            pdcal_text::number(m[r][c])
+        ),
+        (MatrixForm::Scalar, None) if differs(m[0][0], m[1][1]) || differs(m[0][0], m[2][2]) => {
+            bail!(
+                "matrix_form is Scalar but the diagonal holds {}, {}, {}: a scalar form has one \
+                 scale factor",
+                pdcal_text::number(m[0][0]),
+                pdcal_text::number(m[1][1]),
+                pdcal_text::number(m[2][2])
+            )
+        }
+        _ => Ok(()),
+    }
+}
+
 fn check_numbers(file: &MagCalFile) -> Result<()> {
     let values = (file.matrix.iter().flatten())
         .chain(&file.bias_nt)
@@ -487,6 +530,7 @@ fn check_numbers(file: &MagCalFile) -> Result<()> {
             }
         }
     }
+    check_form(file.matrix_form, &file.matrix)?;
     if !(file.noise_sigma_nt.is_finite() && file.noise_sigma_nt > 0.0) {
         bail!(
             "noise_sigma_nT is {}: a noise sigma is a positive number of nT",

@@ -207,7 +207,7 @@ fn a_magcal_file_with_impossible_numbers_is_refused_naming_it() {
     let text = std::fs::read_to_string(out.join("magcal.ron")).unwrap();
     let good: magcal::MagCalFile = ron::from_str(&text).unwrap();
     type Edit = fn(&mut magcal::MagCalFile);
-    let edits: [(&str, Edit); 5] = [
+    let edits: [(&str, Edit); 6] = [
         ("variance", |f| f.covariance[7][7] = f64::NAN),
         ("variance", |f| f.covariance[2][2] = -1e8),
         ("scale factors", |f| {
@@ -215,6 +215,11 @@ fn a_magcal_file_with_impossible_numbers_is_refused_naming_it() {
         }),
         ("hard-iron bias", |f| f.bias_nt = [4.5e6, 0.0, 0.0]),
         ("noise", |f| f.noise_sigma_nt = f64::NAN),
+        ("matrix_form is Diagonal", |f| {
+            f.matrix_form = pdcal_magcal::MatrixForm::Diagonal;
+            f.matrix[0][1] = 0.02;
+            f.matrix[1][0] = 0.02;
+        }),
     ];
     for (i, (what, edit)) in edits.iter().enumerate() {
         let mut file = good.clone();

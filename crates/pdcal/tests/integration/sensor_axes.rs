@@ -56,6 +56,7 @@ fn axes(meta: &DatasetMeta, telemetry: &Telemetry) -> AxesCheck {
         telemetry,
         &(&references).into(),
         &pdcal_filter::FilterConfig::default(),
+        &[],
     )
     .unwrap()
 }
