@@ -423,6 +423,7 @@ impl FilterConfig {
                 "must be in (0, 1]",
             ));
         }
+        self.check_ranges()?;
         self.segments.validate()?;
         self.check_parameter_sigmas()?;
         if let EnsembleRuns::Runs(n) = self.ensemble
@@ -456,6 +457,131 @@ impl FilterConfig {
                     field: field.into(),
                     value: pdcal_text::number(value),
                     rule,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The values beyond which the filter's arithmetic breaks down (a weight of 1e600, a
+    /// covariance of 1e600) long before any sensor or spacecraft is reached: each within a
+    /// range that holds every real one by decades, the field named. The sensor sigmas' floors
+    /// are far below any sensor's quantisation; the sigmas' and walks' ceilings far above a
+    /// tumbling CubeSat's worst.
+    fn check_ranges(&self) -> Result<(), FilterError> {
+        let ranges = [
+            (
+                "photodiode_sigma_v",
+                self.photodiode_sigma_v,
+                1e-9,
+                f64::INFINITY,
+                "V",
+            ),
+            ("mag_sigma_nt", self.mag_sigma_nt, 1e-6, f64::INFINITY, "nT"),
+            (
+                "gyro_sigma_rad_s",
+                self.gyro_sigma_rad_s,
+                1e-12,
+                f64::INFINITY,
+                "rad/s",
+            ),
+            (
+                "initial_bias_sigma_deg_s",
+                Some(self.initial_bias_sigma_deg_s),
+                0.0,
+                1000.0,
+                "deg/s",
+            ),
+            (
+                "initial_rate_sigma_deg_s",
+                Some(self.initial_rate_sigma_deg_s),
+                0.0,
+                1000.0,
+                "deg/s",
+            ),
+            (
+                "gyro_bias_walk_rad_s_sqrt_s",
+                Some(self.gyro_bias_walk_rad_s_sqrt_s),
+                0.0,
+                0.1,
+                "rad/s per sqrt(s)",
+            ),
+            (
+                "initial_normal_sigma_deg",
+                Some(self.initial_normal_sigma_deg),
+                0.0,
+                180.0,
+                "deg",
+            ),
+            (
+                "initial_sun_sigma_deg",
+                Some(self.initial_sun_sigma_deg),
+                0.0,
+                180.0,
+                "deg",
+            ),
+            (
+                "initial_attitude_sigma_floor_deg",
+                Some(self.initial_attitude_sigma_floor_deg),
+                0.0,
+                180.0,
+                "deg",
+            ),
+            (
+                "unobserved_axis_sigma_deg",
+                Some(self.unobserved_axis_sigma_deg),
+                0.0,
+                180.0,
+                "deg",
+            ),
+            (
+                "normal_walk_deg_per_sqrt_h",
+                Some(self.normal_walk_deg_per_sqrt_h),
+                0.0,
+                180.0,
+                "deg per sqrt(h)",
+            ),
+            (
+                "scale_walk_fraction_per_sqrt_h",
+                Some(self.scale_walk_fraction_per_sqrt_h),
+                0.0,
+                10.0,
+                "per sqrt(h)",
+            ),
+            (
+                "initial_scale_sigma_fraction",
+                Some(self.initial_scale_sigma_fraction),
+                0.0,
+                10.0,
+                "of the scale",
+            ),
+            (
+                "albedo_sigma_w_m2",
+                Some(self.albedo_sigma_w_m2),
+                0.0,
+                1.0e4,
+                "W/m^2",
+            ),
+            (
+                "albedo_gain_sigma",
+                Some(self.albedo_gain_sigma),
+                0.0,
+                100.0,
+                "",
+            ),
+        ];
+        for (field, value, low, high, unit) in ranges {
+            let Some(value) = value else { continue };
+            if value < low || value > high {
+                let rule = if high.is_finite() {
+                    format!("must be at most {high:e} {unit}")
+                } else {
+                    format!("must be at least {low:e} {unit}")
+                };
+                return Err(FilterError::ConfigValue {
+                    field: field.into(),
+                    value: pdcal_text::number(value),
+                    rule: rule.trim_end().to_owned(),
                 });
             }
         }

@@ -103,6 +103,30 @@ fn every_count_and_size_of_a_config_is_bounded_and_named() {
             "(gyro_sigma_rad_s: Some(-1.0))".to_owned(),
             "gyro_sigma_rad_s = -1: a 1-sigma noise must be positive".to_owned(),
         ),
+        // Extreme values that ran into the arithmetic ("q-method failed: pair 1: non-finite
+        // weight", "filter state not finite after row 1439") are refused naming the field.
+        (
+            "(mag_sigma_nt: Some(1e-300))".to_owned(),
+            format!(
+                "mag_sigma_nt = {}... (302 bytes): must be at least 1e-6 nT",
+                &1e-300.to_string()[..80]
+            ),
+        ),
+        (
+            "(initial_bias_sigma_deg_s: 1e300)".to_owned(),
+            format!(
+                "initial_bias_sigma_deg_s = {}... (301 bytes): must be at most 1e3 deg/s",
+                &1e300.to_string()[..80]
+            ),
+        ),
+        (
+            "(gyro_bias_walk_rad_s_sqrt_s: 1e300)".to_owned(),
+            format!(
+                "gyro_bias_walk_rad_s_sqrt_s = {}... (301 bytes): must be at most 1e-1 rad/s \
+                 per sqrt(s)",
+                &1e300.to_string()[..80]
+            ),
+        ),
     ];
     for (text, shown) in cases {
         assert_eq!(
