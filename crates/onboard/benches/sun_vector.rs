@@ -11,37 +11,18 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use pdcal_albedo::MapChoice;
+use pdcal_attitude::{RAX2_TABLE1_AZ_EL_DEG, normal_from_az_el};
 use pdcal_onboard::{
     Calibration, EARTH_RADIUS_KM, EarthInput, Options, Photodiode, Real, ReflectivityGrid,
     estimate_sun,
 };
 
-const AZ_EL: [(f64, f64); 17] = [
-    (17.0, -10.0),
-    (0.0, 20.0),
-    (-17.0, -10.0),
-    (-162.0, -10.0),
-    (180.0, 20.0),
-    (162.0, -10.0),
-    (72.0, 10.0),
-    (107.0, 10.0),
-    (90.0, -20.0),
-    (-107.0, 10.0),
-    (-72.0, 10.0),
-    (-90.0, -20.0),
-    (0.0, 90.0),
-    (0.0, 90.0),
-    (0.0, 90.0),
-    (0.0, -90.0),
-    (0.0, -90.0),
-];
-
 fn calibration<T: Real>() -> Calibration<T, 17> {
     Calibration {
         count: 17,
-        photodiodes: AZ_EL.map(|(az, el)| {
-            let (az, el) = (az.to_radians(), el.to_radians());
-            let n = [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()].map(T::of);
+        photodiodes: RAX2_TABLE1_AZ_EL_DEG.map(|(az, el)| {
+            let n: [f64; 3] = normal_from_az_el(az.to_radians(), el.to_radians()).into();
+            let n = n.map(T::of);
             Photodiode::cosine(T::of(3.7), n, T::of(0.015))
         }),
     }

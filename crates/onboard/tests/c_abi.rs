@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
+use pdcal_attitude::{RAX2_TABLE1_AZ_EL_DEG, normal_from_az_el};
 use pdcal_onboard::ffi::{PdcalCalibration, PdcalEarth, PdcalGrid, PdcalSunEstimate};
 use pdcal_onboard::{
     Calibration, EARTH_RADIUS_KM, EarthInput, MAX_PHOTODIODES, Options, Photodiode,
@@ -107,32 +108,9 @@ fn the_header_layouts_are_the_rust_layouts() {
 
 /// RAX-2's photodiodes (paper Table 1), with scales and a few disabled or odd channels.
 fn calibration(rng: &mut StdRng) -> Calibration<f32, 17> {
-    const AZ_EL: [(f32, f32); 17] = [
-        (17.0, -10.0),
-        (0.0, 20.0),
-        (-17.0, -10.0),
-        (-162.0, -10.0),
-        (180.0, 20.0),
-        (162.0, -10.0),
-        (72.0, 10.0),
-        (107.0, 10.0),
-        (90.0, -20.0),
-        (-107.0, 10.0),
-        (-72.0, 10.0),
-        (-90.0, -20.0),
-        (0.0, 90.0),
-        (0.0, 90.0),
-        (0.0, 90.0),
-        (0.0, -90.0),
-        (0.0, -90.0),
-    ];
-    let mut photodiodes = AZ_EL.map(|(az, el)| {
-        let (az, el) = (az.to_radians(), el.to_radians());
-        let mut pd = Photodiode::cosine(
-            rng.random_range(3.5..3.9),
-            [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()],
-            0.015,
-        );
+    let mut photodiodes = RAX2_TABLE1_AZ_EL_DEG.map(|(az, el)| {
+        let n = normal_from_az_el(az.to_radians(), el.to_radians()).map(|x| x as f32);
+        let mut pd = Photodiode::cosine(rng.random_range(3.5..3.9), n.into(), 0.015);
         pd.scale_sigma_v = 0.01;
         pd.normal_sigma_rad = 0.002;
         pd.dark_v = 0.01;

@@ -9,6 +9,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 use pdcal_albedo::{AlbedoIrradiance, AlbedoModel, AlbedoView, MapChoice};
+use pdcal_attitude::{RAX2_TABLE1_AZ_EL_DEG, normal_from_az_el};
 use pdcal_onboard::{
     AlbedoUse, Calibration, EARTH_RADIUS_KM, EarthInput, MAX_PHOTODIODES, Options, Photodiode,
     ReflectivityGrid, Validity, albedo_ratios, estimate_sun,
@@ -17,39 +18,17 @@ use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, Normal, UnitSphere};
 
-/// RAX-2's 17 photodiodes (paper Table 1), azimuth and elevation in degrees.
-const RAX2_AZ_EL: [(f64, f64); 17] = [
-    (17.0, -10.0),
-    (0.0, 20.0),
-    (-17.0, -10.0),
-    (-162.0, -10.0),
-    (180.0, 20.0),
-    (162.0, -10.0),
-    (72.0, 10.0),
-    (107.0, 10.0),
-    (90.0, -20.0),
-    (-107.0, 10.0),
-    (-72.0, 10.0),
-    (-90.0, -20.0),
-    (0.0, 90.0),
-    (0.0, 90.0),
-    (0.0, 90.0),
-    (0.0, -90.0),
-    (0.0, -90.0),
-];
-
 const SCALE_V: f64 = 3.7;
 const NOISE_V: f64 = 0.015;
 
 fn normal(az_deg: f64, el_deg: f64) -> [f64; 3] {
-    let (az, el) = (az_deg.to_radians(), el_deg.to_radians());
-    [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()]
+    normal_from_az_el(az_deg.to_radians(), el_deg.to_radians()).into()
 }
 
 fn rax2() -> Calibration<f64, 17> {
     Calibration {
         count: 17,
-        photodiodes: RAX2_AZ_EL
+        photodiodes: RAX2_TABLE1_AZ_EL_DEG
             .map(|(az, el)| Photodiode::cosine(SCALE_V, normal(az, el), NOISE_V)),
     }
 }
