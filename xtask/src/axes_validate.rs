@@ -8,7 +8,6 @@ use std::fmt::Write;
 use anyhow::{Context, Result};
 use nalgebra::Matrix3;
 use pdcal::sim_calibrate::{Cut, simulate_set};
-use pdcal_attitude::{az_el_from_normal, normal_from_az_el};
 use pdcal_axes::{AxesCheck, Sensor, signed_permutations};
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use rayon::prelude::*;
@@ -178,24 +177,6 @@ fn recorded(
     m: &Matrix3<f64>,
 ) -> (DatasetMeta, Telemetry) {
     let (mut meta, mut telemetry) = (meta.clone(), telemetry.clone());
-    let to_sensor = m.transpose();
-    match sensor {
-        Sensor::Gyro => telemetry.gyro_rad_s.map_in_place(|v| to_sensor * v),
-        Sensor::Magnetometer => {
-            if let Some(mag) = telemetry.mag_nt.as_mut() {
-                mag.map_in_place(|v| to_sensor * v);
-            }
-        }
-        Sensor::Photodiodes => {
-            for mount in &mut meta.photodiodes {
-                let n = normal_from_az_el(
-                    mount.azimuth_deg.to_radians(),
-                    mount.elevation_deg.to_radians(),
-                );
-                let (az, el) = az_el_from_normal(&(to_sensor * n));
-                (mount.azimuth_deg, mount.elevation_deg) = (az.to_degrees(), el.to_degrees());
-            }
-        }
-    }
+    pdcal::axes::transform(sensor, &m.transpose(), &mut meta, &mut telemetry);
     (meta, telemetry)
 }

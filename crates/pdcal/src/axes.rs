@@ -136,11 +136,20 @@ fn combine(mut results: Vec<AxesCheck>) -> AxesCheck {
 /// Applies a finding to the data: a gyro's or magnetometer's samples are turned into the
 /// body frame (`v_body = M v_sensor`), a photodiode table's normals likewise.
 pub fn apply(result: &AxesCheck, meta: &mut DatasetMeta, telemetry: &mut Telemetry) {
-    let Some(finding) = &result.finding else {
-        return;
-    };
-    let m = finding.matrix();
-    match finding.sensor {
+    if let Some(finding) = &result.finding {
+        transform(finding.sensor, &finding.matrix(), meta, telemetry);
+    }
+}
+
+/// Turns `sensor`'s vectors in the data by `m` (`v -> m v`): [`apply`] with a finding's
+/// matrix; with its transpose, the data as a sensor of those axes records them.
+pub fn transform(
+    sensor: Sensor,
+    m: &Matrix3<f64>,
+    meta: &mut DatasetMeta,
+    telemetry: &mut Telemetry,
+) {
+    match sensor {
         Sensor::Gyro => telemetry.gyro_rad_s.map_in_place(|v| m * v),
         Sensor::Magnetometer => {
             if let Some(mag) = telemetry.mag_nt.as_mut() {

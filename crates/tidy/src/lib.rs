@@ -145,7 +145,6 @@ pub const PDCAL: Rules = Rules {
                 "pdcal-effects",
                 "pdcal-ephem",
                 "pdcal-axes",
-                "pdcal-attitude",
                 "pdcal-onboard",
                 "pdcal-dataset",
                 "pdcal-import",

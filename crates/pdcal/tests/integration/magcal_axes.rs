@@ -6,7 +6,7 @@
 use std::sync::OnceLock;
 
 use nalgebra::Matrix3;
-use pdcal_attitude::{az_el_from_normal, normal_from_az_el};
+use pdcal_axes::Sensor;
 use pdcal_sim::SimOutput;
 
 fn sim() -> &'static SimOutput {
@@ -19,40 +19,20 @@ fn sim() -> &'static SimOutput {
     })
 }
 
-#[derive(Clone, Copy)]
-enum Fault {
-    Gyro,
-    Magnetometer,
-    Table,
-}
-
 fn m(rows: [[f64; 3]; 3]) -> Matrix3<f64> {
     Matrix3::from_row_slice(&rows.concat())
 }
 
-/// magcal on the set with `fault`'s sensor recorded in axes `body_from_sensor`.
-fn magcal(fault: Option<(Fault, Matrix3<f64>)>) -> pdcal::magcal::MagCalOutcome {
+/// magcal on the set with `sensor` recorded in axes `body_from_sensor`.
+fn magcal(fault: Option<(Sensor, Matrix3<f64>)>) -> pdcal::magcal::MagCalOutcome {
     let (mut meta, mut telemetry) = (sim().meta.clone(), sim().telemetry.clone());
-    if let Some((fault, body_from_sensor)) = fault {
-        let to_sensor = body_from_sensor.transpose();
-        match fault {
-            Fault::Gyro => telemetry.gyro_rad_s.map_in_place(|v| to_sensor * v),
-            Fault::Magnetometer => telemetry
-                .mag_nt
-                .as_mut()
-                .unwrap()
-                .map_in_place(|v| to_sensor * v),
-            Fault::Table => {
-                for mount in &mut meta.photodiodes {
-                    let n = normal_from_az_el(
-                        mount.azimuth_deg.to_radians(),
-                        mount.elevation_deg.to_radians(),
-                    );
-                    let (az, el) = az_el_from_normal(&(to_sensor * n));
-                    (mount.azimuth_deg, mount.elevation_deg) = (az.to_degrees(), el.to_degrees());
-                }
-            }
-        }
+    if let Some((sensor, body_from_sensor)) = fault {
+        pdcal::axes::transform(
+            sensor,
+            &body_from_sensor.transpose(),
+            &mut meta,
+            &mut telemetry,
+        );
     }
     pdcal::magcal::run(&meta, &telemetry).unwrap()
 }
@@ -63,27 +43,27 @@ fn magcal_names_each_sensors_wrong_axes_and_not_the_clean_ones() {
     assert_eq!(clean.axes.finding, None, "{:?}", clean.axes);
     let cases = [
         (
-            Fault::Magnetometer,
+            Sensor::Magnetometer,
             "magnetometer",
             m([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]]),
         ),
         (
-            Fault::Magnetometer,
+            Sensor::Magnetometer,
             "magnetometer",
             m([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]),
         ),
         (
-            Fault::Gyro,
+            Sensor::Gyro,
             "gyro",
             m([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
         ),
         (
-            Fault::Table,
+            Sensor::Photodiodes,
             "photodiodes",
             m([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]),
         ),
         (
-            Fault::Table,
+            Sensor::Photodiodes,
             "photodiodes",
             m([[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]),
         ),

@@ -7,7 +7,6 @@ use std::sync::OnceLock;
 
 use nalgebra::{Matrix3, Vector3};
 use pdcal::calibrate::{RunConfig, albedo_model};
-use pdcal_attitude::{az_el_from_normal, normal_from_az_el};
 use pdcal_axes::{AxesCheck, Sensor};
 use pdcal_dataset::{DatasetMeta, Telemetry};
 use pdcal_sim::SimOutput;
@@ -27,25 +26,7 @@ fn recorded(sensor: Sensor, m: &Matrix3<f64>, photodiode_only: bool) -> (Dataset
     if photodiode_only {
         telemetry.mag_nt = None;
     }
-    let to_sensor = m.transpose();
-    match sensor {
-        Sensor::Gyro => telemetry.gyro_rad_s.map_in_place(|v| to_sensor * v),
-        Sensor::Magnetometer => {
-            if let Some(mag) = telemetry.mag_nt.as_mut() {
-                mag.map_in_place(|v| to_sensor * v);
-            }
-        }
-        Sensor::Photodiodes => {
-            for mount in &mut meta.photodiodes {
-                let n = normal_from_az_el(
-                    mount.azimuth_deg.to_radians(),
-                    mount.elevation_deg.to_radians(),
-                );
-                let (az, el) = az_el_from_normal(&(to_sensor * n));
-                (mount.azimuth_deg, mount.elevation_deg) = (az.to_degrees(), el.to_degrees());
-            }
-        }
-    }
+    pdcal::axes::transform(sensor, &m.transpose(), &mut meta, &mut telemetry);
     (meta, telemetry)
 }
 
